@@ -1,0 +1,83 @@
+"""akarm: trajectory control for robot arms built from CubeMars AK actuators.
+
+Describe the arm in a URDF and a YAML file, then::
+
+    import akarm
+    arm = akarm.Arm.from_yaml("robots/arm6.yaml")
+    with arm:
+        arm.enable()
+        arm.move_to("home")
+
+SI units (rad, rad/s, N·m, s) at every public interface. Every error akarm raises on purpose is an
+:class:`akarm.AkarmError`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from ._version import __version__
+from .errors import (
+    AkarmError,
+    BusError,
+    ConfigError,
+    ConfigProblem,
+    FeedbackTimeout,
+    FrameError,
+    LimitError,
+    ModelError,
+    MotorFault,
+    OverTemperature,
+    ProtocolError,
+    RecordingError,
+    SafetyStop,
+    StateError,
+    TrajectoryError,
+    UnknownMotorError,
+)
+
+if TYPE_CHECKING:
+    from .arm import Arm
+    from .config import RobotConfig
+    from .config_loader import load_robot
+
+__all__ = [
+    "AkarmError",
+    "Arm",
+    "BusError",
+    "ConfigError",
+    "ConfigProblem",
+    "FeedbackTimeout",
+    "FrameError",
+    "LimitError",
+    "ModelError",
+    "MotorFault",
+    "OverTemperature",
+    "ProtocolError",
+    "RecordingError",
+    "RobotConfig",
+    "SafetyStop",
+    "StateError",
+    "TrajectoryError",
+    "UnknownMotorError",
+    "__version__",
+    "load_robot",
+]
+
+# Heavy parts (Pinocchio, ruckig, python-can) load on first use, so `import akarm` and the codecs stay light.
+_LAZY = {
+    "Arm": ("akarm.arm", "Arm"),
+    "RobotConfig": ("akarm.config", "RobotConfig"),
+    "load_robot": ("akarm.config_loader", "load_robot"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        value = getattr(importlib.import_module(module), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'akarm' has no attribute {name!r}")

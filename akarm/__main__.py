@@ -1,0 +1,5 @@
+import sys
+
+from akarm.cli import main
+
+sys.exit(main())

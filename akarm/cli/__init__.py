@@ -1,0 +1,68 @@
+"""The ``akarm`` command line: a thin user of the public API.
+
+Each verb lives in its own module ``akarm.cli.<verb>`` with ``add_arguments(parser)`` and
+``run(args) -> int``; modules import heavy libraries inside ``run`` so ``akarm --help`` is fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+
+from .._version import __version__
+from ..errors import AkarmError
+
+#: verb → (module, one-line description). Verbs whose module is not there yet are not offered.
+VERBS: dict[str, tuple[str, str]] = {
+    "demo": ("akarm.cli.demo", "run a scripted session on a simulated arm6 (no hardware needed)"),
+    "check": ("akarm.cli.check", "validate a robot YAML; print its joints, bus load and rate ceiling"),
+    "sim": ("akarm.cli.sim", "simulate a robot's AK drivers on a CAN bus until Ctrl-C"),
+    "scan": ("akarm.cli.scan", "list the CAN IDs that answer on a bus, and in which mode"),
+    "status": ("akarm.cli.status", "print each joint's position, velocity, torque, temperature, fault"),
+    "enable": ("akarm.cli.enable", "enable the arm (no kick) and hold it where it is"),
+    "disable": ("akarm.cli.disable", "damp and disable every joint"),
+    "zero": ("akarm.cli.zero", "make a joint's current position its zero"),
+    "move": ("akarm.cli.move", "move to a named pose or to joint values"),
+    "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
+    "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
+    "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
+    "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
+}
+
+
+def _available() -> dict[str, tuple[str, str]]:
+    return {v: spec for v, spec in VERBS.items() if importlib.util.find_spec(spec[0]) is not None}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="akarm",
+        description="Trajectory control for robot arms built from CubeMars AK actuators.",
+    )
+    parser.add_argument("--version", action="version", version=f"akarm {__version__}")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB")
+    for verb, (module, help_text) in _available().items():
+        p = sub.add_parser(verb, help=help_text, description=help_text)
+        importlib.import_module(module).add_arguments(p)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``akarm`` command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.verb is None:
+        parser.print_help()
+        return 0
+    module = importlib.import_module(VERBS[args.verb][0])
+    try:
+        return int(module.run(args) or 0)
+    except AkarmError as e:
+        print(f"akarm {args.verb}: error: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"akarm {args.verb}: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,92 @@
+"""Clocks: the wall clock for hardware, and a stepped clock for lock-step simulation.
+
+The control loop never calls ``time`` directly; it asks its :class:`Clock` for ``now()`` and to
+``sleep_until(deadline)``. With a :class:`RealClock` that sleeps (then spins the last stretch). With
+a :class:`SteppedClock` sleeping *is* simulating: every participant attached to the clock (the
+simulator) is advanced to the deadline first, so the controller and the simulated arm run in lock
+step, as fast as the CPU allows, and identically on a loaded machine.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+__all__ = ["Clock", "RealClock", "SteppedClock"]
+
+
+class Clock(Protocol):
+    """What the control loop needs of time. Seconds, monotonic."""
+
+    #: True when time only advances through :meth:`sleep_until` (lock-step simulation).
+    stepped: bool
+
+    def now(self) -> float:
+        """The current time, s."""
+        ...
+
+    def sleep_until(self, t: float) -> None:
+        """Return at (or just after) time ``t``, s. Returns at once if ``t`` has passed."""
+        ...
+
+
+class RealClock:
+    """Wall-clock time (``perf_counter``): sleeps to ``spin`` seconds before a deadline, then spins.
+
+    Sleeping to an absolute deadline does not drift; the final spin removes the ~0.1 ms timer slack
+    of ``time.sleep`` at the cost of that much CPU per cycle.
+    """
+
+    stepped = False
+
+    def __init__(self, spin: float = 200e-6) -> None:
+        self.spin = spin
+
+    def now(self) -> float:
+        return time.perf_counter()
+
+    def sleep_until(self, t: float) -> None:
+        remaining = t - time.perf_counter()
+        if remaining > self.spin:
+            time.sleep(remaining - self.spin)
+        while time.perf_counter() < t:
+            pass
+
+
+class SteppedClock:
+    """Simulated time that advances only when someone sleeps.
+
+    ``sleep_until(t)`` first calls every attached stepper with ``t`` (each advances its own state to
+    time ``t``: the simulator integrates its plant and answers the frames it has received), then
+    sets the time to ``t``.
+    """
+
+    stepped = True
+
+    def __init__(self, start: float = 0.0) -> None:
+        self._t = start
+        self._steppers: list[Callable[[float], None]] = []
+
+    def attach(self, stepper: Callable[[float], None]) -> None:
+        """Call ``stepper(t)`` whenever the clock advances to ``t``."""
+        self._steppers.append(stepper)
+
+    def detach(self, stepper: Callable[[float], None]) -> None:
+        """Stop calling ``stepper``."""
+        if stepper in self._steppers:
+            self._steppers.remove(stepper)
+
+    def now(self) -> float:
+        return self._t
+
+    def sleep_until(self, t: float) -> None:
+        if t <= self._t:
+            return
+        for stepper in list(self._steppers):
+            stepper(t)
+        self._t = t
+
+    def sleep(self, dt: float) -> None:
+        """Advance by ``dt`` seconds."""
+        self.sleep_until(self._t + dt)

@@ -1,0 +1,206 @@
+"""The exceptions akarm raises.
+
+Every error is an :class:`AkarmError` and says three things: which joint (where one is concerned),
+what went wrong, and what to do about it. Catch :class:`AkarmError` to catch everything akarm
+raises on purpose; anything else escaping akarm is a bug.
+
+::
+
+    AkarmError
+    ├── ProtocolError          a value or frame the wire protocol cannot carry
+    │   └── FrameError         a received frame that is corrupt (CRC, length, end byte, ID)
+    ├── UnknownMotorError      a motor model not in the catalogue
+    ├── ConfigError            a robot YAML with problems (carries every one of them)
+    ├── ModelError             a URDF Pinocchio cannot use
+    ├── BusError               a CAN bus that cannot be opened or written
+    ├── StateError             an Arm call that does not fit its state (move before enable, ...)
+    ├── LimitError             a target or a planned path past a joint limit
+    ├── TrajectoryError        ruckig could not plan the motion
+    ├── RecordingError         a teach/replay file that is corrupt or cannot be written
+    └── SafetyStop             the arm was stopped (damped, then disabled) for safety
+        ├── MotorFault         a motor reported an error code
+        ├── FeedbackTimeout    a joint's feedback became too old
+        └── OverTemperature    a joint passed its temperature limit
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "AkarmError",
+    "BusError",
+    "ConfigError",
+    "ConfigProblem",
+    "FeedbackTimeout",
+    "FrameError",
+    "LimitError",
+    "ModelError",
+    "MotorFault",
+    "OverTemperature",
+    "ProtocolError",
+    "RecordingError",
+    "SafetyStop",
+    "StateError",
+    "TrajectoryError",
+    "UnknownMotorError",
+]
+
+
+class AkarmError(Exception):
+    """Base of every error akarm raises.
+
+    Attributes:
+        what: what went wrong, one sentence.
+        joint: the joint concerned, or ``None``.
+        fix: what the user can do about it, or ``""``.
+    """
+
+    def __init__(self, what: str, *, joint: str | None = None, fix: str = "") -> None:
+        self.what = what
+        self.joint = joint
+        self.fix = fix
+        super().__init__(self._render())
+
+    def _render(self) -> str:
+        text = f"joint {self.joint!r}: {self.what}" if self.joint else self.what
+        if self.fix:
+            text = f"{text} (fix: {self.fix})"
+        return text
+
+
+class ProtocolError(AkarmError, ValueError):
+    """A value that cannot be encoded, or bytes that are not a frame of the expected kind."""
+
+
+class FrameError(ProtocolError):
+    """A received frame is corrupt: bad CRC, wrong length, missing end byte, wrong ID.
+
+    Attributes:
+        data: the offending bytes (as much of them as is known).
+    """
+
+    def __init__(self, what: str, *, data: bytes = b"", joint: str | None = None, fix: str = "") -> None:
+        self.data = bytes(data)
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class UnknownMotorError(AkarmError, KeyError):
+    """A motor model name that is not in the catalogue.
+
+    Attributes:
+        name: the name asked for.
+        known: the names the catalogue has.
+    """
+
+    def __init__(self, name: str, known: list[str]) -> None:
+        self.name = name
+        self.known = sorted(known)
+        super().__init__(
+            f"unknown motor model {name!r}",
+            fix="use one of " + ", ".join(self.known) + ", or define it under `motors:` in the robot YAML",
+        )
+
+    def __str__(self) -> str:  # KeyError would otherwise quote the message
+        return self._render()
+
+
+@dataclass(frozen=True)
+class ConfigProblem:
+    """One problem in a robot configuration.
+
+    Attributes:
+        file: the file it is in.
+        line: 1-based line number, or ``None`` when no line applies (a URDF joint left out, ...).
+        message: what is wrong.
+        fix: what to change.
+    """
+
+    file: str
+    line: int | None
+    message: str
+    fix: str = ""
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}" if self.line is not None else self.file
+        text = f"{where}: {self.message}"
+        if self.fix:
+            text = f"{text} (fix: {self.fix})"
+        return text
+
+
+class ConfigError(AkarmError):
+    """A robot configuration with problems; ``problems`` lists every one found in one pass."""
+
+    def __init__(self, problems: list[ConfigProblem]) -> None:
+        self.problems = list(problems)
+        n = len(self.problems)
+        head = f"{n} problem{'s' if n != 1 else ''} in the robot configuration"
+        super().__init__(head + ":\n" + "\n".join(f"  {p}" for p in self.problems))
+
+    def _render(self) -> str:
+        return self.what
+
+
+class ModelError(AkarmError):
+    """The URDF cannot be turned into a dynamics model, or a frame/joint is not in it."""
+
+
+class BusError(AkarmError):
+    """A CAN bus cannot be opened, or a frame cannot be sent on it."""
+
+
+class StateError(AkarmError):
+    """An :class:`~akarm.Arm` call that does not fit the arm's state (e.g. move before enable)."""
+
+
+class LimitError(AkarmError):
+    """A target, or a position the planned trajectory passes through, is past a joint limit."""
+
+
+class TrajectoryError(AkarmError):
+    """ruckig could not plan the requested motion."""
+
+
+class RecordingError(AkarmError):
+    """A teach/replay recording that is corrupt, truncated, or cannot be written."""
+
+
+class SafetyStop(AkarmError):
+    """The arm was brought to a safe stop (damping, then exit) and is disabled."""
+
+
+class MotorFault(SafetyStop):
+    """A motor reported an error code.
+
+    Attributes:
+        code: the numeric error code from the motor.
+    """
+
+    def __init__(self, what: str, *, code: int, joint: str | None = None, fix: str = "") -> None:
+        self.code = code
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class FeedbackTimeout(SafetyStop):
+    """A joint's most recent feedback is older than the configured limit.
+
+    Attributes:
+        age: the feedback age in s when the stop was triggered.
+    """
+
+    def __init__(self, what: str, *, age: float, joint: str | None = None, fix: str = "") -> None:
+        self.age = age
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class OverTemperature(SafetyStop):
+    """A joint's reported temperature passed the configured limit.
+
+    Attributes:
+        temperature: the reported temperature in °C.
+    """
+
+    def __init__(self, what: str, *, temperature: float, joint: str | None = None, fix: str = "") -> None:
+        self.temperature = temperature
+        super().__init__(what, joint=joint, fix=fix)

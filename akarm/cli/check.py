@@ -1,0 +1,109 @@
+"""``akarm check ROBOT.yaml``: validate a robot file; print its joints, bus load and rate ceiling.
+
+Exit code 0 when the file is valid (warnings included), 1 with every problem listed otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import TextIO
+
+from .common import add_robot_arguments, load_from_args
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_robot_arguments(parser)
+    parser.add_argument("-r", "--rate", type=float, metavar="HZ",
+                        help="check the bus load at this loop rate instead of the file's rate_hz")
+
+
+def _table(rows: list[list[str]], out: TextIO) -> None:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for k, row in enumerate(rows):
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip(), file=out)
+        if k == 0:
+            print("  " + "  ".join("-" * w for w in widths), file=out)
+
+
+def _hz(x: float) -> str:
+    return "unlimited" if math.isinf(x) else f"{math.floor(x)} Hz"
+
+
+def report(config: object, out: TextIO = sys.stdout) -> list[str]:
+    """Print the arm's table and bus load to ``out``; return the warnings printed."""
+    from ..busload import LOAD_LIMIT, bus_loads
+    from ..config import RobotConfig
+
+    assert isinstance(config, RobotConfig)
+    print(f"robot {config.name!r}: {len(config.joints)} joints, URDF {config.urdf}", file=out)
+    extras = [f"loop {config.rate_hz:g} Hz", f"gravity {tuple(config.gravity)} m/s²"]
+    if config.tool_frame:
+        extras.append(f"tool frame {config.tool_frame}")
+    if config.payload:
+        extras.append(f"payload {config.payload.mass:g} kg at {config.payload.com}")
+    print("  " + ", ".join(extras), file=out)
+    print(file=out)
+    rows = [["joint", "motor", "mode", "bus/ID", "position (rad)", "vel/acc/jerk (rad/s, /s², /s³)",
+             "torque (N·m)", "kp/kd"]]
+    for j in config.joints:
+        lim = j.limits
+        mode = f"{j.mode} {j.firmware}" if j.mode == "mit" else f"servo {j.status_rate_hz:g}Hz"
+        gains = f"{j.gains.kp:g}/{j.gains.kd:g}" if j.mode == "mit" else "-"
+        sign = "" if j.direction == 1 else " dir -1"
+        offs = f" off {j.offset:g}" if j.offset else ""
+        rows.append([j.name, j.motor.name + sign + offs, mode, f"{j.bus}/{j.can_id}",
+                     f"[{lim.lower:+.3f}, {lim.upper:+.3f}]", f"{lim.velocity:g} / {lim.acceleration:g} / {lim.jerk:g}",
+                     f"{lim.torque:g} of {j.motor.t_max:g}", gains])
+    _table(rows, out)
+    if config.poses:
+        print(file=out)
+        print("poses: " + ", ".join(config.poses), file=out)
+    print(file=out)
+    print(f"bus load at {config.rate_hz:g} Hz (worst-case bit stuffing; nominal in brackets), "
+          f"limit {100 * LOAD_LIMIT:.0f} %:", file=out)
+    warnings = []
+    rows = [["bus", "channel", "joints", "load", "max rate (worst case)", "max rate (nominal)"]]
+    for name, load in bus_loads(config).items():
+        bus = config.buses[name]
+        rows.append([name, f"{bus.interface}:{bus.channel} @ {bus.bitrate // 1000} kbit/s", str(len(load.joints)),
+                     f"{load.percent:.1f} % ({load.percent_nominal:.1f} %)", _hz(load.max_rate_hz),
+                     _hz(load.max_rate_hz_nominal)])
+        if load.worst_case_over_limit:
+            warnings.append(f"bus {name!r}: worst-case load {load.percent:.0f} % is over {100 * LOAD_LIMIT:.0f} % "
+                            f"(nominal {load.percent_nominal:.0f} %); below {math.floor(load.max_rate_hz)} Hz "
+                            "the bus stays under the limit even with maximal bit stuffing")
+    _table(rows, out)
+    for w in warnings:
+        print(f"warning: {w}", file=out)
+    return warnings
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..config_loader import load_robot
+    from ..errors import ConfigError
+
+    try:
+        if args.rate is not None:
+            from dataclasses import replace
+
+            config = load_robot(args.robot, rate_hz=args.rate)
+            base = load_from_args(args)
+            config = replace(base, rate_hz=config.rate_hz)
+        else:
+            config = load_from_args(args)
+    except ConfigError as e:
+        n = len(e.problems)
+        print(f"{args.robot}: {n} problem{'s' if n != 1 else ''}:", file=sys.stderr)
+        for p in e.problems:
+            where = f"line {p.line}" if p.line is not None else "(no line)"
+            if p.file != str(args.robot):
+                where = f"{p.file}:{where}"
+            print(f"  {where}: {p.message}", file=sys.stderr)
+            if p.fix:
+                print(f"      fix: {p.fix}", file=sys.stderr)
+        return 1
+    report(config)
+    print(f"\n{args.robot}: OK")
+    return 0

@@ -1,0 +1,818 @@
+"""Robot YAML → :class:`~akarm.config.RobotConfig`, validated in one pass.
+
+A robot is described once, in a YAML file next to its URDF::
+
+    name: arm6
+    urdf: arm6.urdf                 # relative to this file
+    tool_frame: tool0               # optional: frame for Cartesian queries and the payload
+    gravity: [0.0, 0.0, -9.81]      # optional, m/s² in the URDF base frame (wall/ceiling mounts)
+    payload: {mass: 0.5, com: [0.0, 0.0, 0.04]}   # optional: kg, m in the tool frame
+    rate_hz: 500                    # control loop rate, Hz (default 500)
+    buses:                          # optional: one bus `arm` on socketcan can0 at 1 Mbit/s if left out
+      arm: {interface: socketcan, channel: can0, bitrate: 1000000}
+    poses:                          # optional named poses, rad, config order
+      home: [0, 0, 0, 0, 0, 0]
+    motors:                         # optional: add/override catalogue models for this robot
+      AK80-9: {v_max: 25.64}
+    defaults:                       # optional: any joint key but name/can_id, shared by all joints;
+      limits: {velocity: 3.0, acceleration: 15.0, jerk: 150.0}   # limits/gains merge key by key
+      gains: {kp: 60.0, kd: 2.0}
+    joints:
+      - name: shoulder_pan          # URDF joint name (revolute or continuous)
+        bus: arm                    # may be left out when there is one bus
+        can_id: 1                   # 1-127
+        motor: AK80-9
+        mode: mit                   # mit (default) | servo
+        firmware: v2                # v2 | v3, default: the motor entry's
+        direction: 1                # joint = direction * motor + offset
+        offset: 0.0                 # rad
+        limits: {lower: -1.5, upper: 1.5, velocity: 3.0, acceleration: 15.0, jerk: 150.0, torque: 10.0}
+        gains: {kp: 60.0, kd: 2.0}  # required for MIT joints
+        # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout
+
+Rules the loader applies:
+
+- Position limits come from the URDF; ``lower``/``upper`` under ``limits`` may only narrow them.
+  A **continuous** URDF joint has none, so its YAML must give both ``lower`` and ``upper``
+  (the MIT position field wraps at ±p_max, so an unbounded range cannot be tracked).
+- MIT joints: the position range, seen from the motor (``motor = (joint - offset) * direction``),
+  must lie within ±p_max. Servo joints: within the status frame's ±3276.7° (at the output, or at
+  the rotor for ``servo_position: rotor`` models).
+- ``velocity``, ``acceleration`` and ``jerk`` are required and positive; velocity at most the motor's
+  v_max. ``torque`` defaults to and may not exceed the motor's t_max.
+- Bus load: rejected when the nominal load of a bus exceeds 80 % at ``rate_hz`` (see
+  :mod:`akarm.busload`).
+
+Every problem found is collected, with its file, 1-based line and a fix, and raised together as one
+:class:`~akarm.ConfigError`; YAML syntax errors and URDF parse errors become problems too.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .busload import LOAD_LIMIT, load_of
+from .config import BusConfig, Gains, JointConfig, Limits, Payload, RobotConfig
+from .errors import ConfigError, ConfigProblem
+from .motors import Catalogue, MotorModel, default_catalogue, did_you_mean
+
+__all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joints"]
+
+TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
+            "defaults", "joints")
+JOINT_KEYS = ("name", "bus", "can_id", "motor", "mode", "firmware", "direction", "offset", "limits", "gains",
+              "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout")
+DEFAULT_KEYS = tuple(k for k in JOINT_KEYS if k not in ("name", "can_id"))
+LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk", "torque")
+GAIN_KEYS = ("kp", "kd")
+BUS_KEYS = ("interface", "channel", "bitrate")
+PAYLOAD_KEYS = ("mass", "com")
+DEFAULT_BUS = "arm"
+#: Servo status frames carry position as int16 × 0.1°.
+SERVO_POSITION_RANGE = math.radians(3276.7)
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """A joint as the URDF declares it: type and position limits (rad; ``None`` when absent)."""
+
+    name: str
+    type: str
+    lower: float | None
+    upper: float | None
+
+
+def read_urdf_joints(path: Path) -> tuple[dict[str, UrdfJoint], set[str]]:
+    """Joints (by name, in file order) and link names of a URDF, read with the standard XML parser.
+
+    Raises:
+        ValueError: the file is not XML or not a URDF ``<robot>``; the message says where.
+        OSError: the file cannot be read.
+    """
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        line = e.position[0] if getattr(e, "position", None) else None
+        raise ValueError(f"not well-formed XML (URDF line {line}): {e}") from None
+    if root.tag != "robot":
+        raise ValueError(f"the root element is <{root.tag}>, not <robot>")
+    joints: dict[str, UrdfJoint] = {}
+    for el in root.iter("joint"):
+        name, jtype = el.get("name"), el.get("type")
+        if name is None or jtype is None:
+            raise ValueError("a <joint> lacks its name or type attribute")
+        lim = el.find("limit")
+        lower = upper = None
+        if lim is not None and jtype in ("revolute", "prismatic"):
+            try:
+                lower = float(lim.get("lower", "0"))
+                upper = float(lim.get("upper", "0"))
+            except ValueError:
+                raise ValueError(f"joint {name!r}: <limit> lower/upper are not numbers") from None
+        joints[name] = UrdfJoint(name, jtype, lower, upper)
+    links = {el.get("name", "") for el in root.iter("link")}
+    return joints, links
+
+
+def _check_pinocchio(path: Path) -> str | None:
+    """None when Pinocchio builds a model from the URDF, else its complaint."""
+    try:
+        import pinocchio as pin
+
+        pin.buildModelFromUrdf(str(path))
+    except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
+        return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    return None
+
+
+# --------------------------------------------------------------------------- YAML with line numbers
+
+def _line(node: yaml.Node | None) -> int | None:
+    return None if node is None else node.start_mark.line + 1
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+class _Reader:
+    """Walks a composed YAML node tree, collecting problems with line numbers."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+        self.problems: list[ConfigProblem] = []
+        self._ctor = yaml.SafeLoader("")
+
+    def add(self, at: yaml.Node | int | None, message: str, fix: str = "") -> None:
+        line = at if isinstance(at, int) or at is None else _line(at)
+        self.problems.append(ConfigProblem(self.file, line, message, fix))
+
+    def plain(self, node: yaml.Node) -> Any:
+        try:
+            return self._ctor.construct_object(node, deep=True)
+        except yaml.YAMLError as e:
+            self.add(node, f"cannot read this value: {getattr(e, 'problem', e)}", "write a plain YAML value")
+            return None
+
+    def mapping(self, node: yaml.Node, what: str, allowed: tuple[str, ...]) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+        """Key → (key node, value node); reports non-mappings, unknown and duplicate keys."""
+        if not isinstance(node, yaml.MappingNode):
+            self.add(node, f"{what} must be a mapping (key: value lines), got {self._kind(node)}",
+                     "write `key: value` lines, or {key: value, ...}")
+            return {}
+        out: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        for knode, vnode in node.value:
+            key = self.plain(knode)
+            if not isinstance(key, str):
+                self.add(knode, f"{what}: key {key!r} is not a name", "keys are names such as " + allowed[0])
+                continue
+            if key in out:
+                self.add(knode, f"{what}: {key!r} is given twice (first on line {_line(out[key][0])})",
+                         "remove one of them")
+                continue
+            if allowed and key not in allowed:
+                self.add(knode, f"{what}: unknown key {key!r}{did_you_mean(key, allowed)}",
+                         "known keys: " + ", ".join(allowed))
+                continue
+            out[key] = (knode, vnode)
+        return out
+
+    def free_mapping(self, node: yaml.Node, what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+        """A mapping with user-chosen keys (bus names, pose names, motor names)."""
+        return self.mapping(node, what, ())
+
+    @staticmethod
+    def _kind(node: yaml.Node) -> str:
+        if isinstance(node, yaml.MappingNode):
+            return "a mapping"
+        if isinstance(node, yaml.SequenceNode):
+            return "a list"
+        return f"{node.value!r}" if node.value != "" else "nothing"
+
+    def number(self, node: yaml.Node, what: str, *, positive: bool = False, minimum: float | None = None,
+               maximum: float | None = None, fix: str = "") -> float | None:
+        v = self.plain(node) if isinstance(node, yaml.ScalarNode) else node
+        if not _is_number(v) or (isinstance(v, float) and not math.isfinite(v)):
+            self.add(node, f"{what} must be a number, got {self._kind(node)}", fix or "write a number")
+            return None
+        v = float(v)
+        if positive and not v > 0:
+            self.add(node, f"{what} must be positive, got {v:g}", fix or "give a value above 0")
+            return None
+        if (minimum is not None and v < minimum) or (maximum is not None and v > maximum):
+            lo = "" if minimum is None else f"{minimum:g}"
+            hi = "" if maximum is None else f"{maximum:g}"
+            self.add(node, f"{what} must be within {lo}..{hi}, got {v:g}", fix or f"give a value in {lo}..{hi}")
+            return None
+        return v
+
+    def integer(self, node: yaml.Node, what: str, minimum: int, maximum: int, fix: str = "") -> int | None:
+        v = self.plain(node) if isinstance(node, yaml.ScalarNode) else node
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.add(node, f"{what} must be a whole number, got {self._kind(node)}",
+                     fix or f"write a whole number in {minimum}..{maximum}")
+            return None
+        if not minimum <= v <= maximum:
+            self.add(node, f"{what} must be within {minimum}..{maximum}, got {v}",
+                     fix or f"give a value in {minimum}..{maximum}")
+            return None
+        return v
+
+    def string(self, node: yaml.Node, what: str, fix: str = "") -> str | None:
+        v = self.plain(node) if isinstance(node, yaml.ScalarNode) else None
+        if not isinstance(v, str) or not v:
+            self.add(node, f"{what} must be a name, got {self._kind(node)}", fix or "write a name")
+            return None
+        return v
+
+    def choice(self, node: yaml.Node, what: str, allowed: tuple[str, ...]) -> str | None:
+        v = self.plain(node) if isinstance(node, yaml.ScalarNode) else None
+        if v not in allowed:
+            shown = repr(v) if isinstance(node, yaml.ScalarNode) else self._kind(node)
+            hint = did_you_mean(v, allowed) if isinstance(v, str) else ""
+            self.add(node, f"{what} must be {' or '.join(allowed)}, got {shown}{hint}", f"use {' or '.join(allowed)}")
+            return None
+        return str(v)
+
+    def vector(self, node: yaml.Node, what: str, length: int | None = None) -> list[float] | None:
+        if not isinstance(node, yaml.SequenceNode):
+            self.add(node, f"{what} must be a list of numbers, got {self._kind(node)}", "write [x, y, ...]")
+            return None
+        if length is not None and len(node.value) != length:
+            self.add(node, f"{what} must have {length} numbers, got {len(node.value)}",
+                     f"give exactly {length} numbers")
+            return None
+        out = [self.number(item, f"{what}[{i}]") for i, item in enumerate(node.value)]
+        if any(v is None for v in out):
+            return None
+        return [float(v) for v in out if v is not None]
+
+
+# --------------------------------------------------------------------------- loading
+
+def _compose(path: Path, r: _Reader) -> yaml.Node | None:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError([ConfigProblem(str(path), None, "robot file not found",
+                                         "check the path (relative paths are from the current directory)")]) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError([ConfigProblem(str(path), None, f"cannot read the robot file: {e}",
+                                         "check the path and that it is a UTF-8 text file")]) from None
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as e:
+        mark = e.problem_mark or e.context_mark
+        line = mark.line + 1 if mark is not None else None
+        what = " ".join(x for x in (e.context, e.problem) if x)
+        raise ConfigError([ConfigProblem(str(path), line, f"not valid YAML: {what}",
+                                         "fix the YAML syntax on or just before this line "
+                                         "(indentation, a missing ':' or a stray quote)")]) from None
+    except yaml.YAMLError as e:
+        raise ConfigError([ConfigProblem(str(path), None, f"not valid YAML: {e}", "fix the YAML syntax")]) from None
+
+
+def _motors(r: _Reader, node: yaml.Node, cat: Catalogue) -> Catalogue:
+    for name, (knode, vnode) in r.free_mapping(node, "motors").items():
+        entry = r.plain(vnode)
+        found = cat.check_entry(name, entry)
+        if found:
+            keys = {}
+            if isinstance(vnode, yaml.MappingNode):
+                keys = {r.plain(k): k for k, _ in vnode.value}
+            for field, msg, fix in found:
+                r.add(keys.get(field, knode) if field else knode, msg, fix)
+            continue
+        model = cat.build_entry(name, entry)
+        models = {m.name.upper(): m for m in cat.values()}
+        models[model.name.upper()] = model
+        cat = Catalogue({m.name: m for m in models.values()})
+    return cat
+
+
+def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
+    if node is None:
+        return {DEFAULT_BUS: BusConfig(DEFAULT_BUS)}
+    buses: dict[str, BusConfig] = {}
+    items = r.free_mapping(node, "buses")
+    if isinstance(node, yaml.MappingNode) and not node.value:
+        r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
+    for name, (_knode, vnode) in items.items():
+        if isinstance(vnode, yaml.ScalarNode) and vnode.value == "":
+            buses[name] = BusConfig(name)  # `arm:` alone: all defaults
+            continue
+        fields = r.mapping(vnode, f"bus {name!r}", BUS_KEYS)
+        kw: dict[str, Any] = {}
+        if "interface" in fields:
+            kw["interface"] = r.string(fields["interface"][1], f"bus {name!r}: interface",
+                                       "a python-can interface such as socketcan, virtual, pcan")
+        if "channel" in fields:
+            ch = r.plain(fields["channel"][1])
+            if isinstance(ch, int) and not isinstance(ch, bool):
+                ch = str(ch)  # pcan/kvaser channels may be numbers
+            kw["channel"] = r.string(fields["channel"][1], f"bus {name!r}: channel") if not isinstance(ch, str) \
+                else ch
+        if "bitrate" in fields:
+            kw["bitrate"] = r.integer(fields["bitrate"][1], f"bus {name!r}: bitrate", 10_000, 1_000_000,
+                                      "AK drivers use 1000000 bit/s")
+        buses[name] = BusConfig(name, **{k: v for k, v in kw.items() if v is not None})
+    return buses
+
+
+@dataclass
+class _Field:
+    """A joint key's value node, from the joint itself or from `defaults:`."""
+
+    key: yaml.Node
+    value: yaml.Node
+
+
+def _merged(joint: Mapping[str, tuple[yaml.Node, yaml.Node]], defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
+            r: _Reader, key: str, subkeys: tuple[str, ...]) -> tuple[dict[str, _Field], yaml.Node | None]:
+    """A limits/gains mapping merged key by key: the joint's own entries over those of `defaults:`."""
+    out: dict[str, _Field] = {}
+    where = None
+    if key in defaults:
+        where = defaults[key][0]
+        for k, (kn, vn) in r.mapping(defaults[key][1], f"defaults: {key}", subkeys).items():
+            out[k] = _Field(kn, vn)
+    if key in joint:
+        where = joint[key][0]
+        for k, (kn, vn) in r.mapping(joint[key][1], key, subkeys).items():
+            out[k] = _Field(kn, vn)
+    return out, where
+
+
+class _Loader:
+    def __init__(self, path: Path, catalogue: Catalogue | None) -> None:
+        self.path = path
+        self.r = _Reader(str(path))
+        self.catalogue = catalogue if catalogue is not None else default_catalogue()
+
+    def load(self, rate_override: float | None) -> RobotConfig:
+        r = self.r
+        root = _compose(self.path, r)
+        if root is None:
+            raise ConfigError([ConfigProblem(str(self.path), None, "the robot file is empty",
+                                             "describe the robot: name, urdf, joints (see docs)")])
+        top = r.mapping(root, "the robot file", TOP_KEYS)
+        if not isinstance(root, yaml.MappingNode):
+            raise ConfigError(r.problems)
+
+        name = self.path.stem
+        if "name" in top:
+            name = r.string(top["name"][1], "name") or name
+
+        urdf_path, urdf_joints, urdf_links = self._urdf(top, root)
+
+        cat = self.catalogue
+        if "motors" in top:
+            cat = _motors(r, top["motors"][1], cat)
+
+        buses = _buses(r, top["buses"][1] if "buses" in top else None)
+
+        rate_hz: float | None = 500.0
+        if "rate_hz" in top:
+            rate_hz = r.number(top["rate_hz"][1], "rate_hz", positive=True, fix="give the loop rate in Hz, e.g. 500")
+        rate_line = _line(top["rate_hz"][0]) if "rate_hz" in top else None
+        if rate_override is not None:
+            if not _is_number(rate_override) or not rate_override > 0:
+                r.add(None, f"rate_hz override must be a positive number, got {rate_override!r}", "pass e.g. 500")
+                rate_override = None
+            else:
+                rate_hz = float(rate_override)
+                rate_line = None
+
+        gravity = (0.0, 0.0, -9.81)
+        if "gravity" in top:
+            g = r.vector(top["gravity"][1], "gravity", 3)
+            if g is not None:
+                gravity = (g[0], g[1], g[2])
+
+        tool_frame = None
+        if "tool_frame" in top:
+            tool_frame = r.string(top["tool_frame"][1], "tool_frame")
+            frames = set(urdf_links) | set(urdf_joints)
+            if tool_frame and urdf_joints is not None and tool_frame not in frames:
+                r.add(top["tool_frame"][1], f"tool_frame {tool_frame!r} is not a link or joint of the URDF"
+                      f"{did_you_mean(tool_frame, sorted(frames))}",
+                      "name a URDF link (e.g. the flange link), or drop tool_frame to use the last link")
+
+        payload = None
+        if "payload" in top:
+            payload = self._payload(top["payload"][1])
+
+        defaults: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        if "defaults" in top:
+            defaults = r.mapping(top["defaults"][1], "defaults", DEFAULT_KEYS)
+
+        joints: list[JointConfig] = []
+        if "joints" not in top:
+            r.add(root, "no `joints:` list", "list the actuated joints under `joints:`")
+        else:
+            joints = self._joints(top["joints"], defaults, buses, cat, urdf_joints)
+
+        poses: dict[str, tuple[float, ...]] = {}
+        if "poses" in top:
+            poses = self._poses(top["poses"][1], joints)
+
+        if rate_hz is not None:  # with the joints that are valid: a lower bound when some are not
+            for bname, bus in buses.items():
+                on_bus = [j for j in joints if j.bus == bname]
+                load = load_of(bname, bus.bitrate, rate_hz, on_bus)
+                if load.over_limit:
+                    given = "" if rate_line is not None else " (given as an override)"
+                    r.add(rate_line, f"rate_hz {rate_hz:g}{given} puts {load.percent_nominal:.0f} % "
+                          f"(worst case {load.percent:.0f} %) on bus {bname!r}, over the "
+                          f"{100 * LOAD_LIMIT:.0f} % limit",
+                          f"lower rate_hz to at most {math.floor(load.max_rate_hz_nominal)} Hz, or move joints "
+                          "to another bus")
+
+        if r.problems:
+            raise ConfigError(sorted(r.problems, key=lambda p: (p.line is None, p.line or 0)))
+        assert urdf_path is not None and rate_hz is not None
+        return RobotConfig(name=name, urdf=urdf_path, buses=buses, joints=tuple(joints), rate_hz=rate_hz,
+                           source=self.path, tool_frame=tool_frame, gravity=gravity, payload=payload, poses=poses,
+                           catalogue=cat)
+
+    # ---------------------------------------------------------------- pieces
+
+    def _urdf(self, top: Mapping[str, tuple[yaml.Node, yaml.Node]], root: yaml.Node
+              ) -> tuple[Path | None, dict[str, UrdfJoint] | None, set[str]]:
+        r = self.r
+        if "urdf" not in top:
+            r.add(root, "no `urdf:` given", "add `urdf: NAME.urdf` (a path relative to this file)")
+            return None, None, set()
+        node = top["urdf"][1]
+        text = r.string(node, "urdf", "the URDF's path, relative to this file")
+        if text is None:
+            return None, None, set()
+        path = Path(os.path.expanduser(text))
+        if not path.is_absolute():
+            path = self.path.parent / path
+        path = path.resolve()
+        if not path.is_file():
+            r.add(node, f"URDF file {str(path)!r} not found",
+                  "give the URDF's path relative to this YAML file (or an absolute path)")
+            return path, None, set()
+        try:
+            joints, links = read_urdf_joints(path)
+        except (ValueError, OSError) as e:
+            r.add(node, f"URDF {path.name} does not parse: {e}", "fix the URDF (check it with check_urdf)")
+            return path, None, set()
+        complaint = _check_pinocchio(path)
+        if complaint is not None:
+            r.add(node, f"Pinocchio cannot build a model from URDF {path.name}: {complaint}",
+                  "fix the URDF (every link needs a unique name, every joint a parent and a child)")
+            return path, None, set()
+        return path, joints, links
+
+    def _payload(self, node: yaml.Node) -> Payload | None:
+        r = self.r
+        f = r.mapping(node, "payload", PAYLOAD_KEYS)
+        if "mass" not in f:
+            if isinstance(node, yaml.MappingNode):
+                r.add(node, "payload needs `mass` (kg)", "write payload: {mass: 0.5, com: [0, 0, 0.04]}")
+            return None
+        mass = r.number(f["mass"][1], "payload mass", minimum=0.0, fix="give the payload mass in kg")
+        com: list[float] | None = [0.0, 0.0, 0.0]
+        if "com" in f:
+            com = r.vector(f["com"][1], "payload com", 3)
+        if mass is None or com is None:
+            return None
+        return Payload(mass, (com[0], com[1], com[2]))
+
+    def _joints(self, item: tuple[yaml.Node, yaml.Node], defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
+                buses: Mapping[str, BusConfig], cat: Catalogue, urdf: dict[str, UrdfJoint] | None
+                ) -> list[JointConfig]:
+        r = self.r
+        knode, node = item
+        if not isinstance(node, yaml.SequenceNode) or not node.value:
+            r.add(node, "`joints:` must be a non-empty list of joints", "write `- name: JOINT` items under joints:")
+            return []
+        out: list[JointConfig] = []
+        seen_names: dict[str, int | None] = {}
+        seen_ids: dict[tuple[str, int], tuple[str, int | None]] = {}
+        for jnode in node.value:
+            j = self._joint(jnode, defaults, buses, cat, urdf, seen_names)
+            if j is None:
+                continue
+            config, id_node = j
+            key = (config.bus, config.can_id)
+            if key in seen_ids:
+                other, other_line = seen_ids[key]
+                r.add(id_node, f"joint {config.name!r}: CAN ID {config.can_id} on bus {config.bus!r} is already "
+                      f"used by joint {other!r} (line {other_line})", "give every motor on a bus its own CAN ID")
+            else:
+                seen_ids[key] = (config.name, _line(id_node))
+            out.append(config)
+        if urdf is not None:
+            configured = set(seen_names)
+            for uj in urdf.values():
+                if uj.type in ("revolute", "continuous", "prismatic") and uj.name not in configured:
+                    r.add(knode, f"URDF joint {uj.name!r} ({uj.type}) is not configured",
+                          f"add `- name: {uj.name}` with its motor under joints:, or make it fixed in the URDF")
+        return out
+
+    def _joint(self, jnode: yaml.Node, defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
+               buses: Mapping[str, BusConfig], cat: Catalogue, urdf: dict[str, UrdfJoint] | None,
+               seen_names: dict[str, int | None]) -> tuple[JointConfig, yaml.Node] | None:
+        r = self.r
+        n_before = len(r.problems)
+        own = r.mapping(jnode, "joint", JOINT_KEYS)
+        if not isinstance(jnode, yaml.MappingNode):
+            return None
+
+        def get(key: str) -> yaml.Node | None:
+            if key in own:
+                return own[key][1]
+            if key in defaults:
+                return defaults[key][1]
+            return None
+
+        # name and URDF joint
+        name = None
+        if "name" not in own:
+            r.add(jnode, "a joint without `name:`", "give the URDF joint name: `- name: JOINT`")
+        else:
+            name = r.string(own["name"][1], "joint name")
+        label = f"joint {name!r}" if name else "joint"
+        uj: UrdfJoint | None = None
+        if name is not None:
+            if name in seen_names:
+                r.add(own["name"][1], f"{label} is listed twice (first on line {seen_names[name]})",
+                      "list every joint once")
+            seen_names.setdefault(name, _line(own["name"][1]))
+            if urdf is not None:
+                uj = urdf.get(name)
+                if uj is None:
+                    movable = [k for k, v in urdf.items() if v.type != "fixed"]
+                    r.add(own["name"][1], f"{label} is not in the URDF{did_you_mean(name, list(urdf))}",
+                          "URDF joints are: " + (", ".join(movable) or "none"))
+                elif uj.type == "fixed":
+                    r.add(own["name"][1], f"{label} is fixed in the URDF, so no motor can drive it",
+                          "make it revolute or continuous in the URDF, or remove it from joints:")
+                    uj = None
+                elif uj.type not in ("revolute", "continuous"):
+                    r.add(own["name"][1], f"{label} is {uj.type} in the URDF; akarm drives revolute and "
+                          "continuous joints", "make it revolute or continuous in the URDF")
+                    uj = None
+
+        # bus and CAN ID
+        bus = None
+        bnode = get("bus")
+        if bnode is None:
+            if len(buses) == 1:
+                bus = next(iter(buses))
+            else:
+                r.add(jnode, f"{label} has no `bus:` and there are {len(buses)} buses",
+                      "add `bus:` with one of " + ", ".join(buses))
+        else:
+            bus = r.string(bnode, f"{label}: bus")
+            if bus is not None and bus not in buses:
+                r.add(bnode, f"{label}: unknown bus {bus!r}{did_you_mean(bus, list(buses))}",
+                      "buses are: " + ", ".join(buses) + " (define others under `buses:`)")
+                bus = None
+        can_id = None
+        id_node = own["can_id"][1] if "can_id" in own else None
+        if id_node is None:
+            r.add(jnode, f"{label} has no `can_id:`", "give the motor's CAN ID (1-127)")
+        else:
+            can_id = r.integer(id_node, f"{label}: can_id", 1, 127,
+                               "CAN IDs 1-127 (0 is the host's); set the motor's ID with CubeMars' tool")
+
+        # motor
+        motor: MotorModel | None = None
+        mnode = get("motor")
+        if mnode is None:
+            r.add(jnode, f"{label} has no `motor:`", "name its AK model, e.g. `motor: AK80-9`")
+        else:
+            mname = r.string(mnode, f"{label}: motor")
+            if mname is not None:
+                if mname in cat:
+                    motor = cat.get(mname)
+                else:
+                    r.add(mnode, f"{label}: unknown motor model {mname!r}{did_you_mean(mname.upper(), cat.names())}",
+                          "known models: " + ", ".join(cat.names()) + "; or define it under `motors:`")
+
+        mode = "mit"
+        if (node := get("mode")) is not None:
+            mode = r.choice(node, f"{label}: mode", ("mit", "servo")) or "mit"
+        firmware = motor.firmware if motor is not None else "v2"
+        if (node := get("firmware")) is not None:
+            firmware = r.choice(node, f"{label}: firmware", ("v2", "v3")) or firmware
+        direction = 1
+        if (node := get("direction")) is not None:
+            d = r.plain(node) if isinstance(node, yaml.ScalarNode) else None
+            if not _is_number(d) or d not in (1, -1):
+                r.add(node, f"{label}: direction must be 1 or -1, got {d!r}",
+                      "1 when joint and motor turn the same way, -1 when opposite")
+            else:
+                direction = int(d)
+        offset = 0.0
+        if (node := get("offset")) is not None:
+            offset = r.number(node, f"{label}: offset") or 0.0
+
+        extras: dict[str, Any] = {}
+        if (node := get("reply_id")) is not None:
+            extras["reply_id"] = r.integer(node, f"{label}: reply_id", 0, 0x7FF,
+                                           "0 (the firmware default) or the motor's own CAN ID")
+        node = get("feedback_timeout")
+        if node is not None and not (isinstance(node, yaml.ScalarNode) and r.plain(node) is None):
+            extras["feedback_timeout"] = r.number(node, f"{label}: feedback_timeout", positive=True,
+                                                  fix="seconds, e.g. 0.02")
+        if (node := get("max_temperature")) is not None:
+            extras["max_temperature"] = r.number(node, f"{label}: max_temperature", minimum=1.0, maximum=150.0,
+                                                 fix="°C, e.g. 80")
+        if (node := get("status_rate_hz")) is not None:
+            extras["status_rate_hz"] = r.number(node, f"{label}: status_rate_hz", minimum=1.0, maximum=500.0,
+                                                fix="the motor's status rate setting, 1-500 Hz")
+        if (node := get("can_timeout")) is not None:
+            extras["can_timeout"] = r.number(node, f"{label}: can_timeout", minimum=0.0, fix="seconds; 0 = off")
+
+        limits = self._limits(own, defaults, jnode, label, motor, mode, direction, offset, uj)
+        gains = self._gains(own, defaults, jnode, label, motor, mode)
+
+        if len(r.problems) > n_before or None in (name, bus, can_id, motor, limits, gains):
+            return None
+        assert name is not None and bus is not None and can_id is not None and motor is not None
+        assert limits is not None and gains is not None
+        config = JointConfig(name=name, bus=bus, can_id=can_id, motor=motor, mode=mode,  # type: ignore[arg-type]
+                             limits=limits, firmware=firmware, direction=direction,  # type: ignore[arg-type]
+                             offset=offset, gains=gains, **{k: v for k, v in extras.items() if v is not None})
+        assert id_node is not None
+        return config, id_node
+
+    def _limits(self, own: Mapping[str, tuple[yaml.Node, yaml.Node]],
+                defaults: Mapping[str, tuple[yaml.Node, yaml.Node]], jnode: yaml.Node, label: str,
+                motor: MotorModel | None, mode: str, direction: int, offset: float, uj: UrdfJoint | None
+                ) -> Limits | None:
+        r = self.r
+        fields, where = _merged(own, defaults, r, "limits", LIMIT_KEYS)
+        at = where if where is not None else jnode
+        ok = True
+        values: dict[str, float] = {}
+        for key, unit in (("velocity", "rad/s"), ("acceleration", "rad/s²"), ("jerk", "rad/s³")):
+            if key not in fields:
+                r.add(at, f"{label}: no {key} limit", f"add `{key}: ...` ({unit}) under limits (or defaults: limits)")
+                ok = False
+                continue
+            v = r.number(fields[key].value, f"{label}: {key} limit", positive=True, fix=f"give a positive {unit} value")
+            if v is None:
+                ok = False
+            else:
+                values[key] = v
+        if motor is not None and "velocity" in values and values["velocity"] > motor.v_max:
+            r.add(fields["velocity"].value, f"{label}: velocity limit {values['velocity']:g} rad/s is above the "
+                  f"{motor.name}'s {motor.v_max:g} rad/s", f"give at most {motor.v_max:g}")
+            ok = False
+        torque = motor.t_max if motor is not None else 0.0
+        if "torque" in fields:
+            t = r.number(fields["torque"].value, f"{label}: torque limit", positive=True, fix="N·m, above 0")
+            if t is None:
+                ok = False
+            elif motor is not None and t > motor.t_max:
+                r.add(fields["torque"].value, f"{label}: torque limit {t:g} N·m is above the {motor.name}'s "
+                      f"t_max {motor.t_max:g} N·m", f"give at most {motor.t_max:g}, or leave it out to use t_max")
+                ok = False
+            else:
+                torque = t
+
+        # position range: URDF, narrowed by the YAML
+        lower = upper = None
+        given: dict[str, float] = {}
+        for key in ("lower", "upper"):
+            if key in fields:
+                v = r.number(fields[key].value, f"{label}: {key} limit", fix="rad")
+                if v is None:
+                    ok = False
+                else:
+                    given[key] = v
+        if uj is not None:
+            if uj.type == "continuous":
+                missing = [k for k in ("lower", "upper") if k not in fields]
+                if missing:
+                    r.add(at, f"{label} is continuous in the URDF and has no {' or '.join(missing)} limit",
+                          "give `lower:` and `upper:` (rad) under limits; the motor's position wraps at ±p_max")
+                    ok = False
+                lower, upper = given.get("lower"), given.get("upper")
+            else:
+                assert uj.lower is not None and uj.upper is not None
+                lower, upper = uj.lower, uj.upper
+                if "lower" in given:
+                    if given["lower"] < uj.lower:
+                        r.add(fields["lower"].value, f"{label}: lower limit {given['lower']:g} is below the URDF's "
+                              f"{uj.lower:g}", "the YAML may only narrow the URDF's range")
+                        ok = False
+                    lower = given["lower"]
+                if "upper" in given:
+                    if given["upper"] > uj.upper:
+                        r.add(fields["upper"].value, f"{label}: upper limit {given['upper']:g} is above the URDF's "
+                              f"{uj.upper:g}", "the YAML may only narrow the URDF's range")
+                        ok = False
+                    upper = given["upper"]
+            if lower is not None and upper is not None and not lower < upper:
+                r.add(at, f"{label}: position range [{lower:g}, {upper:g}] is empty", "give lower < upper")
+                ok = False
+            elif lower is not None and upper is not None and motor is not None:
+                ends = sorted(((lower - offset) * direction, (upper - offset) * direction))
+                if mode == "mit":
+                    span, what = motor.p_max, f"the {motor.name}'s MIT position range ±{motor.p_max:g} rad"
+                else:
+                    scale = motor.gear_ratio if motor.servo_position == "rotor" else 1.0
+                    span = SERVO_POSITION_RANGE / scale
+                    what = f"the servo status frame's range ±{span:g} rad at the output"
+                if ends[0] < -span or ends[1] > span:
+                    src = "YAML" if given else "URDF"
+                    line = (fields["lower"].value if "lower" in given else
+                            fields["upper"].value if "upper" in given else own["name"][1] if "name" in own else jnode)
+                    r.add(line, f"{label}: position range [{lower:g}, {upper:g}] rad ({src}) is motor "
+                          f"[{ends[0]:g}, {ends[1]:g}] rad with direction {direction} and offset {offset:g}, "
+                          f"outside {what}",
+                          "narrow it with `lower:`/`upper:` under limits, or change the offset")
+                    ok = False
+        if not ok or uj is None or lower is None or upper is None or motor is None:
+            return None
+        return Limits(lower=lower, upper=upper, velocity=values["velocity"], acceleration=values["acceleration"],
+                      jerk=values["jerk"], torque=torque)
+
+    def _gains(self, own: Mapping[str, tuple[yaml.Node, yaml.Node]],
+               defaults: Mapping[str, tuple[yaml.Node, yaml.Node]], jnode: yaml.Node, label: str,
+               motor: MotorModel | None, mode: str) -> Gains | None:
+        r = self.r
+        fields, where = _merged(own, defaults, r, "gains", GAIN_KEYS)
+        kp_max = motor.kp_max if motor is not None else 500.0
+        kd_max = motor.kd_max if motor is not None else 5.0
+        values: dict[str, float] = {}
+        ok = True
+        for key, hi, unit in (("kp", kp_max, "N·m/rad"), ("kd", kd_max, "N·m·s/rad")):
+            if key in fields:
+                v = r.number(fields[key].value, f"{label}: {key}", minimum=0.0, maximum=hi,
+                             fix=f"give {key} in 0..{hi:g} {unit}")
+                if v is None:
+                    ok = False
+                else:
+                    values[key] = v
+            elif mode == "mit":
+                r.add(where if where is not None else jnode, f"{label}: MIT joint without gain {key}",
+                      f"add `gains: {{kp: ..., kd: ...}}` (kp 0-{kp_max:g}, kd 0-{kd_max:g}), or in defaults:")
+                ok = False
+        return Gains(**values) if ok else None
+
+    def _poses(self, node: yaml.Node, joints: list[JointConfig]) -> dict[str, tuple[float, ...]]:
+        r = self.r
+        poses: dict[str, tuple[float, ...]] = {}
+        n = len(joints)
+        for name, (_, vnode) in r.free_mapping(node, "poses").items():
+            v = r.vector(vnode, f"pose {name!r}")
+            if v is None:
+                continue
+            if len(v) != n:
+                r.add(vnode, f"pose {name!r} has {len(v)} values for {n} joints",
+                      "give one value per joint (rad), in the order of joints: " + ", ".join(j.name for j in joints))
+                continue
+            bad = False
+            for j, x, item in zip(joints, v, vnode.value, strict=True):
+                if not j.limits.lower <= x <= j.limits.upper:
+                    r.add(item, f"pose {name!r}: {j.name} = {x:g} rad is outside its limits "
+                          f"[{j.limits.lower:g}, {j.limits.upper:g}]", "give a value within the joint's limits")
+                    bad = True
+            if not bad:
+                poses[name] = tuple(v)
+        return poses
+
+
+def load_robot(
+    path: str | os.PathLike[str],
+    *,
+    interface: str | None = None,
+    channel: str | Mapping[str, str] | None = None,
+    bitrate: int | None = None,
+    rate_hz: float | None = None,
+    catalogue: Catalogue | None = None,
+) -> RobotConfig:
+    """Read and validate a robot YAML file.
+
+    Args:
+        path: the robot YAML (its ``urdf:`` is relative to it).
+        interface, channel, bitrate: bus overrides, applied with :meth:`RobotConfig.with_bus`
+            (``channel`` may map bus names to channels).
+        rate_hz: loop-rate override, Hz (validated against the bus load like the file's own).
+        catalogue: the motor catalogue to start from (default: :func:`akarm.motors.default_catalogue`).
+
+    Raises:
+        ConfigError: listing every problem found, each with file, line and fix.
+    """
+    p = Path(path)
+    config = _Loader(p, catalogue).load(rate_hz)
+    if interface is not None or channel is not None or bitrate is not None:
+        config = config.with_bus(interface=interface, channel=channel, bitrate=bitrate)
+    return config

@@ -1,0 +1,58 @@
+"""python-can buses: opening them with errors a user can act on, and draining them without blocking."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from .errors import BusError
+
+if TYPE_CHECKING:
+    import can
+
+    from .config import BusConfig
+
+__all__ = ["drain", "how_to_create", "open_bus"]
+
+
+def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str:
+    """The shell commands that bring up ``channel`` for ``interface`` (best effort)."""
+    if interface == "socketcan":
+        if channel.startswith("vcan"):
+            return (f"create it: sudo modprobe vcan && sudo ip link add dev {channel} type vcan && "
+                    f"sudo ip link set up {channel}")
+        return (f"bring it up: sudo ip link set {channel} up type can bitrate {bitrate} "
+                f"(check the adapter is plugged in: ip -br link)")
+    if interface == "virtual":
+        return "virtual buses need no setup; check the channel name"
+    return f"check that the {interface} adapter is connected and its driver installed (see python-can's docs)"
+
+
+def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusABC:
+    """Open the python-can bus ``bus`` describes.
+
+    Raises:
+        BusError: the bus cannot be opened; the message says which bus and how to create it.
+    """
+    import can
+
+    kwargs: dict[str, object] = {"interface": bus.interface, "channel": bus.channel,
+                                 "receive_own_messages": receive_own_messages}
+    if bus.interface not in ("virtual", "socketcan"):
+        kwargs["bitrate"] = bus.bitrate  # socketcan takes the bit rate from `ip link`, not from us
+    try:
+        return can.Bus(**kwargs)  # type: ignore[arg-type]
+    except (OSError, can.CanError, ValueError, ImportError, NotImplementedError) as e:
+        raise BusError(
+            f"cannot open CAN bus {bus.name!r} ({bus.interface} channel {bus.channel!r}): {e}",
+            fix=how_to_create(bus.interface, bus.channel, bus.bitrate),
+        ) from None
+
+
+def drain(bus: can.BusABC, limit: int = 1024) -> Iterator[can.Message]:
+    """Every frame already received on ``bus``, without waiting (at most ``limit``)."""
+    for _ in range(limit):
+        msg = bus.recv(timeout=0.0)
+        if msg is None:
+            return
+        yield msg

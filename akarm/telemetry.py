@@ -1,0 +1,164 @@
+"""Per-cycle telemetry: a ring buffer of desired and measured joint states, saved atomically.
+
+Each control cycle records its time, the desired q/dq (the trajectory), the measured q/dq/τ (the
+joints' latest feedback) and the feed-forward torque, all joint side in SI. Save to CSV (a header
+naming joints and units) or NumPy ``.npz``; the file is written to a temporary name and renamed, so
+a crash never leaves half a file. :func:`load` reads either back.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RecordingError
+
+__all__ = ["FIELDS", "Telemetry", "TelemetryLog", "atomic_write", "load"]
+
+#: The per-joint fields of a record, with their units.
+FIELDS = (("q_des", "rad"), ("dq_des", "rad/s"), ("q", "rad"), ("dq", "rad/s"), ("tau", "N·m"),
+          ("tau_ff", "N·m"))
+
+
+def atomic_write(path: str | os.PathLike[str], write: Callable[[io.BufferedWriter], None]) -> Path:
+    """Write a file through ``write(fileobj)`` to a temporary name beside it, then rename it into place."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+@dataclass(frozen=True)
+class TelemetryLog:
+    """Recorded cycles as arrays: ``t`` (n,), and each of :data:`FIELDS` as (n, joints)."""
+
+    joint_names: tuple[str, ...]
+    t: np.ndarray
+    q_des: np.ndarray
+    dq_des: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    tau_ff: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def tracking_error(self) -> np.ndarray:
+        """``q_des - q`` per cycle and joint, rad."""
+        return self.q_des - self.q
+
+    def rms_error(self) -> np.ndarray:
+        """RMS tracking error per joint, rad."""
+        e = self.tracking_error()
+        return np.sqrt(np.nanmean(e * e, axis=0)) if len(e) else np.zeros(len(self.joint_names))
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Save as ``.csv`` or ``.npz`` (by suffix), atomically."""
+        p = Path(path)
+        if p.suffix == ".npz":
+            arrays = {k: getattr(self, k) for k in ("t", *(f for f, _ in FIELDS))}
+            return atomic_write(p, lambda f: np.savez(f, joint_names=np.array(self.joint_names), **arrays))
+        if p.suffix != ".csv":
+            raise RecordingError(f"cannot save telemetry as {p.suffix!r}", fix="use a .csv or .npz file name")
+
+        def write(f: io.BufferedWriter) -> None:
+            text = io.TextIOWrapper(f, encoding="utf-8", newline="")
+            w = csv.writer(text)
+            w.writerow(["t [s]", *(f"{field}.{j} [{unit}]" for field, unit in FIELDS for j in self.joint_names)])
+            data = np.column_stack([self.t, *(getattr(self, field) for field, _ in FIELDS)])
+            for row in data:
+                w.writerow([f"{x:.9g}" for x in row])
+            text.flush()
+            text.detach()
+
+        return atomic_write(p, write)
+
+
+def load(path: str | os.PathLike[str]) -> TelemetryLog:
+    """Read a telemetry file written by :meth:`TelemetryLog.save`.
+
+    Raises:
+        RecordingError: the file is missing, truncated or not a telemetry log.
+    """
+    p = Path(path)
+    try:
+        if p.suffix == ".npz":
+            with np.load(p) as z:
+                names = tuple(str(n) for n in z["joint_names"])
+                return TelemetryLog(names, z["t"], *(z[f] for f, _ in FIELDS))
+        with p.open(newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except (OSError, KeyError, ValueError) as e:
+        raise RecordingError(f"cannot read telemetry {p}: {e}", fix="pass a .csv or .npz written by akarm") from None
+    if not rows or not rows[0] or rows[0][0] != "t [s]":
+        raise RecordingError(f"{p} is not an akarm telemetry CSV (no 't [s]' header)",
+                             fix="pass a file written by Arm.telemetry().save()")
+    header = rows[0]
+    per_field = (len(header) - 1) // len(FIELDS)
+    names = tuple(h.split(".", 1)[1].rsplit(" [", 1)[0] for h in header[1:1 + per_field])
+    try:
+        data = np.array([[float(x) for x in r] for r in rows[1:]], dtype=float).reshape(-1, len(header))
+    except ValueError:
+        raise RecordingError(f"{p} has a malformed or truncated row", fix="re-record the log") from None
+    cols = [data[:, 1 + k * per_field:1 + (k + 1) * per_field] for k in range(len(FIELDS))]
+    return TelemetryLog(names, data[:, 0], *cols)
+
+
+class Telemetry:
+    """Ring buffer of the last ``capacity`` cycles (preallocated: recording allocates nothing)."""
+
+    def __init__(self, joint_names: Sequence[str], capacity: int) -> None:
+        self.joint_names = tuple(joint_names)
+        n = len(self.joint_names)
+        self.capacity = capacity
+        self.t = np.zeros(capacity)
+        self.data = np.zeros((len(FIELDS), capacity, n))
+        self.count = 0
+
+    def record(self, t: float, q_des, dq_des, q, dq, tau, tau_ff) -> None:
+        """Record one cycle (arrays of joint values, SI)."""
+        i = self.count % self.capacity
+        self.t[i] = t
+        d = self.data
+        d[0, i] = q_des
+        d[1, i] = dq_des
+        d[2, i] = q
+        d[3, i] = dq
+        d[4, i] = tau
+        d[5, i] = tau_ff
+        self.count += 1
+
+    def clear(self) -> None:
+        """Forget every record."""
+        self.count = 0
+
+    def snapshot(self, since: float | None = None) -> TelemetryLog:
+        """The recorded cycles, oldest first (optionally only those at or after time ``since``)."""
+        n = min(self.count, self.capacity)
+        if self.count <= self.capacity:
+            idx = np.arange(n)
+        else:
+            start = self.count % self.capacity
+            idx = np.concatenate([np.arange(start, self.capacity), np.arange(0, start)])
+        t = self.t[idx]
+        if since is not None:
+            keep = t >= since
+            idx, t = idx[keep], t[keep]
+        return TelemetryLog(self.joint_names, t.copy(), *(self.data[k, idx].copy() for k in range(len(FIELDS))))

@@ -1,0 +1,240 @@
+"""Jerk-limited, time-synchronised trajectories (ruckig), checked against joint limits.
+
+A :class:`Plan` is a chain of ruckig segments with absolute start times; it is sampled at
+wall-clock (or simulated) time by the control loop. Every segment is planned from an exact state
+(position, velocity, acceleration), so a chain is continuous in all three by construction: moves
+start from wherever the commanded trajectory is, retargeting is smooth, and waypoints are passed
+through without stopping.
+
+ruckig's Community Version does not enforce position limits and its waypoint feature calls a cloud
+server: akarm checks every segment's position extrema itself and chains segments for waypoints.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import ruckig
+
+from .errors import LimitError, TrajectoryError
+
+__all__ = ["JointLimits", "Plan", "Planner", "Segment"]
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint limits as arrays in config order (rad, rad/s, rad/s², rad/s³)."""
+
+    names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+
+    def scaled(self, speed: float) -> JointLimits:
+        """Limits for a motion ``speed`` times as fast (time scaling: v·s, a·s², j·s³)."""
+        if not 0.0 < speed <= 1.0:
+            raise LimitError(f"speed must be in (0, 1], got {speed}", fix="pass a fraction of the joint limits")
+        return JointLimits(self.names, self.lower, self.upper, self.velocity * speed,
+                           self.acceleration * speed**2, self.jerk * speed**3)
+
+    def check_position(self, q: Sequence[float], what: str = "target", tol: float = 1e-9) -> None:
+        """Raise :class:`LimitError` naming the first joint of ``q`` outside its position range."""
+        for i, name in enumerate(self.names):
+            v = float(q[i])
+            if not math.isfinite(v):
+                raise LimitError(f"{what} position is {v}", joint=name, fix="give a finite angle in rad")
+            if v < self.lower[i] - tol or v > self.upper[i] + tol:
+                raise LimitError(
+                    f"{what} {v:.4f} rad is outside the joint's range [{self.lower[i]:.4f}, {self.upper[i]:.4f}] rad",
+                    joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
+
+
+class Segment:
+    """One ruckig trajectory starting at absolute time ``t0`` (s)."""
+
+    __slots__ = ("duration", "end", "t0", "traj")
+
+    def __init__(self, traj: ruckig.Trajectory, t0: float) -> None:
+        self.traj = traj
+        self.t0 = t0
+        self.duration = traj.duration
+        p, v, a = traj.at_time(traj.duration)
+        self.end = (np.array(p), np.array(v), np.array(a))
+
+    def at(self, t: float) -> tuple[list[float], list[float], list[float]]:
+        """Position, velocity, acceleration at absolute time ``t`` (clamped to the segment)."""
+        dt = t - self.t0
+        if dt < 0.0:
+            dt = 0.0
+        elif dt > self.duration:
+            dt = self.duration
+        return self.traj.at_time(dt)
+
+
+class Plan:
+    """A chain of segments, each starting when the previous one ends; holds the last state after."""
+
+    def __init__(self, segments: list[Segment], waypoints: int = 0) -> None:
+        if not segments:
+            raise ValueError("a plan needs at least one segment")
+        self.segments = segments
+        self.t0 = segments[0].t0
+        self.t_end = segments[-1].t0 + segments[-1].duration
+        self.waypoints = waypoints
+
+    @property
+    def duration(self) -> float:
+        """Total duration, s."""
+        return self.t_end - self.t0
+
+    def done(self, t: float) -> bool:
+        """True once ``t`` (absolute, s) is at or past the end."""
+        return t >= self.t_end
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Desired (q, dq, ddq) at absolute time ``t`` as arrays."""
+        segs = self.segments
+        seg = segs[-1]
+        if len(segs) > 1:
+            for s in segs:
+                if t < s.t0 + s.duration:
+                    seg = s
+                    break
+        p, v, a = seg.at(t)
+        return np.asarray(p), np.asarray(v), np.asarray(a)
+
+
+class Planner:
+    """Plans moves, waypoint paths and stops under one arm's joint limits."""
+
+    def __init__(self, limits: JointLimits) -> None:
+        self.limits = limits
+        self.dofs = len(limits.names)
+        self._ruckig = ruckig.Ruckig(self.dofs)
+
+    # -- single segments ----------------------------------------------------------------------
+    def _input(self, limits: JointLimits, p0, v0, a0) -> ruckig.InputParameter:
+        inp = ruckig.InputParameter(self.dofs)
+        inp.current_position = [float(x) for x in p0]
+        inp.current_velocity = [float(x) for x in v0]
+        inp.current_acceleration = [float(x) for x in a0]
+        inp.max_velocity = [float(x) for x in limits.velocity]
+        inp.max_acceleration = [float(x) for x in limits.acceleration]
+        inp.max_jerk = [float(x) for x in limits.jerk]
+        inp.synchronization = ruckig.Synchronization.Time
+        return inp
+
+    def _calculate(self, inp: ruckig.InputParameter, t0: float) -> Segment:
+        traj = ruckig.Trajectory(self.dofs)
+        try:
+            result = self._ruckig.calculate(inp, traj)
+        except ruckig.RuckigError as e:
+            raise TrajectoryError(f"ruckig could not plan the motion: {str(e).strip()}",
+                                  fix="check the limits are positive and the start state is within them") from None
+        if result not in (ruckig.Result.Working, ruckig.Result.Finished):
+            raise TrajectoryError(f"ruckig could not plan the motion ({result})",
+                                  fix="check the joint limits in the robot YAML")
+        return Segment(traj, t0)
+
+    def check_extrema(self, seg: Segment) -> None:
+        """Raise :class:`LimitError` if ``seg`` passes outside any joint's position range."""
+        for i, b in enumerate(seg.traj.position_extrema):
+            lo, hi = self.limits.lower[i], self.limits.upper[i]
+            if b.min < lo - 1e-9 or b.max > hi + 1e-9:
+                worst, t = (b.min, b.t_min) if b.min < lo - 1e-9 else (b.max, b.t_max)
+                raise LimitError(
+                    f"the planned path reaches {worst:.4f} rad at t = {t:.3f} s, outside [{lo:.4f}, {hi:.4f}] rad",
+                    joint=self.limits.names[i],
+                    fix="move more slowly (speed=), or through an intermediate point away from the limit")
+
+    def move(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]], target: Sequence[float],
+             t0: float, speed: float = 1.0, target_velocity: Sequence[float] | None = None) -> Segment:
+        """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``.
+
+        Raises:
+            LimitError: the target, or a position the path passes through, is outside a joint's range.
+            TrajectoryError: ruckig failed.
+        """
+        self.limits.check_position(target)
+        limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
+        inp = self._input(limits, *start)
+        inp.target_position = [float(x) for x in target]
+        inp.target_velocity = [0.0] * self.dofs if target_velocity is None else [float(x) for x in target_velocity]
+        inp.target_acceleration = [0.0] * self.dofs
+        seg = self._calculate(inp, t0)
+        self.check_extrema(seg)
+        return seg
+
+    def stop(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]], t0: float) -> Segment:
+        """The jerk-limited stop to rest from ``start`` (velocity interface: no position target).
+
+        Not checked against position limits: stopping is always the safest thing to do.
+        """
+        inp = self._input(self.limits, *start)
+        inp.control_interface = ruckig.ControlInterface.Velocity
+        inp.target_velocity = [0.0] * self.dofs
+        inp.target_acceleration = [0.0] * self.dofs
+        return self._calculate(inp, t0)
+
+    # -- paths --------------------------------------------------------------------------------
+    def through(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]],
+                points: Sequence[Sequence[float]], t0: float, speed: float = 1.0) -> Plan:
+        """A path through every point of ``points`` without stopping at the intermediate ones.
+
+        Each intermediate waypoint is passed exactly, with a pass-through velocity per joint: the
+        central difference of the neighbouring points over the rest-to-rest durations of the two
+        segments (zero where the joint reverses), scaled down from 1 to 0.25 until the whole chain
+        respects every limit; the fastest valid chain is kept (ruckig plans cost microseconds).
+        Ends at rest on the last point.
+        """
+        pts = [np.asarray(p, dtype=float) for p in points]
+        if not pts:
+            raise LimitError("move_through needs at least one point", fix="pass a list of joint vectors")
+        for k, p in enumerate(pts):
+            if p.shape != (self.dofs,):
+                raise LimitError(f"waypoint {k} has {p.size} values, the arm has {self.dofs} joints",
+                                 fix="give one angle per joint, in config order")
+            self.limits.check_position(p, what=f"waypoint {k}")
+        if len(pts) == 1:
+            return Plan([self.move(start, pts[0], t0, speed)])
+
+        q0 = np.asarray(start[0], dtype=float)
+        nodes = [q0, *pts]
+        # Rest-to-rest durations of each leg estimate how fast the path goes there.
+        legs = [self.move((nodes[k], np.zeros(self.dofs), np.zeros(self.dofs)), nodes[k + 1], 0.0, speed).duration
+                for k in range(len(pts))]
+        limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
+        best: Plan | None = None
+        errors: list[Exception] = []
+        for factor in (1.0, 0.75, 0.5, 0.25, 0.0):
+            vias = []
+            for k in range(1, len(nodes) - 1):
+                before, after = nodes[k] - nodes[k - 1], nodes[k + 1] - nodes[k]
+                span = legs[k - 1] + legs[k]
+                v = (nodes[k + 1] - nodes[k - 1]) / span if span > 0 else np.zeros(self.dofs)
+                v[np.sign(before) != np.sign(after)] = 0.0
+                vias.append(np.clip(v * factor, -limits.velocity, limits.velocity))
+            try:
+                segs = []
+                state: tuple = start
+                t = t0
+                for k, p in enumerate(pts):
+                    tv = vias[k] if k < len(vias) else None
+                    seg = self.move(state, p, t, speed, target_velocity=tv)
+                    segs.append(seg)
+                    t += seg.duration
+                    state = seg.end
+                plan = Plan(segs, waypoints=len(pts))
+            except LimitError as e:
+                errors.append(e)
+                continue
+            if best is None or plan.duration < best.duration:
+                best = plan
+        if best is None:
+            raise errors[-1]
+        return best

@@ -1,0 +1,127 @@
+"""``akarm sim ROBOT.yaml``: simulate a robot's AK drivers on a CAN bus until Ctrl-C.
+
+Point a controller (or ``candump``) at the bus exactly as at the hardware::
+
+    akarm sim robots/planar2.yaml -i socketcan -c vcan0
+    akarm sim robots/arm6.yaml -i socketcan -c vcan0 --fault elbow:drop:0.3 --fault wrist_roll:error:1
+
+Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--duration`` seconds, with a
+live status line (per joint position, torque, temperature, state): updated in place a few times a
+second on a terminal, one line a second otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..config import RobotConfig
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    from ..sim.faults import KINDS  # light: no numpy, no python-can
+
+    add_robot_arguments(parser)
+    parser.add_argument("--fault", action="append", default=[], metavar="JOINT:KIND[:ARG]",
+                        help="inject a fault at start (repeatable); KIND: " + "; ".join(KINDS.values()))
+    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
+    parser.add_argument("--rate", type=float, default=2000.0, metavar="HZ",
+                        help="plant integration rate, Hz (default 2000)")
+    parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
+    parser.add_argument("--zero-silence", type=float, default=1.0, metavar="S",
+                        help="MIT: seconds off-line after a ZERO frame (default 1.0)")
+    parser.add_argument("--servo-release", type=float, default=1.0, metavar="S",
+                        help="servo: seconds after the last command the output is released (default 1.0)")
+    parser.add_argument("--status-hz", type=float, default=4.0, metavar="HZ",
+                        help="status line updates per second on a terminal (default 4; 1 when not a terminal)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no status line")
+
+
+def _describe(config: RobotConfig) -> str:
+    lines = [f"akarm sim: simulating {config.name} ({len(config.joints)} joints)"]
+    for name, b in config.buses.items():
+        joints = ", ".join(f"{j.name} (id {j.can_id}, {j.mode}{' v3' if j.firmware == 'v3' else ''}, {j.motor.name})"
+                           for j in config.joints if j.bus == name)
+        lines.append(f"  bus {name}: {b.interface} {b.channel}: {joints}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the simulator until SIGINT/SIGTERM or ``--duration``; 0 on a clean stop."""
+    import contextlib
+    import shutil
+    import signal
+    import sys
+    import threading
+    import time
+
+    from ..errors import AkarmError
+    from ..sim import SimulatedRobot, faults
+
+    config = load_from_args(args)
+    injected = [faults.parse(spec) for spec in args.fault]
+    for joint, _ in injected:
+        config.joint(joint)  # ConfigError naming the joints when there is no such joint
+    q0 = config.pose(args.pose) if args.pose else None
+    if not args.rate > 0:
+        raise AkarmError(f"--rate {args.rate} must be positive", fix="e.g. --rate 2000")
+    sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.rate, q0=q0,
+                         zero_silence=args.zero_silence, servo_release=args.servo_release)
+
+    stop = threading.Event()
+    previous: dict[int, object] = {}
+
+    def on_signal(signum: int, frame: object) -> None:
+        stop.set()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):  # not the main thread (e.g. run from a test): rely on --duration
+            previous[sig] = signal.signal(sig, on_signal)
+
+    tty = sys.stdout.isatty()
+    period = 1.0 / args.status_hz if tty and args.status_hz > 0 else 1.0
+    try:
+        with sim:
+            print(_describe(sim.config), flush=True)
+            for joint, fault in injected:
+                sim.inject(joint, fault)
+                print(f"  fault on {joint}: {fault}", flush=True)
+            print("running; Ctrl-C to stop", flush=True)
+            start = time.monotonic()
+            end = start + args.duration if args.duration is not None else None
+            next_line = start + period
+            while not stop.is_set():
+                now = time.monotonic()
+                wait = next_line - now
+                if end is not None:
+                    wait = min(wait, end - now)
+                if wait > 0 and stop.wait(wait):
+                    break
+                if sim.thread_error is not None:
+                    raise sim.thread_error
+                now = time.monotonic()
+                if end is not None and now >= end:
+                    break
+                if now >= next_line:
+                    next_line += period
+                    if not args.quiet:
+                        line = sim.status_line()
+                        if tty:
+                            width = shutil.get_terminal_size((120, 20)).columns
+                            print("\r" + line[: width - 1].ljust(width - 1), end="", flush=True)
+                        else:
+                            print(line, flush=True)
+            if tty and not args.quiet:
+                print()
+            print(f"akarm sim: stopped at t = {sim.t:.2f} s "
+                  f"(frames in {sum(d.frames_received for d in sim.drivers)}, "
+                  f"out {sum(d.frames_sent for d in sim.drivers)}"
+                  f"{f', send errors {sim.send_errors}' if sim.send_errors else ''})", flush=True)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+    return 0

@@ -1,0 +1,39 @@
+"""akarm's hardware-in-the-loop simulator: AK drivers on a CAN bus, moving a simulated arm.
+
+Nobody needs a robot to develop or test akarm: :class:`SimulatedRobot` puts one simulated driver per
+configured joint on the config's buses, answering the real wire protocol exactly as the firmware
+does (through :mod:`akarm.protocol`, motor side), and moves a Pinocchio model of the arm with the
+torques the firmware would apply. ``akarm sim ROBOT.yaml -i socketcan -c vcan0`` runs the same as
+its own process, for a controller or ``candump`` to talk to as to hardware.
+
+::
+
+    from akarm.sim import SimulatedRobot, faults
+    with SimulatedRobot(config, interface="virtual", channel="demo", realtime=False) as sim:
+        sim.joint("elbow").inject(faults.DropReplies(0.3))
+        sim.run_for(1.0)
+
+Modules: :mod:`~akarm.sim.robot` (the robot and its time), :mod:`~akarm.sim.drivers` (firmware
+state machines and loops), :mod:`~akarm.sim.plant` (dynamics, friction, hard stops, heating),
+:mod:`~akarm.sim.faults` (faults to inject), :mod:`~akarm.sim.params` (constants per actuator).
+"""
+
+from __future__ import annotations
+
+from . import faults
+from .drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
+from .params import MotorSimParams, default_params
+from .plant import Plant
+from .robot import SimulatedRobot
+
+__all__ = [
+    "MitDriver",
+    "MotorSimParams",
+    "Plant",
+    "ServoDriver",
+    "SimulatedDriver",
+    "SimulatedRobot",
+    "TrapezoidProfile",
+    "default_params",
+    "faults",
+]

@@ -1,0 +1,193 @@
+"""Faults a simulated driver can be given, to test how a controller copes with a misbehaving motor.
+
+Inject them from Python::
+
+    from akarm.sim import faults
+    sim.joint("elbow").inject(faults.DropReplies(0.3, seed=1))
+    sim.joint("elbow").inject(faults.DelayReplies(0.005))
+    sim.joint("elbow").clear_faults()
+
+or from the command line with ``akarm sim ROBOT.yaml --fault elbow:drop:0.3`` (see :func:`parse`).
+
+Every fault is a small immutable value; the driver keeps the state a fault needs (the random
+generator of :class:`DropReplies`, the frozen reading of :class:`FrozenEncoder`, the start time of
+:class:`FaultAfter`). Times are in seconds of simulated time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import AkarmError
+
+__all__ = [
+    "KINDS",
+    "DelayReplies",
+    "DropReplies",
+    "ErrorCode",
+    "Fault",
+    "FaultAfter",
+    "FrozenEncoder",
+    "Unplugged",
+    "parse",
+]
+
+
+class Fault:
+    """Base class of the faults (a marker: the driver recognises each kind)."""
+
+
+@dataclass(frozen=True)
+class DropReplies(Fault):
+    """Lose a fraction of the frames the motor sends (replies and status frames).
+
+    Attributes:
+        fraction: probability 0..1 that each frame is dropped.
+        seed: seed of the driver's own random generator, so a run is repeatable.
+    """
+
+    fraction: float
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.fraction <= 1.0:
+            raise AkarmError(f"DropReplies fraction {self.fraction!r} is outside 0..1",
+                             fix="give the share of frames to drop, e.g. 0.3")
+
+
+@dataclass(frozen=True)
+class DelayReplies(Fault):
+    """Send every frame the motor sends ``delay`` seconds late (order kept).
+
+    Attributes:
+        delay: s, ≥ 0.
+    """
+
+    delay: float
+
+    def __post_init__(self) -> None:
+        if not self.delay >= 0.0:
+            raise AkarmError(f"DelayReplies delay {self.delay!r} s is negative", fix="give a delay ≥ 0 s")
+
+
+@dataclass(frozen=True)
+class Unplugged(Fault):
+    """The motor's CAN cable is out: it sends nothing and receives nothing.
+
+    Attributes:
+        power_lost: ``False`` (only CAN is lost): the motor keeps applying its last command (until
+            its own timeouts, if any, make it limp). ``True`` (power lost too): the output goes limp
+            at once, and when the fault is cleared the driver starts as after power-up (MIT:
+            disabled, stored command zero; servo: released, temporary origin forgotten).
+    """
+
+    power_lost: bool = False
+
+
+@dataclass(frozen=True)
+class ErrorCode(Fault):
+    """Report ``code`` in the error byte (MIT reply byte 7, servo status byte 7) from now on.
+
+    Codes as in the manual: 1 motor over-temperature, 2 over-current, 3 over-voltage,
+    4 under-voltage, 5 encoder fault, 6 MOSFET over-temperature, 7 motor stall.
+    """
+
+    code: int
+
+    def __post_init__(self) -> None:
+        if not 0 <= int(self.code) <= 255:
+            raise AkarmError(f"error code {self.code!r} is outside 0..255", fix="use a code 1-7 as the manual lists")
+
+
+@dataclass(frozen=True)
+class FrozenEncoder(Fault):
+    """The encoder reading stops changing: the reported position stays at its value when the fault was
+    injected and the reported velocity is 0, while the joint itself goes on moving.
+
+    Attributes:
+        affects_control: ``False`` (default): only the reports freeze, the firmware's own loops still
+            see the true position. ``True``: the firmware's loops see the frozen reading too (as a real
+            failed encoder would do), so a position hold no longer holds.
+    """
+
+    affects_control: bool = False
+
+
+@dataclass(frozen=True)
+class FaultAfter(Fault):
+    """Start reporting error ``code`` ``after`` seconds (simulated time) after the fault is injected.
+
+    Attributes:
+        after: s, ≥ 0.
+        code: the error code reported from then on (default 1, motor over-temperature).
+    """
+
+    after: float
+    code: int = 1
+
+    def __post_init__(self) -> None:
+        if not self.after >= 0.0:
+            raise AkarmError(f"FaultAfter time {self.after!r} s is negative", fix="give a time ≥ 0 s")
+        if not 0 <= int(self.code) <= 255:
+            raise AkarmError(f"error code {self.code!r} is outside 0..255", fix="use a code 1-7 as the manual lists")
+
+
+#: The CLI's fault kinds: ``--fault JOINT:KIND[:ARG]``, with what ARG means.
+KINDS: dict[str, str] = {
+    "drop": "drop:FRACTION[,SEED]   lose that share of the replies (e.g. drop:0.3)",
+    "delay": "delay:SECONDS          send every reply that late (e.g. delay:0.005)",
+    "unplugged": "unplugged[:power]      no frames in or out; ':power' makes the output limp too",
+    "error": "error:CODE             report that error code (1 over-temperature, 5 encoder, ...)",
+    "frozen": "frozen[:control]       reported position stops changing; ':control' freezes the loops' too",
+    "fault-after": "fault-after:SECONDS[,CODE]   report CODE (default 1) after that many seconds",
+}
+
+
+def _bad(spec: str, why: str) -> AkarmError:
+    kinds = "; ".join(KINDS.values())
+    return AkarmError(f"bad fault {spec!r}: {why}", fix=f"write JOINT:KIND[:ARG], KIND one of: {kinds}")
+
+
+def parse(spec: str) -> tuple[str, Fault]:
+    """Parse a command-line fault ``JOINT:KIND[:ARG]`` into ``(joint name, fault)``.
+
+    Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
+    ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``.
+
+    Raises:
+        AkarmError: the text is not a fault; the message lists the kinds.
+    """
+    parts = spec.split(":")
+    if len(parts) < 2 or not parts[0]:
+        raise _bad(spec, "expected JOINT:KIND[:ARG]")
+    joint, kind = parts[0], parts[1].strip().lower().replace("_", "-")
+    arg = ":".join(parts[2:]) if len(parts) > 2 else None
+    args = [a.strip() for a in arg.split(",")] if arg else []
+    try:
+        if kind == "drop":
+            if not args:
+                raise _bad(spec, "drop needs a fraction")
+            return joint, DropReplies(float(args[0]), seed=int(args[1]) if len(args) > 1 else 0)
+        if kind == "delay":
+            if not args:
+                raise _bad(spec, "delay needs a time in seconds")
+            return joint, DelayReplies(float(args[0]))
+        if kind == "unplugged":
+            if args and args[0] not in ("power", "power_lost", "power-lost"):
+                raise _bad(spec, f"unplugged takes nothing or 'power', not {args[0]!r}")
+            return joint, Unplugged(power_lost=bool(args))
+        if kind == "error":
+            if not args:
+                raise _bad(spec, "error needs a code")
+            return joint, ErrorCode(int(args[0]))
+        if kind == "frozen":
+            if args and args[0] != "control":
+                raise _bad(spec, f"frozen takes nothing or 'control', not {args[0]!r}")
+            return joint, FrozenEncoder(affects_control=bool(args))
+        if kind == "fault-after":
+            if not args:
+                raise _bad(spec, "fault-after needs a time in seconds")
+            return joint, FaultAfter(float(args[0]), code=int(args[1]) if len(args) > 1 else 1)
+    except ValueError as e:
+        raise _bad(spec, str(e)) from None
+    raise _bad(spec, f"unknown kind {kind!r}")

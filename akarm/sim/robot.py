@@ -1,0 +1,415 @@
+"""A whole simulated robot: one simulated driver per joint, on the config's CAN buses, around the plant.
+
+In-process, for tests and demos::
+
+    with SimulatedRobot(config, interface="virtual", channel="demo", realtime=False) as sim:
+        arm = Arm(sim.config, clock=sim.clock)   # the same bus override, the same stepped clock
+        ...
+
+Lock-step (``realtime=False``): nothing runs by itself. ``sim.advance_to(t)`` (which the stepped
+clock calls from ``sleep_until``) first handles every frame already received, at the current
+simulated time, then integrates the plant in fixed steps up to ``t``, sending the frames that come
+due on the way (servo status frames, delayed replies, fault timers) at their simulated times. No
+threads, so a run is exactly repeatable and as fast as the CPU allows.
+
+Real time (default, and what ``akarm sim`` uses): a thread per bus blocks on ``recv`` and answers each
+frame at once (after bringing the plant up to the wall clock), and a ticker thread keeps the plant
+at the wall clock between frames. When the machine cannot keep up, simulated time slips (it runs
+slower than the wall clock) rather than bursting: :attr:`SimulatedRobot.slip` says by how much.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import itertools
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..bus import open_bus
+from ..clock import RealClock, SteppedClock
+from ..errors import ConfigError, ConfigProblem, StateError
+from . import faults as _faults
+from .drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
+from .params import MotorSimParams, default_params
+from .plant import Plant
+
+if TYPE_CHECKING:
+    import can
+
+    from ..config import RobotConfig
+
+__all__ = ["SimulatedRobot"]
+
+
+class SimulatedRobot:
+    """The AK drivers of ``config``'s joints on its CAN buses, moving a simulated arm.
+
+    Args:
+        config: the robot. Its buses are used as they are, or with ``interface``/``channel``
+            overridden (``config.with_bus(interface, channel)``): pass the same override to the
+            controller, or simply give it :attr:`config`. Several buses each get their own python-can bus.
+        interface, channel: bus override (e.g. ``"virtual"`` and a channel name unique to a test).
+        realtime: ``True`` (default): threads answer frames as they come and the plant follows the wall
+            clock. ``False``: lock step through :meth:`advance_to` / :attr:`clock`.
+        dt: integration step, s (default 0.0005: 2 kHz).
+        params: per joint name, simulation constants replacing :func:`~akarm.sim.params.default_params`.
+        q0: initial joint positions (rad, config order); default 0 (clipped into the URDF limits).
+        zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
+        servo_release: s after the last command a servo driver releases its output (default 1.0).
+        max_lag: real time only: s the plant may fall behind the wall clock before time slips.
+
+    Attributes:
+        config: the configuration in force (with the bus override).
+        plant: the :class:`~akarm.sim.plant.Plant`; model: its :class:`~akarm.model.RobotModel`.
+        drivers: the simulated drivers, config order.
+        clock: a :class:`~akarm.clock.SteppedClock` driving :meth:`advance_to` (lock step), or a
+            :class:`~akarm.clock.RealClock` (real time).
+        send_errors: frames the bus refused to send (a full socketcan queue, ...).
+    """
+
+    def __init__(
+        self,
+        config: RobotConfig,
+        interface: str | None = None,
+        channel: str | Mapping[str, str] | None = None,
+        *,
+        realtime: bool = True,
+        dt: float = 0.0005,
+        params: Mapping[str, MotorSimParams] | None = None,
+        q0: Sequence[float] | None = None,
+        zero_silence: float = 1.0,
+        servo_release: float = 1.0,
+        max_lag: float = 0.05,
+    ) -> None:
+        if interface is not None or channel is not None:
+            config = config.with_bus(interface=interface, channel=channel)
+        self.config = config
+        self.realtime = realtime
+        self._lock = threading.RLock()
+        params = dict(params or {})
+        unknown = [name for name in params if name not in config.joint_names]
+        if unknown:
+            raise ConfigError([ConfigProblem(str(config.source or config.name), None,
+                                             f"simulation params for unknown joint(s) {', '.join(unknown)}",
+                                             "joints are: " + ", ".join(config.joint_names))])
+        plist = [params.get(j.name) or default_params(j.motor) for j in config.joints]
+        self.plant = Plant(config, plist, dt)
+        self.model = self.plant.model
+        self.dt = self.plant.dt
+        self._k = 0                  # steps taken: simulated time is k·dt
+        self._t = 0.0
+        q_init = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
+        self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
+        inertia = self.plant.joint_inertia()
+        drivers: list[SimulatedDriver] = []
+        for i, (j, p) in enumerate(zip(config.joints, plist, strict=True)):
+            drivers.append(make_driver(j, p, self, self._state_getter(i), self.dt, load_inertia=float(inertia[i]),
+                                       zero_silence=zero_silence, servo_release=servo_release))
+        self.drivers: tuple[SimulatedDriver, ...] = tuple(drivers)
+        self._by_name = {d.name: d for d in drivers}
+        self.plant.attach(drivers)
+        self._routes: dict[str, dict[tuple[int, bool], SimulatedDriver]] = {b: {} for b in config.buses}
+        for d in drivers:
+            table = self._routes.setdefault(d.bus, {})
+            for key in d.routes():
+                other = table.get(key)
+                if other is not None:
+                    raise ConfigError([ConfigProblem(
+                        str(config.source or config.name), None,
+                        f"joints {other.name!r} and {d.name!r} both listen to CAN ID 0x{key[0]:X} on bus {d.bus!r}",
+                        "give each motor on a bus its own can_id")])
+                table[key] = d
+        self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
+        self._seq = itertools.count()
+        self._buses: dict[str, can.BusABC] = {}
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._t0 = 0.0
+        self.max_lag = max_lag
+        self.slip = 0.0
+        self.send_errors = 0
+        self.thread_error: BaseException | None = None
+        self.clock: SteppedClock | RealClock
+        if realtime:
+            self.clock = RealClock()
+        else:
+            self.clock = SteppedClock(0.0)
+            self.clock.attach(self.advance_to)
+
+    # ------------------------------------------------------------------ life cycle
+
+    def start(self) -> SimulatedRobot:
+        """Open the buses (and, in real time, start the threads). :class:`~akarm.BusError` if a bus won't open."""
+        if self._buses:
+            return self
+        try:
+            for name, bus_cfg in self.config.buses.items():
+                self._buses[name] = open_bus(bus_cfg)
+        except BaseException:
+            self._shutdown_buses()
+            raise
+        if self.realtime:
+            self._stop.clear()
+            self._t0 = time.perf_counter() - self._t
+            for name, bus in self._buses.items():
+                th = threading.Thread(target=self._rx_loop, args=(name, bus), name=f"akarm-sim-rx-{name}", daemon=True)
+                self._threads.append(th)
+            self._threads.append(threading.Thread(target=self._tick_loop, name="akarm-sim-tick", daemon=True))
+            for th in self._threads:
+                th.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the threads and shut every bus down. Safe to call twice."""
+        self._stop.set()
+        for th in self._threads:
+            th.join(timeout=2.0)
+        self._threads.clear()
+        self._shutdown_buses()
+
+    def _shutdown_buses(self) -> None:
+        for bus in self._buses.values():
+            with contextlib.suppress(Exception):  # closing must not fail
+                bus.shutdown()
+        self._buses.clear()
+
+    def __enter__(self) -> SimulatedRobot:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def t(self) -> float:
+        """Simulated time, s (a whole number of steps)."""
+        return self._t
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint positions, rad, config order (a copy)."""
+        return self.plant.q.copy()
+
+    @property
+    def dq(self) -> np.ndarray:
+        """Joint velocities, rad/s, config order (a copy)."""
+        return self.plant.dq.copy()
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Joint torques the motors apply, N·m, config order (a copy)."""
+        return self.plant.tau.copy()
+
+    @property
+    def temperatures(self) -> np.ndarray:
+        """Motor winding temperatures, °C, config order."""
+        return np.array([d.temperature for d in self.drivers])
+
+    def set_state(self, q: Sequence[float], dq: Sequence[float] | None = None) -> None:
+        """Place the arm: joint positions ``q`` (rad) and velocities ``dq`` (rad/s, default 0), config order."""
+        qa = np.asarray(q, dtype=float)
+        va = np.zeros(self.plant.n) if dq is None else np.asarray(dq, dtype=float)
+        if qa.shape != (self.plant.n,) or va.shape != (self.plant.n,):
+            raise StateError(f"set_state needs {self.plant.n} values per vector, in the order "
+                             + ", ".join(self.config.joint_names))
+        with self._lock:
+            self.plant.q[:] = qa
+            self.plant.dq[:] = va
+
+    def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        """Attach a payload at the tool frame now: ``mass`` kg at ``com`` (m, tool frame); 0 kg removes it."""
+        with self._lock:
+            self.plant.set_payload(mass, com)
+
+    def clear_payload(self) -> None:
+        """Remove the payload."""
+        self.set_payload(0.0)
+
+    def joint(self, name: str) -> SimulatedDriver:
+        """The simulated driver of joint ``name`` (:class:`MitDriver` or :class:`ServoDriver`)."""
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise ConfigError([ConfigProblem(str(self.config.source or self.config.name), None,
+                                             f"no joint named {name!r}",
+                                             "joints are: " + ", ".join(self.config.joint_names))]) from None
+
+    def inject(self, joint: str, fault: _faults.Fault) -> None:
+        """``sim.joint(joint).inject(fault)``, under the simulator's lock (safe in real time)."""
+        with self._lock:
+            self.joint(joint).inject(fault)
+
+    def clear_faults(self) -> None:
+        """End every fault on every joint."""
+        with self._lock:
+            for d in self.drivers:
+                d.clear_faults()
+
+    def status_line(self) -> str:
+        """One line: time and, per joint, position (rad), torque (N·m), temperature (°C), mode, fault."""
+        with self._lock:
+            parts = [f"t={self._t:8.2f}s"]
+            for d, q, tau in zip(self.drivers, self.plant.q.tolist(), self.plant.tau.tolist(), strict=True):
+                if isinstance(d, MitDriver):
+                    state = "on" if d.enabled else "off"
+                elif isinstance(d, ServoDriver):
+                    state = d.control or "off"
+                else:
+                    state = "?"
+                flag = f" E{d.error}" if d.error else ""
+                flag += " X" if d.faults else ""
+                parts.append(f"{d.name} {q:+7.3f}rad {tau:+6.2f}Nm {d.temperature:5.1f}C {state}{flag}")
+            if self.slip > 0.001:
+                parts.append(f"slip {self.slip:.2f}s")
+            return " | ".join(parts)
+
+    # ------------------------------------------------------------------ DriverHost
+
+    def now(self) -> float:
+        """Simulated time, s (for the drivers)."""
+        return self._t
+
+    def transmit(self, bus: str, arbitration_id: int, data: bytes, is_extended: bool, due: float) -> None:
+        """Send a frame on ``bus`` now, or queue it until simulated time ``due`` (s)."""
+        if due <= self._t + 1e-9:
+            self._send_now(bus, arbitration_id, data, is_extended)
+        else:
+            heapq.heappush(self._outbox, (due, next(self._seq), bus, arbitration_id, data, is_extended))
+
+    def _send_now(self, bus_name: str, arbitration_id: int, data: bytes, is_extended: bool) -> None:
+        import can
+
+        bus = self._buses.get(bus_name)
+        if bus is None:
+            raise StateError("the simulator's buses are not open",
+                             fix="use `with SimulatedRobot(...) as sim:` or call sim.start() first")
+        try:
+            bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=is_extended,
+                                 timestamp=self._t))
+        except can.CanError:
+            self.send_errors += 1
+
+    def _state_getter(self, i: int) -> Callable[[], tuple[float, float]]:
+        plant = self.plant
+        return lambda: plant.motor_state(i)
+
+    # ------------------------------------------------------------------ time
+
+    def advance_to(self, t: float) -> None:
+        """Lock step: handle every frame received so far at the current time, then integrate to ``t`` (s).
+
+        Frames that come due on the way (servo status frames, delayed replies) are sent at their
+        simulated times. Raises :class:`~akarm.StateError` in real-time mode or before :meth:`start`.
+        """
+        if self.realtime:
+            raise StateError("advance_to is for lock step; this simulator runs in real time",
+                             fix="build it with realtime=False")
+        if not self._buses:
+            raise StateError("the simulator's buses are not open",
+                             fix="use `with SimulatedRobot(...) as sim:` or call sim.start() first")
+        self._poll()
+        self._integrate_to(t)
+
+    def run_for(self, seconds: float) -> None:
+        """Advance by ``seconds``: through the stepped clock in lock step, by sleeping in real time."""
+        if self.realtime:
+            time.sleep(seconds)
+        else:
+            assert isinstance(self.clock, SteppedClock)
+            self.clock.sleep_until(max(self.clock.now(), self._t) + seconds)
+
+    def _poll(self) -> None:
+        """Handle every frame waiting on every bus, at the current simulated time."""
+        for name, bus in self._buses.items():
+            routes = self._routes.get(name, {})
+            while True:
+                msg = bus.recv(timeout=0.0)
+                if msg is None:
+                    break
+                self._dispatch(routes, msg)
+
+    def _dispatch(self, routes: Mapping[tuple[int, bool], SimulatedDriver], msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_remote_frame:
+            return
+        drv = routes.get((msg.arbitration_id, msg.is_extended_id))
+        if drv is not None:
+            drv.receive(msg.arbitration_id, msg.is_extended_id, bytes(msg.data), self._t)
+
+    def _integrate_to(self, t: float) -> None:
+        dt = self.dt
+        target = math.floor(t / dt + 1e-6)
+        plant = self.plant
+        outbox = self._outbox
+        drivers = self.drivers
+        while self._k < target:
+            tk = self._k * dt
+            self._t = tk
+            plant.step(tk)
+            self._k += 1
+            self._t = self._k * dt
+            if outbox and outbox[0][0] <= self._t + 1e-9:
+                self._flush()
+        # timers due exactly now (a status frame at t) run now, not at the start of the next step
+        tk = self._t
+        for d in drivers:
+            d.tick(tk)
+        if outbox and outbox[0][0] <= tk + 1e-9:
+            self._flush()
+
+    def _flush(self) -> None:
+        outbox = self._outbox
+        while outbox and outbox[0][0] <= self._t + 1e-9:
+            _, _, bus, aid, data, ext = heapq.heappop(outbox)
+            self._send_now(bus, aid, data, ext)
+
+    # ------------------------------------------------------------------ real time
+
+    def _wall(self) -> float:
+        """Where simulated time should be now, s; slips when the plant fell more than max_lag behind."""
+        target = time.perf_counter() - self._t0
+        behind = target - self._t
+        if behind > self.max_lag:
+            slip = behind - self.max_lag
+            self._t0 += slip
+            self.slip += slip
+            target -= slip
+        return target
+
+    def _rx_loop(self, name: str, bus: can.BusABC) -> None:
+        import can
+
+        routes = self._routes.get(name, {})
+        try:
+            while not self._stop.is_set():
+                try:
+                    msg = bus.recv(timeout=0.02)
+                except can.CanError:
+                    if self._stop.is_set():
+                        return
+                    time.sleep(0.01)
+                    continue
+                if msg is None:
+                    continue
+                with self._lock:
+                    self._integrate_to(self._wall())
+                    self._dispatch(routes, msg)
+        except BaseException as e:  # reported through thread_error
+            if not self._stop.is_set():
+                self.thread_error = e
+                self._stop.set()
+
+    def _tick_loop(self) -> None:
+        try:
+            while not self._stop.wait(0.001):
+                with self._lock:
+                    self._integrate_to(self._wall())
+        except BaseException as e:  # reported through thread_error
+            self.thread_error = e
+            self._stop.set()

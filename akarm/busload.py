@@ -125,6 +125,7 @@ class BusLoad:
         max_rate_hz: highest loop rate keeping the worst-case load at or under 80 %, Hz.
         max_rate_hz_nominal: highest loop rate keeping the nominal load at or under 80 %, Hz.
         saturation_hz: loop rate at which the bus is 100 % busy in the worst case, Hz.
+        saturation_hz_nominal: loop rate at which the bus is 100 % busy without stuffing bits, Hz.
     """
 
     bus: str
@@ -136,6 +137,7 @@ class BusLoad:
     max_rate_hz: float
     max_rate_hz_nominal: float
     saturation_hz: float
+    saturation_hz_nominal: float
 
     @property
     def over_limit(self) -> bool:
@@ -164,6 +166,7 @@ def load_of(name: str, bitrate: int, rate_hz: float, joints: Iterable[JointConfi
         max_rate_hz=_max_rate(traffic, bitrate, stuffed=True, limit=LOAD_LIMIT),
         max_rate_hz_nominal=_max_rate(traffic, bitrate, stuffed=False, limit=LOAD_LIMIT),
         saturation_hz=_max_rate(traffic, bitrate, stuffed=True, limit=1.0),
+        saturation_hz_nominal=_max_rate(traffic, bitrate, stuffed=False, limit=1.0),
     )
 
 

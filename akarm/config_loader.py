@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -123,14 +124,43 @@ def read_urdf_joints(path: Path) -> tuple[dict[str, UrdfJoint], set[str]]:
 
 
 def _check_pinocchio(path: Path) -> str | None:
-    """None when Pinocchio builds a model from the URDF, else its complaint."""
-    try:
-        import pinocchio as pin
+    """None when Pinocchio builds a model from the URDF, else why not.
 
-        pin.buildModelFromUrdf(str(path))
-    except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
-        return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-    return None
+    Pinocchio's exception only says "does not contain a valid URDF model"; the reason is printed by
+    urdfdom on the C++ side to file descriptor 2, so that is captured for the duration of the call.
+    """
+    import tempfile
+
+    import pinocchio as pin
+
+    captured = ""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        saved = -1
+    try:
+        with tempfile.TemporaryFile(mode="w+b") as tmp:
+            if saved >= 0:
+                os.dup2(tmp.fileno(), 2)
+            try:
+                pin.buildModelFromUrdf(str(path))
+                error = None
+            except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
+                error = str(e).strip() or type(e).__name__
+            finally:
+                if saved >= 0:
+                    os.dup2(saved, 2)
+            if error is not None:
+                tmp.seek(0)
+                captured = tmp.read().decode("utf-8", "replace")
+    finally:
+        if saved >= 0:
+            os.close(saved)
+    if error is None:
+        return None
+    reasons = [ln.split("Error:", 1)[1].strip() for ln in captured.splitlines() if "Error:" in ln]
+    return "; ".join(reasons) if reasons else error.splitlines()[0]
 
 
 # --------------------------------------------------------------------------- YAML with line numbers
@@ -470,8 +500,8 @@ class _Loader:
             return path, None, set()
         complaint = _check_pinocchio(path)
         if complaint is not None:
-            r.add(node, f"Pinocchio cannot build a model from URDF {path.name}: {complaint}",
-                  "fix the URDF (every link needs a unique name, every joint a parent and a child)")
+            r.add(node, f"URDF {path.name} is not a valid robot model: {complaint}",
+                  "fix the URDF (unique link names, every joint a known type, parent and child link)")
             return path, None, set()
         return path, joints, links
 

@@ -183,7 +183,9 @@ class _Reader:
 
     def add(self, at: yaml.Node | int | None, message: str, fix: str = "") -> None:
         line = at if isinstance(at, int) or at is None else _line(at)
-        self.problems.append(ConfigProblem(self.file, line, message, fix))
+        problem = ConfigProblem(self.file, line, message, fix)
+        if problem not in self.problems:  # `defaults:` entries are read once per joint
+            self.problems.append(problem)
 
     def plain(self, node: yaml.Node) -> Any:
         try:
@@ -366,19 +368,16 @@ class _Field:
 
 
 def _merged(joint: Mapping[str, tuple[yaml.Node, yaml.Node]], defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
-            r: _Reader, key: str, subkeys: tuple[str, ...]) -> tuple[dict[str, _Field], yaml.Node | None]:
+            r: _Reader, key: str, subkeys: tuple[str, ...]) -> dict[str, _Field]:
     """A limits/gains mapping merged key by key: the joint's own entries over those of `defaults:`."""
     out: dict[str, _Field] = {}
-    where = None
     if key in defaults:
-        where = defaults[key][0]
         for k, (kn, vn) in r.mapping(defaults[key][1], f"defaults: {key}", subkeys).items():
             out[k] = _Field(kn, vn)
     if key in joint:
-        where = joint[key][0]
         for k, (kn, vn) in r.mapping(joint[key][1], key, subkeys).items():
             out[k] = _Field(kn, vn)
-    return out, where
+    return out
 
 
 class _Loader:
@@ -686,8 +685,8 @@ class _Loader:
                 motor: MotorModel | None, mode: str, direction: int, offset: float, uj: UrdfJoint | None
                 ) -> Limits | None:
         r = self.r
-        fields, where = _merged(own, defaults, r, "limits", LIMIT_KEYS)
-        at = where if where is not None else jnode
+        fields = _merged(own, defaults, r, "limits", LIMIT_KEYS)
+        at = own["limits"][0] if "limits" in own else own["name"][1] if "name" in own else jnode
         ok = True
         values: dict[str, float] = {}
         for key, unit in (("velocity", "rad/s"), ("acceleration", "rad/s²"), ("jerk", "rad/s³")):
@@ -778,7 +777,8 @@ class _Loader:
                defaults: Mapping[str, tuple[yaml.Node, yaml.Node]], jnode: yaml.Node, label: str,
                motor: MotorModel | None, mode: str) -> Gains | None:
         r = self.r
-        fields, where = _merged(own, defaults, r, "gains", GAIN_KEYS)
+        fields = _merged(own, defaults, r, "gains", GAIN_KEYS)
+        where = own["gains"][0] if "gains" in own else own["name"][1] if "name" in own else None
         kp_max = motor.kp_max if motor is not None else 500.0
         kd_max = motor.kd_max if motor is not None else 5.0
         values: dict[str, float] = {}

@@ -383,6 +383,8 @@ def _merged(joint: Mapping[str, tuple[yaml.Node, yaml.Node]], defaults: Mapping[
 class _Loader:
     def __init__(self, path: Path, catalogue: Catalogue | None) -> None:
         self.path = path
+        self.joint_entries = 0  # items under joints:, valid or not
+        self.seen_ids: dict[tuple[str, int], tuple[str, int | None]] = {}  # (bus, CAN ID) -> joint, line
         self.r = _Reader(str(path))
         self.catalogue = catalogue if catalogue is not None else default_catalogue()
 
@@ -527,22 +529,13 @@ class _Loader:
         if not isinstance(node, yaml.SequenceNode) or not node.value:
             r.add(node, "`joints:` must be a non-empty list of joints", "write `- name: JOINT` items under joints:")
             return []
+        self.joint_entries = len(node.value)
         out: list[JointConfig] = []
         seen_names: dict[str, int | None] = {}
-        seen_ids: dict[tuple[str, int], tuple[str, int | None]] = {}
         for jnode in node.value:
-            j = self._joint(jnode, defaults, buses, cat, urdf, seen_names)
-            if j is None:
-                continue
-            config, id_node = j
-            key = (config.bus, config.can_id)
-            if key in seen_ids:
-                other, other_line = seen_ids[key]
-                r.add(id_node, f"joint {config.name!r}: CAN ID {config.can_id} on bus {config.bus!r} is already "
-                      f"used by joint {other!r} (line {other_line})", "give every motor on a bus its own CAN ID")
-            else:
-                seen_ids[key] = (config.name, _line(id_node))
-            out.append(config)
+            config = self._joint(jnode, defaults, buses, cat, urdf, seen_names)
+            if config is not None:
+                out.append(config)
         if urdf is not None:
             configured = set(seen_names)
             for uj in urdf.values():
@@ -553,7 +546,7 @@ class _Loader:
 
     def _joint(self, jnode: yaml.Node, defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
                buses: Mapping[str, BusConfig], cat: Catalogue, urdf: dict[str, UrdfJoint] | None,
-               seen_names: dict[str, int | None]) -> tuple[JointConfig, yaml.Node] | None:
+               seen_names: dict[str, int | None]) -> JointConfig | None:
         r = self.r
         n_before = len(r.problems)
         own = r.mapping(jnode, "joint", JOINT_KEYS)
@@ -617,6 +610,13 @@ class _Loader:
         else:
             can_id = r.integer(id_node, f"{label}: can_id", 1, 127,
                                "CAN IDs 1-127 (0 is the host's); set the motor's ID with CubeMars' tool")
+        if bus is not None and can_id is not None and id_node is not None:
+            if (bus, can_id) in self.seen_ids:
+                other, other_line = self.seen_ids[(bus, can_id)]
+                r.add(id_node, f"{label}: CAN ID {can_id} on bus {bus!r} is already used by joint {other!r} "
+                      f"(line {other_line})", "give every motor on a bus its own CAN ID")
+            else:
+                self.seen_ids[(bus, can_id)] = (name or "?", _line(id_node))
 
         # motor
         motor: MotorModel | None = None
@@ -677,8 +677,7 @@ class _Loader:
         config = JointConfig(name=name, bus=bus, can_id=can_id, motor=motor, mode=mode,  # type: ignore[arg-type]
                              limits=limits, firmware=firmware, direction=direction,  # type: ignore[arg-type]
                              offset=offset, gains=gains, **{k: v for k, v in extras.items() if v is not None})
-        assert id_node is not None
-        return config, id_node
+        return config
 
     def _limits(self, own: Mapping[str, tuple[yaml.Node, yaml.Node]],
                 defaults: Mapping[str, tuple[yaml.Node, yaml.Node]], jnode: yaml.Node, label: str,
@@ -805,6 +804,8 @@ class _Loader:
             v = r.vector(vnode, f"pose {name!r}")
             if v is None:
                 continue
+            if n != self.joint_entries:
+                continue  # some joints have problems of their own: lengths and limits cannot be checked
             if len(v) != n:
                 r.add(vnode, f"pose {name!r} has {len(v)} values for {n} joints",
                       "give one value per joint (rad), in the order of joints: " + ", ".join(j.name for j in joints))

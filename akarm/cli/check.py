@@ -31,11 +31,12 @@ def _hz(x: float) -> str:
     return "unlimited" if math.isinf(x) else f"{math.floor(x)} Hz"
 
 
-def report(config: object, out: TextIO = sys.stdout) -> list[str]:
-    """Print the arm's table and bus load to ``out``; return the warnings printed."""
+def report(config: object, out: TextIO | None = None) -> list[str]:
+    """Print the arm's table and bus load to ``out`` (default stdout); return the warnings printed."""
     from ..busload import LOAD_LIMIT, bus_loads
     from ..config import RobotConfig
 
+    out = out if out is not None else sys.stdout
     assert isinstance(config, RobotConfig)
     print(f"robot {config.name!r}: {len(config.joints)} joints, URDF {config.urdf}", file=out)
     extras = [f"loop {config.rate_hz:g} Hz", f"gravity {tuple(config.gravity)} m/s²"]

@@ -56,6 +56,7 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 
 _STAGES = ("receive", "safety", "trajectory", "feedforward", "send", "telemetry")
 _DEFAULT_FEEDBACK_TIMEOUT = 0.020
+_FRICTION_SMOOTHING = 0.02  # rad/s: Coulomb feed-forward is c·tanh(v_des / this), smooth through zero
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,9 @@ class Arm:
             ``SimulatedRobot(..., realtime=False)`` to run in lock step with the simulator.
         feedforward: ``"full"`` (inverse dynamics of the planned trajectory, default),
             ``"gravity"`` (gravity only) or ``"none"``; always clamped to each joint's torque limit.
+        friction_feedforward: add each joint's friction (its ``friction:`` in the YAML, else the
+            catalogue's typical values) at the *desired* velocity: ``c·tanh(v/0.02) + b·v``. Off
+            with ``feedforward="none"``.
         feedback_timeout: s; the watchdog stops the arm when a joint's feedback is older
             (default 20 ms; servo joints at least 3 status periods; a joint's own setting wins).
         enable_ramp: s over which MIT gains rise from zero at enable.
@@ -152,12 +156,18 @@ class Arm:
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread (reported, never fatal).
+        hold_integral: 1/s; while holding still (no motion running), MIT joints add integral action
+            ``ki = hold_integral · kp`` to their torque, which removes the steady-state error that
+            friction leaves with a pure PD (kp = 40 N·m/rad against 0.3 N·m of friction: 7.5 mrad).
+            Reset whenever a motion starts; its torque is clamped to 10 % of the joint's torque
+            limit. 0 turns it off.
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
                  feedback_timeout: float = _DEFAULT_FEEDBACK_TIMEOUT, enable_ramp: float = 0.3,
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
-                 can_log: str | PathLike[str] | None = None, realtime_priority: bool = False) -> None:
+                 can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
+                 hold_integral: float = 3.0, friction_feedforward: bool = True) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         self.config = config
@@ -178,6 +188,15 @@ class Arm:
         self.planner = Planner(self.limits)
         self._kp = np.array([j.gains.kp for j in config.joints])
         self._kd = np.array([j.gains.kd for j in config.joints])
+        is_mit = np.array([j.mode == "mit" for j in config.joints])
+        self._ki = np.where(is_mit, hold_integral * self._kp, 0.0)
+        self._i_torque_max = 0.1 * self._torque_limit
+        self._integral = np.zeros(self.n)  # ∫(q_des - q) dt while holding, rad·s
+        self._t_last = 0.0
+        fr = [j.friction_model() for j in config.joints]
+        on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
+        self._fric_c = np.array([f.coulomb for f in fr]) * on
+        self._fric_b = np.array([f.viscous for f in fr]) * on
         self._timeouts = np.array([self._feedback_timeout(j.config, feedback_timeout) for j in self.joints])
         self.telemetry_ring = Telemetry(self.names, max(1, int(telemetry_seconds * config.rate_hz)))
         self._can_log_path = can_log
@@ -315,6 +334,7 @@ class Arm:
             self._mode = "enabling"
         self._wait_for(lambda: self._mode != "enabling", timeout + 1.0, "the joints to answer")
         if self._enable_error is not None:
+            self._loop.wait_cycle(0.1)  # type: ignore[union-attr]  # deliver the exit frames
             raise self._enable_error
         self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
 
@@ -326,8 +346,14 @@ class Arm:
         with self._lock:
             if self._mode != "stopping":
                 self._begin_stop()
+        self._wait_disabled()
+
+    def _wait_disabled(self) -> None:
+        """Wait for the stop sequence to end, then one more cycle so its exit frames are delivered."""
         self._wait_for(lambda: self._mode == "disabled", self.stop_damping_time + 2.0, "the arm to disable",
                        raise_fault=False)
+        if self._loop is not None:
+            self._loop.wait_cycle(0.1)
 
     @property
     def enabled(self) -> bool:
@@ -482,8 +508,8 @@ class Arm:
 
     def _raise_fault(self) -> None:
         if self._fault is not None:
-            self._wait_for(lambda: self._mode == "disabled", self.stop_damping_time + 2.0,
-                           "the safety stop to finish", raise_fault=False)
+            if self._mode != "disabled":
+                self._wait_disabled()
             raise self._fault
 
     def _wait_for(self, done, timeout: float, what: str, raise_fault: bool = True) -> None:
@@ -610,6 +636,16 @@ class Arm:
                 ff = self.model.gravity(q_d)
             else:
                 ff = np.zeros(self.n)
+            ff = ff + self._fric_c * np.tanh(dq_d * (1.0 / _FRICTION_SMOOTHING)) + self._fric_b * dq_d
+            if plan is None and self._gain_scale >= 1.0:
+                q = np.array([j.state.position for j in self.joints])
+                self._integral += (q_d - q) * (now - self._t_last)
+                tau_i = np.clip(self._ki * self._integral, -self._i_torque_max, self._i_torque_max)
+                self._integral = np.divide(tau_i, self._ki, out=np.zeros(self.n), where=self._ki > 0)
+                ff = ff + tau_i
+            else:
+                self._integral[:] = 0.0
+            self._t_last = now
             ff = np.clip(ff, -self._torque_limit, self._torque_limit)
             self._ff = ff
             t4 = pc()
@@ -653,6 +689,7 @@ class Arm:
             self._plan = None
             self._t_active = now
             self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
+            self._integral[:] = 0.0
             self._entered = False
             self._mode = "active"
             return

@@ -17,6 +17,7 @@ from .motors import Catalogue, MotorModel
 
 __all__ = [
     "BusConfig",
+    "Friction",
     "Gains",
     "JointConfig",
     "Limits",
@@ -72,6 +73,14 @@ class Gains:
 
 
 @dataclass(frozen=True)
+class Friction:
+    """Joint friction used for feed-forward: Coulomb N·m, viscous N·m·s/rad (output side)."""
+
+    coulomb: float = 0.0
+    viscous: float = 0.0
+
+
+@dataclass(frozen=True)
 class Payload:
     """A mass attached to the tool frame: kg, centre of mass in the tool frame (m)."""
 
@@ -103,6 +112,7 @@ class JointConfig:
         max_temperature: °C; the watchdog stops the arm above it.
         status_rate_hz: servo joints: the rate the motor sends status frames at (its own setting).
         can_timeout: s; MIT firmware CAN timeout (0 = off, as on units in the field). Simulator only.
+        friction: identified friction for feed-forward; ``None`` uses the catalogue's typical values.
     """
 
     name: str
@@ -120,6 +130,13 @@ class JointConfig:
     max_temperature: float = 80.0
     status_rate_hz: float = 50.0
     can_timeout: float = 0.0
+    friction: Friction | None = None
+
+    def friction_model(self) -> Friction:
+        """The friction to compensate: this joint's own, else the motor catalogue's, else none."""
+        if self.friction is not None:
+            return self.friction
+        return Friction(self.motor.friction_coulomb or 0.0, self.motor.friction_viscous or 0.0)
 
 
 @dataclass(frozen=True)

@@ -56,6 +56,8 @@ class MotorModel:
     peak_current: float | None = None
     rotor_inertia: float | None = None
     mass: float | None = None
+    friction_coulomb: float | None = None
+    friction_viscous: float | None = None
     servo_position: Literal["output", "rotor"] = "output"
     mit_temp_offset: float = 0.0
     firmware: Literal["v2", "v3"] = "v2"
@@ -76,7 +78,8 @@ _REQUIRED = ("p_max", "v_max", "t_max", "gear_ratio", "pole_pairs")
 _FIELD_NAMES = tuple(f.name for f in fields(MotorModel) if f.name != "name")
 _ENTRY_KEYS = (*_FIELD_NAMES, "base")
 _POSITIVE = ("p_max", "v_max", "t_max", "gear_ratio", "pole_pairs", "kp_max", "kd_max", "kt",
-             "rated_torque", "peak_torque", "rated_current", "peak_current", "rotor_inertia", "mass")
+             "rated_torque", "peak_torque", "rated_current", "peak_current", "rotor_inertia", "mass",
+             "friction_coulomb", "friction_viscous")
 _CHOICES = {"servo_position": ("output", "rotor"), "firmware": ("v2", "v3")}
 
 #: One problem with one catalogue entry: (field or None, message, fix).

@@ -134,8 +134,18 @@ class Planner:
         try:
             result = self._ruckig.calculate(inp, traj)
         except ruckig.RuckigError as e:
-            raise TrajectoryError(f"ruckig could not plan the motion: {str(e).strip()}",
-                                  fix="check the limits are positive and the start state is within them") from None
+            if "error in step" not in str(e):
+                raise TrajectoryError(f"ruckig could not plan the motion: {str(e).strip()}",
+                                      fix="check the limits are positive and the start state is within them") from None
+            # A numerical edge case of ruckig's solver for particular floats: the same problem with
+            # limits a millionth lower (still within the limits) solves.
+            inp.max_jerk = [x * (1 - 1e-6) for x in inp.max_jerk]
+            inp.max_acceleration = [x * (1 - 1e-6) for x in inp.max_acceleration]
+            try:
+                result = self._ruckig.calculate(inp, traj)
+            except ruckig.RuckigError as e2:
+                raise TrajectoryError(f"ruckig could not plan the motion: {str(e2).strip()}",
+                                      fix="report this input to akarm; try a slightly different target") from None
         if result not in (ruckig.Result.Working, ruckig.Result.Finished):
             raise TrajectoryError(f"ruckig could not plan the motion ({result})",
                                   fix="check the joint limits in the robot YAML")

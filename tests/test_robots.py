@@ -98,6 +98,19 @@ def test_check_on_broken_yaml(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert "line 4: not valid YAML" in err and "Traceback" not in err
 
 
+def test_check_rate_and_bitrate_overrides_are_checked_too(capsys: pytest.CaptureFixture[str]) -> None:
+    arm6 = str(ROBOTS / "arm6.yaml")
+    assert main(["check", arm6, "--rate", "700"]) == 1
+    err = capsys.readouterr().err
+    assert "rate_hz 700 (given as an override) puts 93 % (worst case 113 %) on bus 'arm'" in err
+    assert "at most 600 Hz" in err
+    # the file's 500 Hz at half the bit rate: 133 %
+    assert main(["check", arm6, "-b", "500000"]) == 1
+    err = capsys.readouterr().err
+    assert "bus 'arm' is 133 % busy" in err and "at most 300 Hz" in err
+    assert main(["check", arm6, "-b", "500000", "--rate", "250"]) == 0
+
+
 def test_check_on_a_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", str(tmp_path / "none.yaml")]) == 1
     assert "robot file not found" in capsys.readouterr().err

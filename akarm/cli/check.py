@@ -8,9 +8,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..errors import ConfigProblem
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -81,29 +84,42 @@ def report(config: object, out: TextIO | None = None) -> list[str]:
     return warnings
 
 
+def _print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> None:
+    n = len(problems)
+    print(f"{robot}: {n} problem{'s' if n != 1 else ''}:", file=out)
+    for p in problems:
+        where = f"line {p.line}" if p.line is not None else "(no line)"
+        if p.file != str(robot):
+            where = f"{p.file}:{where}"
+        print(f"  {where}: {p.message}", file=out)
+        if p.fix:
+            print(f"      fix: {p.fix}", file=out)
+
+
 def run(args: argparse.Namespace) -> int:
+    from ..busload import LOAD_LIMIT, bus_loads
     from ..config_loader import load_robot
-    from ..errors import ConfigError
+    from ..errors import ConfigError, ConfigProblem
+    from .common import parse_channel
 
     try:
-        if args.rate is not None:
-            from dataclasses import replace
-
-            config = load_robot(args.robot, rate_hz=args.rate)
-            base = load_from_args(args)
-            config = replace(base, rate_hz=config.rate_hz)
-        else:
+        if args.rate is None:
             config = load_from_args(args)
+        else:  # the loader checks the bus load at this rate
+            config = load_robot(args.robot, rate_hz=args.rate)
+            if args.interface or args.channel or args.bitrate:
+                config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
+                                         bitrate=args.bitrate)
     except ConfigError as e:
-        n = len(e.problems)
-        print(f"{args.robot}: {n} problem{'s' if n != 1 else ''}:", file=sys.stderr)
-        for p in e.problems:
-            where = f"line {p.line}" if p.line is not None else "(no line)"
-            if p.file != str(args.robot):
-                where = f"{p.file}:{where}"
-            print(f"  {where}: {p.message}", file=sys.stderr)
-            if p.fix:
-                print(f"      fix: {p.fix}", file=sys.stderr)
+        _print_problems(args.robot, e.problems, sys.stderr)
+        return 1
+    # a --bitrate override changes the load the file was validated with
+    over = [load for load in bus_loads(config).values() if load.over_limit]
+    if over:
+        _print_problems(args.robot, [ConfigProblem(
+            args.robot, None, f"at {config.rate_hz:g} Hz and {config.buses[load.bus].bitrate} bit/s bus "
+            f"{load.bus!r} is {load.percent_nominal:.0f} % busy, over {100 * LOAD_LIMIT:.0f} %",
+            f"run at most {math.floor(load.max_rate_hz_nominal)} Hz") for load in over], sys.stderr)
         return 1
     report(config)
     print(f"\n{args.robot}: OK")

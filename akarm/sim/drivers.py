@@ -212,7 +212,7 @@ class SimulatedDriver:
 
     def tick(self, t: float) -> None:
         """Run the driver's timers due at time ``t`` (s): status frames, timeouts, delayed faults."""
-        if t >= self._next_timer:
+        if t + 1e-9 >= self._next_timer:
             self._timers(t)
             self._reschedule(t)
 
@@ -374,7 +374,7 @@ class MitDriver(SimulatedDriver):
         return tm if tau > tm else -tm if tau < -tm else tau
 
     def output(self, t: float, p_raw: float, v: float) -> tuple[float, float, float]:
-        if t >= self._next_timer:
+        if t + 1e-9 >= self._next_timer:
             self.tick(t)
         if not self.enabled or not self._powered:
             return 0.0, 0.0, 0.0
@@ -503,8 +503,8 @@ class ServoDriver(SimulatedDriver):
         self.release_after = release_after
         self.position_speed_erpm = 12_000.0
         self.position_accel_erpm_s = 40_000.0
-        self.speed_bandwidth = 40.0
-        self.position_bandwidth = 60.0
+        self.speed_bandwidth = 150.0
+        self.position_bandwidth = 150.0
         self.load_inertia = load_inertia if load_inertia and load_inertia > 0 else max(m.reflected_inertia, 1e-4)
         self.control: str | None = None
         self.origin = 0.0
@@ -522,6 +522,7 @@ class ServoDriver(SimulatedDriver):
         rate = float(joint.status_rate_hz)
         self.status_period = 1.0 / rate if rate > 0 else _INF
         t0 = host.now()
+        self._status_epoch, self._status_n = t0, 1   # status frame n is due at epoch + n·period
         self._next_status = t0 + self.status_period
         self.tune()
         self._reschedule(t0)
@@ -617,7 +618,7 @@ class ServoDriver(SimulatedDriver):
     # -- control
 
     def output(self, t: float, p_raw: float, v: float) -> tuple[float, float, float]:
-        if t >= self._next_timer:
+        if t + 1e-9 >= self._next_timer:
             self.tick(t)
         ctl = self.control
         if ctl is None or not self._powered:
@@ -649,11 +650,13 @@ class ServoDriver(SimulatedDriver):
             if -cap < tau < cap:
                 self._integral = integral
         elif ctl == "brake":
-            # A brake that resists motion up to its current: a stiff viscous term, saturated there.
+            # Resists motion up to the brake current's torque: limit·tanh(v/ε), ε = 1 mm/s-like 1e-3 rad/s.
+            # Its damping is the secant τ/v, so the implicit step slows the joint to rest but never
+            # past it (the tangent would let a saturated brake flip the speed's sign every step).
             limit = min(self._amps, self.peak_current) * self.kt_out
-            c = max(limit, 1e-6) / 0.005
-            tau, k, d = -c * v, 0.0, c
-            cap = min(cap, limit)
+            x = v * 1000.0
+            th = math.tanh(x)
+            return -limit * th, 0.0, (limit * 1000.0 if -1e-9 < x < 1e-9 else limit * th / v)
         else:  # duty: a DC motor on duty·V_bus, with back-EMF kt·ω at the rotor
             r = self.params.resistance
             w_rotor = v * self._gr
@@ -679,10 +682,12 @@ class ServoDriver(SimulatedDriver):
         super()._timers(t)
         if self.control is not None and t - self._last_cmd >= self.release_after:
             self.control = None  # the firmware's timeout: output released
-        if t >= self._next_status:
+        if t + 1e-9 >= self._next_status:
             self._status(t)
-            self._next_status += self.status_period
+            self._status_n += 1
+            self._next_status = self._status_epoch + self._status_n * self.status_period
             if self._next_status <= t:  # fell behind (a long step): skip, do not burst
+                self._status_epoch, self._status_n = t, 1
                 self._next_status = t + self.status_period
 
     def _power_off(self) -> None:
@@ -691,7 +696,8 @@ class ServoDriver(SimulatedDriver):
     def _power_on(self) -> None:
         self.control = None
         self.origin = self.permanent_origin  # a temporary origin does not survive power loss
-        self._next_status = self._host.now() + self.status_period
+        self._status_epoch, self._status_n = self._host.now(), 1
+        self._next_status = self._status_epoch + self.status_period
 
 
 def make_driver(joint: JointConfig, params: MotorSimParams, host: DriverHost, state: StateGetter, dt: float, *,

@@ -5,7 +5,9 @@ inertia (``armature=True``), gravity and the payload, solved with Pinocchio's AB
 
 Integrator: **linearly implicit (semi-implicit) Euler at a fixed step** ``dt`` (2 kHz by default).
 Each step takes the torques of the drivers, friction and hard stops at the current state, together
-with their stiffness ``K = -∂τ/∂q`` and damping ``D = -∂τ/∂v`` (diagonal), and solves
+with their stiffness ``K = -∂τ/∂q`` and damping ``D = -∂τ/∂v`` (diagonal; for the saturating
+friction and brake terms the secant ``-τ/v`` instead, which never lets a step reverse the motion
+they resist), and solves
 
     (M + dt·D + dt²·K) · Δv = dt · (τ - h(q, v) - dt·K·v),   v⁺ = v + Δv,   q⁺ = q + dt·v⁺
 
@@ -147,11 +149,13 @@ class Plant:
             tj = s * tm
             motor[i] = tj
             # smooth Coulomb + viscous friction
-            th = math.tanh(vi * self._inv_eps[i])
+            # (damping: the secant coulomb·tanh(v/ε)/v, not the tangent, so a step never flips v's sign)
+            x = vi * self._inv_eps[i]
+            th = math.tanh(x)
             visc = self._visc[i]
             coul = self._coul[i]
             tj -= visc * vi + coul * th
-            d += visc + coul * self._inv_eps[i] * (1.0 - th * th)
+            d += visc + (coul * self._inv_eps[i] if -1e-9 < x < 1e-9 else coul * th / vi)
             # hard stops: push out, never pull in
             if qi > self._hi[i]:
                 f = -self._klim[i] * (qi - self._hi[i]) - self._clim[i] * vi

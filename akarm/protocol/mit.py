@@ -394,8 +394,9 @@ def codec(model: MotorModel | str) -> MitCodec:
     entry = _BY_MODEL.get(id(model))
     if entry is not None and entry[0] is model:
         return entry[1]
-    if len(_BY_MODEL) >= _CACHE_MAX:
+    if len(_BY_MODEL) >= _CACHE_MAX:  # many throw-away models (tests, per-joint overrides): start afresh
         _BY_MODEL.clear()
+        _BY_NAME.clear()
     c = MitCodec(model)
     _BY_MODEL[id(model)] = (model, c)  # the entry keeps the model alive, so its id cannot be reused
     return c

@@ -211,6 +211,8 @@ def _fmt(x: float) -> str:
 def _checked(name: str, value: float, lo: float, hi: float, unit: str) -> float:
     """``value`` as a float when it is a finite number in [lo, hi], else ProtocolError saying the range."""
     try:
+        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
+            raise TypeError
         x = float(value)
     except (TypeError, ValueError):
         raise ProtocolError(f"{name} must be a number, got {value!r}") from None
@@ -339,6 +341,8 @@ def decode_status(arbitration_id: int, data: bytes | bytearray, *, is_extended: 
 
 def _saturate(name: str, value: float, scale: float, lo: int, hi: int) -> int:
     try:
+        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
+            raise TypeError
         x = float(value)
     except (TypeError, ValueError):
         raise ProtocolError(f"{name} must be a number, got {value!r}") from None

@@ -284,6 +284,7 @@ class FrameDecoder:
         self.discarded = 0
         self.frames = 0
         self._buf = bytearray()
+        self._spec = False  # the buffer starts with the end byte of a good frame (see _scan)
 
     def __repr__(self) -> str:
         return (f"FrameDecoder(buffered={len(self._buf)}, frames={self.frames}, errors={self.error_count}, "
@@ -291,8 +292,8 @@ class FrameDecoder:
 
     @property
     def buffered(self) -> int:
-        """Bytes held back waiting for the rest of a frame."""
-        return len(self._buf)
+        """Bytes held back waiting for the rest of a frame (not counting a decoded frame's end byte)."""
+        return len(self._buf) - self._spec
 
     def feed(self, data: bytes | bytearray | memoryview | Iterable[int]) -> list[bytes]:
         """Add received bytes; return the payloads of every frame completed so far (possibly none)."""
@@ -306,6 +307,7 @@ class FrameDecoder:
     def reset(self) -> None:
         """Drop buffered bytes (the counters and error log stay)."""
         self._buf.clear()
+        self._spec = False
 
     def _report(self, what: str, data: bytes | bytearray) -> None:
         err = FrameError(what, data=bytes(data))
@@ -320,8 +322,39 @@ class FrameDecoder:
         out: list[bytes] = []
         i = 0
         maxp = self.max_payload
+        # The end byte 03 is also a long frame's start byte. After a good frame its end byte is tried
+        # (silently) as the start of a long frame, in case that frame had lost its own end byte and the
+        # 03 belongs to the next one. Only lengths 256-511 are tried, so the frames that normally follow
+        # (02 LEN ... or 03 LEN_HI ..., i.e. lengths of 512 and more) never make the decoder wait.
+        spec = 0 if self._spec else -1
         while i < n:
             start = buf[i]
+            if i == spec:
+                if i + 1 < n and buf[i + 1] != 1:
+                    i += 1
+                    continue
+                if i + 3 > n:
+                    if final:
+                        i += 1
+                        continue
+                    break
+                length = 256 | buf[i + 2]
+                end = i + 3 + length + 3
+                if length > maxp:
+                    i += 1
+                    continue
+                if end > n:
+                    if final:
+                        i += 1
+                        continue
+                    break
+                payload = bytes(buf[i + 3:end - 3])
+                if buf[end - 1] == 3 and binascii.crc_hqx(payload, 0) == (buf[end - 3] << 8) | buf[end - 2]:
+                    out.append(payload)
+                    i = spec = end - 1
+                else:
+                    i += 1
+                continue
             if start != 2 and start != 3:
                 j2 = buf.find(2, i)
                 j3 = buf.find(3, i)
@@ -362,9 +395,10 @@ class FrameDecoder:
                 i += 1
                 continue
             out.append(payload)
-            i = end
+            i = spec = end - 1
         if final:
             i = n
+        self._spec = i == spec and i < n
         del buf[:i]
         self.frames += len(out)
         return out
@@ -416,6 +450,8 @@ def _fmt(x: float) -> str:
 
 def _checked(arg: _Arg, value: float) -> float:
     try:
+        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
+            raise TypeError
         x = float(value)
     except (TypeError, ValueError):
         raise ProtocolError(f"{arg.name} must be a number, got {value!r}") from None
@@ -651,6 +687,8 @@ def decode_get_values(payload: bytes | bytearray) -> GetValues:
 
 def _to_int(name: str, value: float, scale: float, lo: int, hi: int) -> int:
     try:
+        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
+            raise TypeError
         x = float(value)
     except (TypeError, ValueError):
         raise ProtocolError(f"{name} must be a number, got {value!r}") from None

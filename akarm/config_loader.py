@@ -312,11 +312,13 @@ def _compose(path: Path, r: _Reader) -> yaml.Node | None:
         raise ConfigError([ConfigProblem(str(path), None, f"not valid YAML: {e}", "fix the YAML syntax")]) from None
 
 
-def _motors(r: _Reader, node: yaml.Node, cat: Catalogue) -> Catalogue:
+def _motors(r: _Reader, node: yaml.Node, cat: Catalogue, failed: set[str]) -> Catalogue:
+    """The catalogue with the file's `motors:` entries; names of entries with problems go to ``failed``."""
     for name, (knode, vnode) in r.free_mapping(node, "motors").items():
         entry = r.plain(vnode)
         found = cat.check_entry(name, entry)
         if found:
+            failed.add(name.strip().upper())
             keys = {}
             if isinstance(vnode, yaml.MappingNode):
                 keys = {r.plain(k): k for k, _ in vnode.value}
@@ -384,6 +386,7 @@ class _Loader:
     def __init__(self, path: Path, catalogue: Catalogue | None) -> None:
         self.path = path
         self.joint_entries = 0  # items under joints:, valid or not
+        self.failed_motors: set[str] = set()  # `motors:` entries with problems (already reported)
         self.seen_ids: dict[tuple[str, int], tuple[str, int | None]] = {}  # (bus, CAN ID) -> joint, line
         self.r = _Reader(str(path))
         self.catalogue = catalogue if catalogue is not None else default_catalogue()
@@ -406,7 +409,7 @@ class _Loader:
 
         cat = self.catalogue
         if "motors" in top:
-            cat = _motors(r, top["motors"][1], cat)
+            cat = _motors(r, top["motors"][1], cat, self.failed_motors)
 
         buses = _buses(r, top["buses"][1] if "buses" in top else None)
 
@@ -628,6 +631,8 @@ class _Loader:
             if mname is not None:
                 if mname in cat:
                     motor = cat.get(mname)
+                elif mname.strip().upper() in self.failed_motors:
+                    pass  # its entry under `motors:` has problems, reported there
                 else:
                     r.add(mnode, f"{label}: unknown motor model {mname!r}{did_you_mean(mname.upper(), cat.names())}",
                           "known models: " + ", ".join(cat.names()) + "; or define it under `motors:`")

@@ -269,7 +269,7 @@ class RobotModel:
         self.payload = (m, c.copy())
 
     def clear_payload(self) -> None:
-        """Remove the payload: the tool's parent body gets back its original inertia, exactly."""
+        """Remove the payload (the config's too): the tool's parent body gets back its URDF inertia, exactly."""
         jid = self._payload_joint
         self.pin_model.inertias[jid] = pin.Inertia(self._inertias0[jid])
         self.payload = None

@@ -266,6 +266,11 @@ def test_motors_section_problems_get_their_lines(tmp_path: Path) -> None:
     assert one(found, "lacks 'p_max'").line == line_of(text, "NewAK")
     assert one(found, "unknown motor model 'AK99'").line == line_of(text, "Based")
     assert one(found, "t_max must be a positive number").line == line_of(text, "Based")
+    # a joint using a broken entry is not reported again as an unknown model
+    text = text.replace("motor: AK60-6", "motor: NewAK")
+    found = problems(tmp_path, text)
+    assert not [p for p in found if "unknown motor model 'NewAK'" in p.message]
+    assert one(found, "lacks 'p_max'")
 
 
 def test_duplicate_can_id_on_one_bus(tmp_path: Path) -> None:

@@ -9,7 +9,8 @@ A robot is described once, in a YAML file next to its URDF::
     payload: {mass: 0.5, com: [0.0, 0.0, 0.04]}   # optional: kg, m in the tool frame
     rate_hz: 500                    # control loop rate, Hz (default 500)
     buses:                          # optional: one bus `arm` on socketcan can0 at 1 Mbit/s if left out
-      arm: {interface: socketcan, channel: can0, bitrate: 1000000}
+      arm: {interface: socketcan, channel: can0, bitrate: 1000000}   # each key optional;
+      aux: can1                     # a bare channel name: socketcan at 1 Mbit/s
     poses:                          # optional named poses, rad, config order
       home: [0, 0, 0, 0, 0, 0]
     motors:                         # optional: add/override catalogue models for this robot
@@ -340,8 +341,11 @@ def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
     if isinstance(node, yaml.MappingNode) and not node.value:
         r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
     for name, (_knode, vnode) in items.items():
-        if isinstance(vnode, yaml.ScalarNode) and vnode.value == "":
-            buses[name] = BusConfig(name)  # `arm:` alone: all defaults
+        if isinstance(vnode, yaml.ScalarNode):
+            if vnode.value == "":
+                buses[name] = BusConfig(name)  # `arm:` alone: all defaults
+            elif (channel := r.string(vnode, f"bus {name!r}", "a channel name, or {channel: ..., ...}")):
+                buses[name] = BusConfig(name, channel=channel)  # `arm: can0`: the channel
             continue
         fields = r.mapping(vnode, f"bus {name!r}", BUS_KEYS)
         kw: dict[str, Any] = {}
@@ -351,9 +355,9 @@ def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
         if "channel" in fields:
             ch = r.plain(fields["channel"][1])
             if isinstance(ch, int) and not isinstance(ch, bool):
-                ch = str(ch)  # pcan/kvaser channels may be numbers
-            kw["channel"] = r.string(fields["channel"][1], f"bus {name!r}: channel") if not isinstance(ch, str) \
-                else ch
+                kw["channel"] = str(ch)  # kvaser/ixxat channels may be numbers
+            else:
+                kw["channel"] = r.string(fields["channel"][1], f"bus {name!r}: channel")
         if "bitrate" in fields:
             kw["bitrate"] = r.integer(fields["bitrate"][1], f"bus {name!r}: bitrate", 10_000, 1_000_000,
                                       "AK drivers use 1000000 bit/s")

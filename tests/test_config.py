@@ -167,6 +167,9 @@ def test_overrides(tmp_path: Path) -> None:
     assert (c2.buses["a"].channel, c2.buses["b"].channel) == ("x-a", "x-b")
     c3 = load_robot(write(tmp_path, two, "two.yaml"), channel={"b": "vcan1"})
     assert (c3.buses["a"].channel, c3.buses["b"].channel) == ("can0", "vcan1")
+    short = two.replace("{a: {channel: can0}, b: {channel: can1}}", "{a: can2, b: {bitrate: 500000}}")
+    c4 = load_robot(write(tmp_path, short, "short.yaml"))
+    assert c4.buses == {"a": BusConfig("a", channel="can2"), "b": BusConfig("b", bitrate=500_000)}
 
 
 # ----------------------------------------------------------------------------- file-level errors

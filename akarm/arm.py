@@ -29,12 +29,16 @@ from typing import Literal
 
 import numpy as np
 
+from . import recording as rec_mod
+from . import units
 from .bus import drain, open_bus
 from .clock import Clock, RealClock
 from .config import RobotConfig
 from .errors import (
     AkarmError,
     BusError,
+    ConfigError,
+    ConfigProblem,
     FeedbackTimeout,
     LimitError,
     MotorFault,
@@ -47,7 +51,7 @@ from .loop import ControlLoop, StatsSummary
 from .model import RobotModel
 from .protocol.servo import describe_error
 from .telemetry import Telemetry, TelemetryLog
-from .trajectory import JointLimits, Plan, Planner
+from .trajectory import Chain, JointLimits, Plan, Planner
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
 
@@ -224,6 +228,8 @@ class Arm:
         self._enable_error: AkarmError | None = None
         self._send_errors = 0
         self._entered = False
+        self._teach_damping = np.zeros(self.n)
+        self._recorder: tuple | None = None  # (rate, next sample time, times, positions)
 
     @staticmethod
     def _feedback_timeout(j, default: float) -> float:
@@ -453,6 +459,95 @@ class Arm:
         return self._plan is not None
 
     # ------------------------------------------------------------------------------------------
+    # teach and replay
+    # ------------------------------------------------------------------------------------------
+    def teach(self, damping: float = 0.1) -> None:
+        """Make the arm hand-guidable, its weight carried, until :meth:`end_teach`.
+
+        MIT joints: kp = 0, kd = ``damping`` (N·m·s/rad, at most the joint's own kd), gravity
+        feed-forward at the measured pose. Servo joints: current mode with the gravity current
+        (``g(q) / (kt · gear_ratio)``). The watchdog stays on.
+        """
+        self._require_enabled()
+        for j in self.joints:
+            if isinstance(j, ServoJoint) and j.motor.kt is None:
+                raise ConfigError([ConfigProblem(str(self.config.source or self.config.name), None,
+                                                 f"joint {j.name!r}: motor {j.motor.name} has no kt",
+                                                 "set kt (N·m/A at the rotor) under `motors:` to teach servo joints")])
+        self.hold()
+        with self._lock:
+            self._teach_damping = np.minimum(damping, self._kd)
+            self._plan, self._motion = None, None
+            self._mode = "teach"
+
+    def keyframe(self, name: str | None = None) -> rec_mod.Keyframe:
+        """The measured pose now, as a keyframe (rad, config order) with an optional name."""
+        with self._lock:
+            return rec_mod.Keyframe(tuple(float(j.state.position) for j in self.joints), name)
+
+    def start_recording(self, rate_hz: float = 50.0) -> None:
+        """Start recording the measured pose continuously at ``rate_hz`` (in teach mode)."""
+        if self._mode != "teach":
+            raise StateError("recording a path needs teach mode", fix="call arm.teach() first")
+        if not 0 < rate_hz <= self.config.rate_hz:
+            raise StateError(f"rate_hz must be in (0, {self.config.rate_hz:g}] (the loop rate)")
+        with self._lock:
+            self._recorder = (rate_hz, self.clock.now(), [], [])
+
+    def stop_recording(self) -> rec_mod.PathRecording:
+        """Stop the continuous recording and return it (times from 0, s; positions rad)."""
+        with self._lock:
+            rec, self._recorder = self._recorder, None
+        if rec is None or len(rec[2]) < 2:
+            raise StateError("no path was recorded", fix="call start_recording() and move the arm for a while")
+        t = np.array(rec[2]) - rec[2][0]
+        return rec_mod.PathRecording(self.names, t, np.array(rec[3]))
+
+    def end_teach(self) -> None:
+        """Leave teach mode: hold the pose the arm was left in, gains ramping up from zero."""
+        with self._lock:
+            if self._mode != "teach":
+                return
+            self._recorder = None
+            q = np.array([j.state.position for j in self.joints])
+            self._hold = q
+            self._des = (q.copy(), np.zeros(self.n), np.zeros(self.n))
+            self._t_active = self.clock.now()
+            self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
+            self._integral[:] = 0.0
+            self._mode = "active"
+        self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
+
+    def replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
+               speed: float = 1.0, wait: bool = True) -> Motion:
+        """Replay a recording (or a recording file), checked against every limit before anything moves.
+
+        A soft start first moves, jerk-limited, from wherever the arm is to the first point.
+        Keyframes are then passed through as one smooth move (``speed`` as in :meth:`move_to`);
+        a path is followed at its recorded timing divided by ``speed`` (any positive factor).
+
+        Raises:
+            RecordingError: an unreadable, truncated or mismatched file.
+            LimitError: the path breaks a limit after scaling; names the joint and the time, and
+                suggests the speed factor that would pass.
+        """
+        rec = recording if isinstance(recording, rec_mod.Keyframes | rec_mod.PathRecording) else \
+            rec_mod.load(recording, self.names)
+        if tuple(rec.joint_names) != tuple(self.names):
+            raise LimitError(f"the recording is for joints {list(rec.joint_names)}",
+                             fix=f"replay it on an arm with joints {list(self.names)}")
+        if isinstance(rec, rec_mod.Keyframes):
+            return self.move_through([np.array(f.q) for f in rec.frames], speed=min(speed, 1.0), wait=wait)
+        check = rec_mod.PathPlan(rec, 0.0, speed)
+        rec_mod.check_path(check, self.limits)
+
+        def make(start, now):
+            soft = self.planner.move(start, check.q[0], now, min(speed, 1.0))
+            return Chain([Plan([soft]), rec_mod.PathPlan(rec, now + soft.duration, speed)])
+
+        return self._run(self._start(make), wait)
+
+    # ------------------------------------------------------------------------------------------
     # state, payload, time
     # ------------------------------------------------------------------------------------------
     def state(self) -> ArmState:
@@ -607,12 +702,15 @@ class Arm:
             if mode == "enabling":
                 self._cycle_enabling(now)
                 return
-            if mode == "active":
+            if mode == "active" or mode == "teach":
                 self._check_safety(now)
             t2 = pc()
             stage[1] = t2 - t1
             if self._mode == "stopping":
                 self._cycle_stopping(now)
+                return
+            if self._mode == "teach":
+                self._cycle_teach(now)
                 return
             # trajectory
             plan = self._plan
@@ -670,6 +768,25 @@ class Arm:
         js = self.joints
         self.telemetry_ring.record(now, q_d, dq_d, [j.state.position for j in js], [j.state.velocity for j in js],
                                    [j.state.torque for j in js], ff)
+
+    def _cycle_teach(self, now: float) -> None:
+        """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose)."""
+        q = np.array([j.state.position for j in self.joints])
+        g = np.clip(self.model.gravity(q), -self._torque_limit, self._torque_limit)
+        for i, j in enumerate(self.joints):
+            if isinstance(j, MitJoint):
+                self._send(j, j.command(math.nan, 0.0, 0.0, self._teach_damping[i], g[i]))
+            else:
+                amps = units.torque_to_amps(j.motor, g[i] * j.direction)
+                self._send(j, j.current(amps))  # type: ignore[attr-defined]
+        self._des = (q, np.zeros(self.n), np.zeros(self.n))
+        self._ff = g
+        rec = self._recorder
+        if rec is not None and now >= rec[1]:
+            rec[2].append(now)
+            rec[3].append(q)
+            self._recorder = (rec[0], rec[1] + 1.0 / rec[0], rec[2], rec[3])
+        self._record(now, q, np.zeros(self.n), g)
 
     def _cycle_enabling(self, now: float) -> None:
         first = not self._entered

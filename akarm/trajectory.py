@@ -109,6 +109,32 @@ class Plan:
         return np.asarray(p), np.asarray(v), np.asarray(a)
 
 
+class Chain:
+    """Plans run one after the other (each must start where and when the previous one ends)."""
+
+    def __init__(self, plans: list) -> None:
+        self.plans = plans
+        self.t0 = plans[0].t0
+        self.t_end = plans[-1].t_end
+        self.segments = [s for p in plans for s in getattr(p, "segments", ())]
+
+    @property
+    def duration(self) -> float:
+        """Total duration, s."""
+        return self.t_end - self.t0
+
+    def done(self, t: float) -> bool:
+        """True once ``t`` is at or past the end."""
+        return t >= self.t_end
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Desired (q, dq, ddq) at absolute time ``t``."""
+        for p in self.plans:
+            if t < p.t_end:
+                return p.sample(t)
+        return self.plans[-1].sample(t)
+
+
 class Planner:
     """Plans moves, waypoint paths and stops under one arm's joint limits."""
 

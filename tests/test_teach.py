@@ -1,0 +1,177 @@
+"""Teach and replay: recordings on disk, limit checks with a suggested speed, replay accuracy."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+import akarm
+from akarm import LimitError, RecordingError
+from akarm import recording as rec
+
+from .test_arm import rig
+
+NAMES = ("shoulder", "elbow")
+
+
+def sweep(duration=3.0, rate=100.0, amp=(0.5, 0.4), period=(3.0, 1.5), q0=(0.0, 0.0)) -> rec.PathRecording:
+    """A smooth recorded path starting at rest at q0 (cosine sweeps)."""
+    t = np.arange(0.0, duration + 1e-9, 1.0 / rate)
+    q = np.column_stack([q0[k] + amp[k] * (1 - np.cos(2 * np.pi * t / period[k])) / 2 for k in range(2)])
+    return rec.PathRecording(NAMES, t, q)
+
+
+# ---------------------------------------------------------------------------------------------
+# files
+# ---------------------------------------------------------------------------------------------
+def test_keyframes_round_trip_and_are_readable(tmp_path) -> None:
+    kf = rec.Keyframes(NAMES, (rec.Keyframe((0.1, -0.2), "pick"), rec.Keyframe((0.3, 0.25))), robot="planar2")
+    path = kf.save(tmp_path / "k.yaml")
+    text = path.read_text()
+    assert "pick" in text and "units: rad" in text and "shoulder" in text
+    back = rec.load(path, NAMES)
+    assert back == kf
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_path_round_trip_with_header_naming_joints_and_units(tmp_path) -> None:
+    p = sweep()
+    path = p.save(tmp_path / "p.csv")
+    assert path.read_text().splitlines()[0] == "t [s],shoulder [rad],elbow [rad]"
+    back = rec.load(path, NAMES)
+    np.testing.assert_allclose(back.q, p.q, atol=1e-6)
+    np.testing.assert_allclose(back.t, p.t, atol=1e-6)
+
+
+@pytest.mark.parametrize(("name", "content", "message"), [
+    ("trunc.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,0.1", "row 3 has 2 values"),
+    ("nan.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,nan,0.2\n", "not finite"),
+    ("text.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,abc,0.2\n", "not a number"),
+    ("back.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.0,0.1,0.2\n", "time does not increase"),
+    ("head.csv", "time,a,b\n0,0,0\n", "header must start"),
+    ("short.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n", "fewer than two samples"),
+    ("bad.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1, 0.2\n", "not valid YAML at line"),
+    ("k.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1]}\n", "keyframe 0 needs `q:` with 2"),
+    ("none.yaml", "just: text\n", "not an akarm keyframe file"),
+    ("other.yaml", "joints: [a, b]\nkeyframes:\n  - {q: [0.1, 0.2]}\n", "recorded for joints"),
+    ("x.txt", "", "unknown recording type"),
+])
+def test_corrupt_or_truncated_recordings_get_clear_errors(tmp_path, name, content, message) -> None:
+    f = tmp_path / name
+    f.write_text(content)
+    with pytest.raises(RecordingError, match=re.escape(message)):
+        rec.load(f, NAMES)
+
+
+def test_missing_file_is_a_recording_error(tmp_path) -> None:
+    with pytest.raises(RecordingError, match="cannot read"):
+        rec.load(tmp_path / "nope.csv", NAMES)
+
+
+# ---------------------------------------------------------------------------------------------
+# limit checks
+# ---------------------------------------------------------------------------------------------
+def test_too_fast_path_is_refused_with_joint_time_and_a_speed_that_passes(channel) -> None:
+    fast = sweep(duration=1.0, amp=(0.2, 1.2), period=(1.0, 0.5))  # the elbow swings 1.2 rad in 0.25 s
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        q_before = arm.state().q_des.copy()
+        with pytest.raises(LimitError) as info:
+            arm.replay(fast, speed=1.0)
+        e = info.value
+        assert e.joint == "elbow"
+        m = re.search(r"at t = ([0-9.]+) s", str(e))
+        assert m and 0.0 <= float(m.group(1)) <= 1.0
+        suggested = float(re.search(r"--speed ([0-9.]+)", e.fix).group(1))
+        assert 0 < suggested < 1
+        np.testing.assert_allclose(arm.state().q_des, q_before)  # nothing moved
+        assert not arm.moving
+        # the suggested factor passes the same check
+        rec.check_path(rec.PathPlan(fast, 0.0, suggested), arm.limits)
+
+
+def test_path_outside_position_limits_is_refused(channel) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        too_far = sweep(amp=(0.2, 2 * arm.limits.upper[1]), period=(3.0, 3.0))
+        with pytest.raises(LimitError, match="outside") as info:
+            arm.replay(too_far, speed=0.1)
+        assert info.value.joint == "elbow" and "no speed factor helps" in info.value.fix
+
+
+# ---------------------------------------------------------------------------------------------
+# replay
+# ---------------------------------------------------------------------------------------------
+def replay_error(arm, path: rec.PathRecording, speed: float) -> float:
+    """Max |measured - recorded| over the replayed path (after the soft start), rad."""
+    t0 = arm.clock.now()
+    motion = arm.replay(path, speed=speed)
+    soft = motion.plan.plans[0].duration + motion.plan.plans[1].lead_in
+    log = arm.telemetry(since=t0 + soft)
+    t_rec = (log.t - (t0 + soft)) * speed
+    keep = t_rec <= path.t[-1]
+    want = np.column_stack([np.interp(t_rec[keep], path.t, path.q[:, k]) for k in range(2)])
+    return float(np.max(np.abs(log.q[keep] - want)))
+
+
+def test_replayed_path_follows_the_recording(channel) -> None:
+    path = sweep(q0=(0.1, -0.1))
+    with rig("planar2", channel, q0=[-0.3, 0.2]) as (arm, sim):
+        arm.enable()
+        err = replay_error(arm, path, 1.0)
+        assert err < 0.02, err  # smoothing (50 ms window) + tracking
+        err_slow = replay_error(arm, path, 0.5)
+        assert err_slow < 0.02, err_slow
+
+
+def test_keyframes_replay_through_every_pose(channel, tmp_path) -> None:
+    kf = rec.Keyframes(NAMES, (rec.Keyframe((0.3, 0.2), "a"), rec.Keyframe((0.6, -0.3), "b"),
+                               rec.Keyframe((0.2, 0.4), "c")))
+    f = kf.save(tmp_path / "k.yaml")
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        t0 = arm.clock.now()
+        motion = arm.replay(f)
+        arm.sleep(0.3)
+        log = arm.telemetry(since=t0)
+        for seg, frame in zip(motion.plan.segments, kf.frames, strict=True):
+            np.testing.assert_allclose(seg.end[0], frame.q, atol=1e-9)  # the path passes each pose exactly
+            # and the 500 Hz commands come within one cycle's travel of it
+            assert np.min(np.max(np.abs(log.q_des - np.array(frame.q)), axis=1)) < arm.limits.velocity.max() / 500
+        np.testing.assert_allclose(arm.state().q, kf.frames[-1].q, atol=1e-3)
+
+
+def test_teach_then_replay_reproduces_the_taught_path(channel) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        arm.teach()
+        assert not arm.enabled  # not tracking: hand-guidable
+        start = arm.keyframe("start")
+        arm.start_recording(rate_hz=100)
+        # a hand pushes the shoulder up and the elbow down, then lets go
+        for tau in ([1.5, -0.4], [1.0, -0.3], [0.0, 0.0], [-0.8, 0.3], [0.0, 0.0]):
+            sim.set_external_torque(np.array(tau))
+            arm.sleep(0.4)
+        sim.set_external_torque(None)
+        taught = arm.stop_recording()
+        end = arm.keyframe("end")
+        assert np.max(np.abs(np.array(end.q) - np.array(start.q))) > 0.1  # the arm really was moved
+        arm.end_teach()
+        assert arm.enabled
+        err = replay_error(arm, taught, 1.0)
+        print(f"teach/replay: max deviation {err * 1e3:.1f} mrad over {taught.duration:.1f} s")
+        assert err < 0.03
+
+
+def test_teach_carries_the_arm_weight(channel) -> None:
+    with rig("planar2", channel, q0=[0.4, -0.3]) as (arm, sim):
+        arm.enable()
+        arm.teach()
+        arm.sleep(1.0)
+        drift = np.max(np.abs(sim.q - np.array([0.4, -0.3])))
+        assert drift < 0.02, drift  # gravity compensated: it floats where it was left
+        arm.end_teach()
+        with pytest.raises(akarm.StateError, match="needs teach mode"):
+            arm.start_recording()

@@ -1,0 +1,265 @@
+"""Every fault the simulator can inject, from Python and from command-line text."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import can
+import pytest
+
+from akarm.config import RobotConfig
+from akarm.config_loader import load_robot
+from akarm.errors import AkarmError
+from akarm.protocol import mit, servo
+from akarm.sim import MitDriver, SimulatedRobot, faults
+
+from .conftest import ROBOTS
+
+SHOULDER, ELBOW = 1, 2
+
+
+def send(bus: can.BusABC, arbitration_id: int, data: bytes, extended: bool = False) -> None:
+    bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended))
+
+
+def drain(bus: can.BusABC) -> list[can.Message]:
+    out = []
+    while (m := bus.recv(timeout=0.0)) is not None:
+        out.append(m)
+    return out
+
+
+@pytest.fixture(scope="module")
+def planar2() -> RobotConfig:
+    return load_robot(ROBOTS / "planar2.yaml")
+
+
+@pytest.fixture
+def rig(planar2: RobotConfig, channel: str) -> Iterator[tuple[SimulatedRobot, can.BusABC]]:
+    with SimulatedRobot(planar2, "virtual", channel, realtime=False) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        yield sim, bus
+
+
+def poll_pattern(sim: SimulatedRobot, bus: can.BusABC, n: int) -> list[bool]:
+    """Send ENTER to the elbow n times, one per 1 ms; which of them got a reply."""
+    got = []
+    for _ in range(n):
+        send(bus, ELBOW, mit.ENTER)
+        sim.run_for(0.001)
+        got.append(len(drain(bus)) == 1)
+    return got
+
+
+def test_drop_replies_loses_that_share_repeatably(planar2: RobotConfig, channel: str) -> None:
+    patterns = []
+    for run in range(2):
+        with SimulatedRobot(planar2, "virtual", f"{channel}-{run}", realtime=False) as sim, \
+                can.Bus(interface="virtual", channel=f"{channel}-{run}") as bus:
+            sim.joint("elbow").inject(faults.DropReplies(0.3, seed=7))
+            patterns.append(poll_pattern(sim, bus, 1000))
+            send(bus, SHOULDER, mit.ENTER)            # the other joint is not affected
+            sim.run_for(0.001)
+            assert len(drain(bus)) == 1
+            assert sim.joint("elbow").frames_received == 1000  # the commands still get in
+    assert patterns[0] == patterns[1]                   # seeded: the same frames are lost every run
+    answered = sum(patterns[0])
+    assert 700 - 45 <= answered <= 700 + 45             # 30 % lost (± 3 σ of a binomial, 1000 draws)
+
+
+def test_drop_replies_also_drops_servo_status_frames(channel: str) -> None:
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", channel, realtime=False) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        sim.joint("pan").inject(faults.DropReplies(0.5, seed=1))
+        sim.run_for(1.0)
+        ids = [m.arbitration_id for m in drain(bus)]
+    assert ids.count(0x2902) == 200
+    assert 100 - 22 <= ids.count(0x2901) <= 100 + 22
+
+
+def test_delay_replies_sends_them_late_with_the_state_of_when_they_were_made(
+        rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[1].motor
+    sim.set_state([0.0, 0.0], [0.0, 2.0])                     # the elbow swings at 2 rad/s
+    sim.joint("elbow").inject(faults.DelayReplies(0.005))
+    send(bus, ELBOW, mit.ENTER)
+    q_then = sim.q[1]
+    sim.run_for(0.0045)
+    assert drain(bus) == []
+    sim.run_for(0.001)
+    (reply,) = drain(bus)
+    assert mit.decode_reply(model, reply.data).position == pytest.approx(q_then, abs=4e-4)
+    assert sim.q[1] - q_then > 5e-3                           # the arm has moved on since
+    sim.joint("elbow").clear_faults()
+    send(bus, ELBOW, mit.ENTER)
+    sim.run_for(0.0005)
+    assert len(drain(bus)) == 1
+
+
+def test_delay_keeps_the_order_of_frames(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    sim.set_state([0.0, 0.0], [0.0, 2.0])
+    sim.joint("elbow").inject(faults.DelayReplies(0.003))
+    for _ in range(5):
+        send(bus, ELBOW, mit.ENTER)
+        sim.run_for(0.001)
+    sim.run_for(0.01)
+    positions = [mit.decode_reply(sim.config.joints[1].motor, m.data).position for m in drain(bus)]
+    assert len(positions) == 5
+    assert positions == sorted(positions) and positions[0] < positions[-1]  # swinging up: in the order made
+
+
+def test_unplugged_motor_keeps_its_last_command_and_hears_nothing(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[0].motor
+    send(bus, SHOULDER, mit.ENTER)
+    send(bus, SHOULDER, mit.encode_command(model, 0.3, 0.0, 60.0, 2.0, 0.0))
+    sim.run_for(1.0)
+    drain(bus)
+    drv = sim.joint("shoulder")
+    held = drv.stored_command  # type: ignore[attr-defined]
+    drv.inject(faults.Unplugged())
+    send(bus, SHOULDER, mit.encode_command(model, -1.0, 0.0, 60.0, 2.0, 0.0))
+    send(bus, SHOULDER, mit.EXIT)
+    sim.run_for(1.0)
+    assert drain(bus) == []                                    # no replies
+    assert drv.stored_command == held and drv.enabled          # commands not received
+    assert sim.q[0] == pytest.approx(0.3, abs=0.05)            # still holding where it was told
+    drv.clear_faults()
+    send(bus, SHOULDER, mit.ENTER)
+    sim.run_for(0.001)
+    assert len(drain(bus)) == 1
+
+
+def test_unplugged_with_power_lost_goes_limp_and_restarts_cold(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[0].motor
+    send(bus, SHOULDER, mit.ENTER)
+    send(bus, SHOULDER, mit.encode_command(model, 0.3, 0.0, 60.0, 2.0, 0.0))
+    sim.run_for(1.0)
+    drv = sim.joint("shoulder")
+    assert isinstance(drv, MitDriver)
+    drv.inject(faults.Unplugged(power_lost=True))
+    sim.run_for(0.01)
+    assert sim.tau[0] == 0.0 and not drv.enabled and not drv.powered
+    sim.run_for(1.0)
+    assert sim.q[0] < 0.0                                     # fell
+    drv.clear_faults()
+    assert drv.stored_command == mit.MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)  # power-up state
+    assert not drv.enabled
+
+
+def test_unplugged_servo_releases_after_its_timeout(channel: str) -> None:
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", channel, realtime=False) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        send(bus, *servo.encode_current(1, 1.0), extended=True)
+        sim.run_for(0.01)
+        sim.joint("pan").inject(faults.Unplugged())
+        drain(bus)
+        sim.run_for(0.5)
+        assert 0x2901 not in [m.arbitration_id for m in drain(bus)]
+        assert sim.joint("pan").enabled                       # still applying its current
+        sim.run_for(0.6)
+        assert not sim.joint("pan").enabled                   # its own 1 s timeout released it
+
+
+def test_error_code_is_reported_in_replies_and_status_frames(rig: tuple[SimulatedRobot, can.BusABC],
+                                                              channel: str) -> None:
+    sim, bus = rig
+    sim.joint("elbow").inject(faults.ErrorCode(1))
+    send(bus, ELBOW, mit.ENTER)
+    send(bus, SHOULDER, mit.ENTER)
+    sim.run_for(0.001)
+    replies = {m.data[0]: mit.decode_reply(sim.config.joints[0].motor, m.data) for m in drain(bus)}
+    assert replies[ELBOW].error == 1 and replies[SHOULDER].error == 0
+    sim.clear_faults()
+    send(bus, ELBOW, mit.ENTER)
+    sim.run_for(0.001)
+    assert drain(bus)[0].data[7] == 0
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", channel + "-servo", realtime=False) as s3, \
+            can.Bus(interface="virtual", channel=channel + "-servo") as b3:
+        s3.joint("elbow").inject(faults.ErrorCode(int(servo.ServoErrorCode.ENCODER_FAULT)))
+        s3.run_for(0.01)
+        status = {m.arbitration_id & 0xFF: servo.decode_status(m.arbitration_id, m.data) for m in drain(b3)}
+    assert status[3].error == 5 and status[1].error == 0
+
+
+def test_frozen_encoder_reports_a_still_position_while_the_joint_moves(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[0].motor
+    sim.set_state([0.5, 0.0])
+    sim.joint("shoulder").inject(faults.FrozenEncoder())
+    sim.run_for(0.5)                                          # limp: the arm falls
+    send(bus, SHOULDER, mit.ENTER)
+    sim.run_for(0.001)
+    (reply,) = drain(bus)
+    got = mit.decode_reply(model, reply.data)
+    assert got.position == pytest.approx(0.5, abs=4e-4)
+    assert got.velocity == pytest.approx(0.0, abs=0.02)        # within a 12-bit step of 0
+    assert sim.q[0] < 0.0
+    sim.clear_faults()
+    send(bus, SHOULDER, mit.ENTER)
+    sim.run_for(0.001)
+    assert mit.decode_reply(model, drain(bus)[0].data).position == pytest.approx(sim.q[0], abs=0.01)
+
+
+def test_frozen_encoder_can_fool_the_firmware_loop_too(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[0].motor
+    sim.model.set_gravity((0.0, 0.0, 0.0))
+    send(bus, SHOULDER, mit.ENTER)
+    send(bus, SHOULDER, mit.encode_command(model, 0.0, 0.0, 20.0, 0.0, 0.0))
+    sim.run_for(0.1)
+    sim.joint("shoulder").inject(faults.FrozenEncoder(affects_control=True))
+    sim.set_state([0.2, 0.0])                                 # pushed away: the loop cannot see it
+    sim.run_for(0.5)
+    assert sim.q[0] > 0.19                                    # not pulled back (only friction slows it)
+
+
+def test_fault_after_reports_its_code_from_that_time(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    sim.run_for(0.5)
+    sim.joint("elbow").inject(faults.FaultAfter(2.0, code=7))
+    sim.run_for(1.99)
+    send(bus, ELBOW, mit.ENTER)
+    sim.run_for(0.001)
+    assert drain(bus)[0].data[7] == 0
+    sim.run_for(0.01)                                         # 2.0 s after injection
+    send(bus, ELBOW, mit.ENTER)
+    sim.run_for(0.001)
+    assert drain(bus)[0].data[7] == 7
+    assert sim.joint("elbow").error == 7
+
+
+@pytest.mark.parametrize(("spec", "expected"), [
+    ("elbow:drop:0.3", ("elbow", faults.DropReplies(0.3))),
+    ("elbow:drop:0.3,7", ("elbow", faults.DropReplies(0.3, seed=7))),
+    ("wrist_roll:delay:0.005", ("wrist_roll", faults.DelayReplies(0.005))),
+    ("elbow:unplugged", ("elbow", faults.Unplugged())),
+    ("elbow:unplugged:power", ("elbow", faults.Unplugged(power_lost=True))),
+    ("elbow:error:1", ("elbow", faults.ErrorCode(1))),
+    ("elbow:frozen", ("elbow", faults.FrozenEncoder())),
+    ("elbow:frozen:control", ("elbow", faults.FrozenEncoder(affects_control=True))),
+    ("elbow:fault-after:2.0", ("elbow", faults.FaultAfter(2.0))),
+    ("elbow:fault_after:2.5,5", ("elbow", faults.FaultAfter(2.5, code=5))),
+])
+def test_parse_command_line_faults(spec: str, expected: tuple[str, faults.Fault]) -> None:
+    assert faults.parse(spec) == expected
+
+
+@pytest.mark.parametrize("spec", ["elbow", "elbow:melt", "elbow:drop", "elbow:drop:1.5", "elbow:delay:-1",
+                                  "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe"])
+def test_parse_rejects_bad_faults_with_the_kinds_listed(spec: str) -> None:
+    with pytest.raises(AkarmError) as info:
+        faults.parse(spec)
+    assert "drop:FRACTION" in str(info.value) or "outside" in str(info.value) or "negative" in str(info.value)
+
+
+def test_faults_on_an_unknown_joint_name_it(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, _ = rig
+    with pytest.raises(AkarmError, match="joints are: shoulder, elbow"):
+        sim.inject("wrist", faults.ErrorCode(1))

@@ -193,7 +193,9 @@ class Arm:
         self._kp = np.array([j.gains.kp for j in config.joints])
         self._kd = np.array([j.gains.kd for j in config.joints])
         is_mit = np.array([j.mode == "mit" for j in config.joints])
+        self._hold_integral = hold_integral
         self._ki = np.where(is_mit, hold_integral * self._kp, 0.0)
+        self._extra = np.zeros(self.n)  # user torque added to MIT commands, N·m
         self._i_torque_max = 0.1 * self._torque_limit
         self._integral = np.zeros(self.n)  # ∫(q_des - q) dt while holding, rad·s
         self._t_last = 0.0
@@ -457,6 +459,35 @@ class Arm:
     def moving(self) -> bool:
         """True while a motion is being executed."""
         return self._plan is not None
+
+    def set_gains(self, kp: Sequence[float] | float | None = None, kd: Sequence[float] | float | None = None) -> None:
+        """Change MIT gains while running: kp in N·m/rad (0-500), kd in N·m·s/rad (0-5), per joint or one for all.
+
+        ``set_gains(kp=0, kd=0.5)`` with :meth:`set_extra_torque` gives pure torque control with
+        the arm's weight carried by the feed-forward. Servo joints ignore gains.
+        """
+        with self._lock:
+            for arr, new, hi, what in ((self._kp, kp, 500.0, "kp"), (self._kd, kd, 5.0, "kd")):
+                if new is None:
+                    continue
+                v = np.broadcast_to(np.asarray(new, dtype=float), (self.n,))
+                if not np.all(np.isfinite(v)) or np.any(v < 0) or np.any(v > hi):
+                    raise LimitError(f"{what} must be within 0-{hi:g}, got {list(v)}",
+                                     fix=f"pass {what} in the MIT range 0-{hi:g}")
+                arr[:] = v
+            self._ki = np.where(self._ki > 0, self._hold_integral * self._kp, 0.0)
+
+    def set_extra_torque(self, tau: Sequence[float] | None) -> None:
+        """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
+        on top of the feed-forward, clamped to each joint's torque limit."""
+        with self._lock:
+            if tau is None:
+                self._extra[:] = 0.0
+                return
+            v = np.asarray(tau, dtype=float).reshape(-1)
+            if v.shape != (self.n,) or not np.all(np.isfinite(v)):
+                raise LimitError(f"extra torque needs {self.n} finite values (N·m)", fix="one per joint, config order")
+            self._extra[:] = v
 
     # ------------------------------------------------------------------------------------------
     # teach and replay
@@ -744,7 +775,7 @@ class Arm:
             else:
                 self._integral[:] = 0.0
             self._t_last = now
-            ff = np.clip(ff, -self._torque_limit, self._torque_limit)
+            ff = np.clip(ff + self._extra, -self._torque_limit, self._torque_limit)
             self._ff = ff
             t4 = pc()
             stage[3] = t4 - t3

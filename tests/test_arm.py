@@ -381,3 +381,19 @@ def test_state_reports_every_joint(channel) -> None:
         assert all(j.age < 0.01 and j.fault == 0 and j.temperature is not None for j in s.joints)
         assert "shoulder" in str(s) and s.enabled and not s.moving
         assert math.isfinite(s.tau[0])
+
+
+def test_torque_control_with_gains_off_and_extra_torque(channel) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        arm.set_gains(kp=0.0, kd=0.2)
+        arm.sleep(0.3)
+        still = np.max(np.abs(sim.q))
+        arm.set_extra_torque([0.0, 1.0])  # weight carried: 1 N·m (friction 0.3) accelerates the elbow upwards
+        arm.sleep(0.3)
+        assert still < 0.01 and sim.q[1] > 0.05
+        arm.set_extra_torque(None)
+        with pytest.raises(LimitError, match="kp must be within 0-500"):
+            arm.set_gains(kp=600)
+        with pytest.raises(LimitError, match="extra torque needs 2"):
+            arm.set_extra_torque([1.0])

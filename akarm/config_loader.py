@@ -29,7 +29,8 @@ A robot is described once, in a YAML file next to its URDF::
         offset: 0.0                 # rad
         limits: {lower: -1.5, upper: 1.5, velocity: 3.0, acceleration: 15.0, jerk: 150.0, torque: 10.0}
         gains: {kp: 60.0, kd: 2.0}  # required for MIT joints
-        # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout
+        # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout,
+        #   friction: {coulomb: N·m, viscous: N·m·s/rad} (identified; default: the catalogue's typical values)
 
 Rules the loader applies:
 
@@ -62,7 +63,7 @@ from typing import Any
 import yaml
 
 from .busload import LOAD_LIMIT, load_of
-from .config import BusConfig, Gains, JointConfig, Limits, Payload, RobotConfig
+from .config import BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
 from .errors import ConfigError, ConfigProblem
 from .motors import Catalogue, MotorModel, default_catalogue, did_you_mean
 
@@ -71,7 +72,7 @@ __all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joint
 TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
             "defaults", "joints")
 JOINT_KEYS = ("name", "bus", "can_id", "motor", "mode", "firmware", "direction", "offset", "limits", "gains",
-              "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout")
+              "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout", "friction")
 DEFAULT_KEYS = tuple(k for k in JOINT_KEYS if k not in ("name", "can_id"))
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk", "torque")
 GAIN_KEYS = ("kp", "kd")
@@ -676,6 +677,12 @@ class _Loader:
         if (node := get("can_timeout")) is not None:
             extras["can_timeout"] = r.number(node, f"{label}: can_timeout", minimum=0.0, fix="seconds; 0 = off")
 
+        if "friction" in own or "friction" in defaults:
+            fr = _merged(own, defaults, r, "friction", ("coulomb", "viscous"))
+            fvals = {k: r.number(fr[k].value, f"{label}: friction {k}", minimum=0.0,
+                                 fix="N·m (coulomb) or N·m·s/rad (viscous), at the output, ≥ 0") for k in fr}
+            if all(v is not None for v in fvals.values()):
+                extras["friction"] = Friction(**fvals)  # type: ignore[arg-type]
         limits = self._limits(own, defaults, jnode, label, motor, mode, direction, offset, uj)
         gains = self._gains(own, defaults, jnode, label, motor, mode)
 

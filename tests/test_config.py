@@ -578,3 +578,25 @@ poses:
     rendered = str(info.value)
     assert f"{len(found)} problems" in rendered
     assert f"robot.yaml:{line_of(text, 'AK80-99')}: joint 'shoulder': unknown motor model" in rendered
+
+
+def test_friction_per_joint_and_from_defaults(tmp_path) -> None:
+    """`friction:` (identified values) overrides the catalogue's typical friction; bad values are reported."""
+    from akarm.config_loader import load_robot
+
+    src = (ROBOTS / "planar2.yaml").read_text()
+    gains = "    gains: {kp: 40.0, kd: 1.5}"
+    src = src.replace(gains, gains + "\n    friction: {coulomb: 0.2, viscous: 0.01}")
+    f = tmp_path / "p.yaml"
+    f.write_text(src)
+    (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
+    cfg = load_robot(f)
+    assert cfg.joint("shoulder").friction_model().coulomb == 0.2
+    assert cfg.joint("shoulder").friction_model().viscous == 0.01
+    assert cfg.joint("elbow").friction is None
+    assert cfg.joint("elbow").friction_model().coulomb == cfg.joint("elbow").motor.friction_coulomb
+    f.write_text(src.replace("coulomb: 0.2", "coulomb: -1").replace("viscous: 0.01", "viscos: 0.01"))
+    with pytest.raises(ConfigError) as info:
+        load_robot(f)
+    text = str(info.value)
+    assert "friction coulomb" in text and "viscos" in text and "did you mean 'viscous'" in text

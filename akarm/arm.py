@@ -60,7 +60,7 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 
 _STAGES = ("receive", "safety", "trajectory", "feedforward", "send", "telemetry")
 _DEFAULT_FEEDBACK_TIMEOUT = 0.020
-_FRICTION_SMOOTHING = 0.02  # rad/s: Coulomb feed-forward is c·tanh(v_des / this), smooth through zero
+_INV_FRICTION_SMOOTHING = 1.0 / 0.02  # Coulomb feed-forward is c·tanh(v_des / 0.02 rad/s): smooth through zero
 
 
 @dataclass(frozen=True)
@@ -194,15 +194,18 @@ class Arm:
         self._kd = np.array([j.gains.kd for j in config.joints])
         is_mit = np.array([j.mode == "mit" for j in config.joints])
         self._hold_integral = hold_integral
-        self._ki = np.where(is_mit, hold_integral * self._kp, 0.0)
-        self._extra = np.zeros(self.n)  # user torque added to MIT commands, N·m
-        self._i_torque_max = 0.1 * self._torque_limit
-        self._integral = np.zeros(self.n)  # ∫(q_des - q) dt while holding, rad·s
+        self._is_mit = is_mit
+        # per-joint constants of the hot path as plain lists (see the feed-forward stage)
+        self._ki = [hold_integral * kp if m else 0.0 for kp, m in zip(self._kp, is_mit, strict=True)]
+        self._tlim = self._torque_limit.tolist()
+        self._imax = (0.1 * self._torque_limit).tolist()
+        self._extra = [0.0] * self.n  # user torque added to MIT commands, N·m
+        self._integral = [0.0] * self.n  # ∫(q_des - q) dt while holding, rad·s
         self._t_last = 0.0
         fr = [j.friction_model() for j in config.joints]
         on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
-        self._fric_c = np.array([f.coulomb for f in fr]) * on
-        self._fric_b = np.array([f.viscous for f in fr]) * on
+        self._fric_c = [f.coulomb * on for f in fr]
+        self._fric_b = [f.viscous * on for f in fr]
         self._timeouts = np.array([self._feedback_timeout(j.config, feedback_timeout) for j in self.joints])
         self.telemetry_ring = Telemetry(self.names, max(1, int(telemetry_seconds * config.rate_hz)))
         self._can_log_path = can_log
@@ -475,19 +478,19 @@ class Arm:
                     raise LimitError(f"{what} must be within 0-{hi:g}, got {list(v)}",
                                      fix=f"pass {what} in the MIT range 0-{hi:g}")
                 arr[:] = v
-            self._ki = np.where(self._ki > 0, self._hold_integral * self._kp, 0.0)
+            self._ki = [self._hold_integral * kp if m else 0.0 for kp, m in zip(self._kp, self._is_mit, strict=True)]
 
     def set_extra_torque(self, tau: Sequence[float] | None) -> None:
         """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
         on top of the feed-forward, clamped to each joint's torque limit."""
         with self._lock:
             if tau is None:
-                self._extra[:] = 0.0
+                self._extra = [0.0] * self.n
                 return
             v = np.asarray(tau, dtype=float).reshape(-1)
             if v.shape != (self.n,) or not np.all(np.isfinite(v)):
                 raise LimitError(f"extra torque needs {self.n} finite values (N·m)", fix="one per joint, config order")
-            self._extra[:] = v
+            self._extra = v.tolist()
 
     # ------------------------------------------------------------------------------------------
     # teach and replay
@@ -545,7 +548,7 @@ class Arm:
             self._des = (q.copy(), np.zeros(self.n), np.zeros(self.n))
             self._t_active = self.clock.now()
             self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
-            self._integral[:] = 0.0
+            self._integral = [0.0] * self.n
             self._mode = "active"
         self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
 
@@ -758,24 +761,34 @@ class Arm:
             self._des = (q_d, dq_d, ddq_d)
             t3 = pc()
             stage[2] = t3 - t2
-            # feed-forward
+            # feed-forward: the rigid-body model (Pinocchio), then friction, hold integral, user torque
+            # and clamping per joint in plain floats (for six values numpy's per-call overhead costs
+            # more than the arithmetic)
             if self.feedforward == "full":
-                ff = self.model.inverse_dynamics(q_d, dq_d, ddq_d)
+                model_tau = self.model.inverse_dynamics(q_d, dq_d, ddq_d).tolist()
             elif self.feedforward == "gravity":
-                ff = self.model.gravity(q_d)
+                model_tau = self.model.gravity(q_d).tolist()
             else:
-                ff = np.zeros(self.n)
-            ff = ff + self._fric_c * np.tanh(dq_d * (1.0 / _FRICTION_SMOOTHING)) + self._fric_b * dq_d
-            if plan is None and self._gain_scale >= 1.0:
-                q = np.array([j.state.position for j in self.joints])
-                self._integral += (q_d - q) * (now - self._t_last)
-                tau_i = np.clip(self._ki * self._integral, -self._i_torque_max, self._i_torque_max)
-                self._integral = np.divide(tau_i, self._ki, out=np.zeros(self.n), where=self._ki > 0)
-                ff = ff + tau_i
-            else:
-                self._integral[:] = 0.0
+                model_tau = [0.0] * self.n
+            qd, vd = q_d.tolist(), dq_d.tolist()
+            holding = plan is None and self._gain_scale >= 1.0
+            dt = now - self._t_last
             self._t_last = now
-            ff = np.clip(ff + self._extra, -self._torque_limit, self._torque_limit)
+            c, b, ex, lim, ki, imax = self._fric_c, self._fric_b, self._extra, self._tlim, self._ki, self._imax
+            integ, js = self._integral, self.joints
+            ff = [0.0] * self.n
+            for i in range(self.n):
+                v = vd[i]
+                t = model_tau[i] + c[i] * math.tanh(v * _INV_FRICTION_SMOOTHING) + b[i] * v + ex[i]
+                if holding:
+                    if ki[i] > 0.0:
+                        ti = ki[i] * (integ[i] + (qd[i] - js[i].state.position) * dt)
+                        ti = imax[i] if ti > imax[i] else -imax[i] if ti < -imax[i] else ti
+                        integ[i] = ti / ki[i]
+                        t += ti
+                else:
+                    integ[i] = 0.0
+                ff[i] = lim[i] if t > lim[i] else -lim[i] if t < -lim[i] else t
             self._ff = ff
             t4 = pc()
             stage[3] = t4 - t3
@@ -784,21 +797,21 @@ class Arm:
                 self._gain_scale = min(1.0, (now - self._t_active) / self.enable_ramp) if self.enable_ramp > 0 else 1.0
             g = self._gain_scale
             kp, kd = self._kp, self._kd
-            for i, j in enumerate(self.joints):
+            for i, j in enumerate(js):
                 if isinstance(j, MitJoint):
-                    msg = j.command(q_d[i], dq_d[i], kp[i] * g, kd[i] * g, ff[i])
+                    msg = j.command(qd[i], vd[i], kp[i] * g, kd[i] * g, ff[i])
                 else:
-                    msg = j.command(q_d[i])  # type: ignore[attr-defined]
+                    msg = j.command(qd[i])  # type: ignore[attr-defined]
                 self._send(j, msg)
             t5 = pc()
             stage[4] = t5 - t4
-            self._record(now, q_d, dq_d, ff)
+            self._record(now, qd, vd, ff)
             stage[5] = pc() - t5
 
     def _record(self, now: float, q_d, dq_d, ff) -> None:
-        js = self.joints
-        self.telemetry_ring.record(now, q_d, dq_d, [j.state.position for j in js], [j.state.velocity for j in js],
-                                   [j.state.torque for j in js], ff)
+        states = [j.state for j in self.joints]
+        self.telemetry_ring.record(now, q_d, dq_d, [s.position for s in states], [s.velocity for s in states],
+                                   [s.torque for s in states], ff)
 
     def _cycle_teach(self, now: float) -> None:
         """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose)."""
@@ -837,7 +850,7 @@ class Arm:
             self._plan = None
             self._t_active = now
             self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
-            self._integral[:] = 0.0
+            self._integral = [0.0] * self.n
             self._entered = False
             self._mode = "active"
             return

@@ -136,13 +136,7 @@ class Telemetry:
         """Record one cycle (arrays of joint values, SI)."""
         i = self.count % self.capacity
         self.t[i] = t
-        d = self.data
-        d[0, i] = q_des
-        d[1, i] = dq_des
-        d[2, i] = q
-        d[3, i] = dq
-        d[4, i] = tau
-        d[5, i] = tau_ff
+        self.data[:, i] = (q_des, dq_des, q, dq, tau, tau_ff)  # one conversion for the whole record
         self.count += 1
 
     def clear(self) -> None:

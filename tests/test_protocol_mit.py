@@ -251,9 +251,14 @@ def test_command_of_wrong_length_is_a_frame_error(n: int) -> None:
         mit.decode_command("AK80-9", bytes(n))
 
 
-def test_decode_rejects_non_bytes_with_a_frame_error() -> None:
-    with pytest.raises(FrameError):
-        mit.decode_reply("AK80-9", None)  # type: ignore[arg-type]
+def test_decode_takes_any_bytes_like_and_rejects_the_rest_with_a_frame_error() -> None:
+    want = MitReply(5, 12.5, -50.0, 18.0, 30.0, 2)
+    raw = bytes.fromhex("05 FF FF 00 0F FF 1E 02")
+    assert mit.decode_reply("AK80-9", memoryview(raw)) == want
+    assert mit.decode_reply("AK80-9", list(raw)) == want  # type: ignore[arg-type]
+    for bad in (None, [1, 2, 300, 4, 5, 6, 7, 8], "05FFFF000FFF1E02"):
+        with pytest.raises(FrameError):
+            mit.decode_reply("AK80-9", bad)  # type: ignore[arg-type]
 
 
 # ---- V3 boards ----------------------------------------------------------------------------------------

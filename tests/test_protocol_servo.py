@@ -125,6 +125,16 @@ def test_decode_status_refuses_other_ids(aid: int, ext: bool) -> None:
         servo.decode_status(aid, bytes(8), is_extended=ext)
 
 
+def test_decode_takes_any_bytes_like_and_rejects_the_rest() -> None:
+    raw = bytes.fromhex("03 84 00 64 00 FA 1E 00")
+    assert servo.decode_status(0x2905, list(raw)) == servo.decode_status(0x2905, memoryview(raw))  # type: ignore[arg-type]
+    for bad in (None, 8, "0384006400FA1E00", [0, 0, 0, 0, 0, 0, 0, 256]):
+        with pytest.raises(FrameError, match="must be bytes"):
+            servo.decode_status(0x2905, bad)  # type: ignore[arg-type]
+        with pytest.raises(FrameError, match="must be bytes"):
+            servo.decode_command(0x105, bad)  # type: ignore[arg-type]
+
+
 @pytest.mark.parametrize("n", [0, 6, 7, 9])
 def test_decode_status_refuses_wrong_length(n: int) -> None:
     with pytest.raises(FrameError, match=f"{n} data bytes, not 8"):

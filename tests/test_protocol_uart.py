@@ -249,6 +249,19 @@ def test_garbage_length_does_not_stall_beyond_max_payload() -> None:
     assert dec.flush() == [good[2:-3]]
 
 
+def test_non_bytes_input_is_a_protocol_error() -> None:
+    frame = uart.encode_get_values()
+    assert FrameDecoder().feed(list(frame)) == [b"\x04"]
+    assert uart.decode_frame(bytearray(frame)) == b"\x04"
+    for bad in (None, "02 01 04 40 84 03", 5):
+        with pytest.raises(FrameError, match="expected bytes"):
+            FrameDecoder().feed(bad)  # type: ignore[arg-type]
+        with pytest.raises(FrameError, match="expected bytes"):
+            uart.decode_payload(bad)  # type: ignore[arg-type]
+    with pytest.raises(ProtocolError, match="expected bytes"):
+        uart.encode_frame(5)  # type: ignore[arg-type]
+
+
 def test_decoder_rejects_bad_max_payload() -> None:
     with pytest.raises(ProtocolError):
         FrameDecoder(max_payload=0)

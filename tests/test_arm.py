@@ -397,3 +397,47 @@ def test_torque_control_with_gains_off_and_extra_torque(channel) -> None:
             arm.set_gains(kp=600)
         with pytest.raises(LimitError, match="extra torque needs 2"):
             arm.set_extra_torque([1.0])
+
+
+@pytest.mark.parametrize("variant", ["v3", "own_reply_id", "reversed_offset"])
+def test_joint_variants_track_through_the_wire(channel, variant) -> None:
+    """V3 firmware frames, replies on the motor's own ID, and direction -1 with an offset all work end to end."""
+
+    def edit(cfg):
+        if variant == "v3":
+            joints = tuple(replace(j, firmware="v3") for j in cfg.joints)
+        elif variant == "own_reply_id":
+            joints = tuple(replace(j, reply_id=j.can_id) for j in cfg.joints)
+        else:
+            joints = tuple(replace(j, direction=-1, offset=0.3) for j in cfg.joints)
+        return replace(cfg, joints=joints)
+
+    import can
+
+    from akarm.protocol import mit
+
+    with rig("planar2", channel, q0=[0.1, -0.2], config_edit=edit) as (arm, sim), \
+            can.Bus(interface="virtual", channel=channel) as spy:
+        # V3 replies are status frames with 0.1° (1.75 mrad) position steps: allow one step more
+        tol = 2e-3 + (np.radians(0.1) if variant == "v3" else 0.0)
+        arm.enable()
+        np.testing.assert_allclose(arm.state().q, [0.1, -0.2], atol=tol)
+        arm.move_to("up")
+        arm.sleep(0.5)
+        np.testing.assert_allclose(sim.q, arm.config.pose("up"), atol=tol)
+        np.testing.assert_allclose(arm.state().q, arm.config.pose("up"), atol=tol)
+        frames = list(iter(lambda: spy.recv(0), None))
+        if variant == "v3":
+            assert all(f.is_extended_id for f in frames)
+            assert {f.arbitration_id for f in frames} >= {(8 << 8) | 1, (8 << 8) | 2, 0x2901, 0x2902}
+        else:
+            replies = [f for f in frames if f.arbitration_id in ({0} if variant == "reversed_offset" else {1, 2})
+                       and bytes(f.data) != mit.ENTER and f.data[0] in (1, 2)]
+            assert replies, "the drivers answer on the configured reply ID"
+        if variant == "reversed_offset":  # on the wire the motors turned the other way, from offset 0.3
+            last = {}
+            for f in frames:
+                if not f.is_extended_id and f.arbitration_id == 0:
+                    r = mit.decode_reply(arm.config.joints[f.data[0] - 1].motor, bytes(f.data))
+                    last[r.driver_id] = r.position
+            np.testing.assert_allclose([last[1], last[2]], [-(1.2 - 0.3), -(-1.2 - 0.3)], atol=3e-3)

@@ -23,7 +23,7 @@ def test_servo_degrees_at_output_or_rotor() -> None:
     out = motors.get("AK70-10")
     assert out.servo_position == "output"
     assert units.rad_to_servo_deg(out, math.pi / 2) == pytest.approx(90.0)
-    rotor = Catalogue().extended({"R": {"base": "AK70-10", "servo_position": "rotor"}}, "t").get("R")
+    rotor = motors.default_catalogue().extended({"R": {"base": "AK70-10", "servo_position": "rotor"}}, "t").get("R")
     assert units.rad_to_servo_deg(rotor, math.pi / 2) == pytest.approx(900.0)  # 10:1 gear
     assert units.servo_deg_to_rad(rotor, 900.0) == pytest.approx(math.pi / 2)
 

@@ -29,6 +29,7 @@ the module-level functions use it.
 
 from __future__ import annotations
 
+import math
 import struct
 from typing import Literal, NamedTuple
 
@@ -206,49 +207,42 @@ class MitCodec:
         Raises:
             ProtocolError: a NaN or non-numeric field (named), or an unknown firmware.
         """
+        # NaN fails both comparisons of a clamp; int() then raises on it, and the except clause names it.
         try:
             if position > self._p_hi:
                 position = self._p_hi
             elif position < self._p_lo:
                 position = self._p_lo
-            elif position != position:
-                raise _nan("position")
             if velocity > self._v_hi:
                 velocity = self._v_hi
             elif velocity < self._v_lo:
                 velocity = self._v_lo
-            elif velocity != velocity:
-                raise _nan("velocity")
             if kp > self._kp_hi:
                 kp = self._kp_hi
             elif kp < self._kp_lo:
                 kp = self._kp_lo
-            elif kp != kp:
-                raise _nan("kp")
             if kd > self._kd_hi:
                 kd = self._kd_hi
             elif kd < self._kd_lo:
                 kd = self._kd_lo
-            elif kd != kd:
-                raise _nan("kd")
             if torque > self._t_hi:
                 torque = self._t_hi
             elif torque < self._t_lo:
                 torque = self._t_lo
-            elif torque != torque:
-                raise _nan("torque")
             p = 0xFFFF - int(self._p_c - position * self._p_s)
             v = 0xFFF - int(self._v_c - velocity * self._v_s)
             ikp = 0xFFF - int(self._kp_c - kp * self._kp_s)
             ikd = 0xFFF - int(self._kd_c - kd * self._kd_s)
             t = 0xFFF - int(self._t_c - torque * self._t_s)
-        except ProtocolError:
-            raise
-        except (TypeError, ValueError):
-            for name, x in (("position", position), ("velocity", velocity), ("kp", kp), ("kd", kd),
-                            ("torque", torque)):
-                if not isinstance(x, int | float):
+        except (TypeError, ValueError):  # NaN passes both clamps and stops at int(); or not a number
+            named = (("position", position), ("velocity", velocity), ("kp", kp), ("kd", kd), ("torque", torque))
+            for name, x in named:
+                try:
+                    nan = math.isnan(x)
+                except (TypeError, ValueError):
                     raise _not_number(name, x) from None
+                if nan:
+                    raise _nan(name) from None
             raise _not_number("command", (position, velocity, kp, kd, torque)) from None
         if firmware == "v2":
             return ((p << 48) | (v << 36) | (ikp << 24) | (ikd << 12) | t).to_bytes(8, "big")

@@ -1,0 +1,186 @@
+"""``akarm demo``: a scripted session on a simulated six-joint arm, with no hardware and no arguments.
+
+::
+
+    akarm demo                     # real time, ~20 s; writes akarm-demo.png
+    akarm demo --fast --no-plot    # lock step with the simulator: a few seconds
+    akarm demo -o run.png --log run.csv
+
+The simulator (:class:`akarm.sim.SimulatedRobot`) answers the real MIT wire protocol for
+``robots/arm6.yaml`` on a python-can *virtual* bus inside this process; the :class:`akarm.Arm` talks
+to it exactly as it would to the motors on ``can0``. The session: enable (no kick), moves between
+the YAML's named poses, one smooth move through waypoints, a replay of the bundled continuous
+recording (``akarm/data/demo_path.csv``, a figure eight), disable. Then it prints the tracking
+error per joint (mrad) and the control loop's timing, and plots the telemetry
+(:func:`akarm.plot.plot_log`).
+
+With ``--fast`` the arm and the simulator run in lock step (``realtime=False``: the loop's clock
+*is* the simulator's), so the motion and the tracking are the same but time is simulated: loop
+rate, missed slots and lateness are then exact by construction and say nothing about this machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..errors import AkarmError, RecordingError
+
+if TYPE_CHECKING:
+    from ..arm import Arm
+    from ..telemetry import TelemetryLog
+
+#: the bundled recording the demo replays (joints of arm6, rad, 100 Hz)
+DEMO_PATH = Path(__file__).resolve().parent.parent / "data" / "demo_path.csv"
+#: waypoints of the demo's move_through: names of arm6's poses or joint vectors (rad, config order)
+WAYPOINTS: tuple[str | tuple[float, ...], ...] = (
+    "ready",
+    (0.7, 0.6, 0.9, 0.6, -0.5, 1.0),
+    "left",
+    (-0.6, 0.1, 1.5, -0.4, 0.6, -0.8),
+    "home",
+)
+#: s; the watchdog's feedback timeout in real time. The simulator shares this process (and its GIL)
+#: with the control loop, so a pause of the whole process (a busy machine, a garbage collection)
+#: delays the replies by as much as the pause; on hardware the Arm's default, 20 ms, applies.
+REALTIME_FEEDBACK_TIMEOUT = 0.25
+_channels = itertools.count()
+
+
+def robots_dir() -> Path:
+    """The ``robots/`` folder of akarm's source tree: next to the ``akarm/`` package."""
+    return Path(__file__).resolve().parent.parent.parent / "robots"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    parser.add_argument("-o", "--output", default="akarm-demo.png", metavar="PNG",
+                        help="where to write the plot (default: akarm-demo.png in the current directory)")
+    parser.add_argument("--no-plot", action="store_true", help="do not plot")
+    parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv or .npz)")
+    parser.add_argument("--fast", action="store_true",
+                        help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
+
+
+def _arm6_yaml() -> Path:
+    path = robots_dir() / "arm6.yaml"
+    if not path.is_file() or not (path.parent / "arm6.urdf").is_file():
+        raise AkarmError(f"the demo robot {path} (with arm6.urdf beside it) was not found; this akarm is "
+                         "installed without its robots/ folder",
+                         fix="clone akarm's source repository and install from it (pip install -e \".[plot]\"): "
+                             "robots/ sits next to the akarm/ package, and `akarm demo` finds it there")
+    return path
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Fail before the session, not after it, on an output that cannot be written."""
+    if args.log is not None and Path(args.log).suffix not in (".csv", ".npz"):
+        raise RecordingError(f"cannot save telemetry as {args.log!r}", fix="use a .csv or .npz file name")
+    if not args.no_plot:
+        if Path(args.output).suffix.lower() != ".png":
+            raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
+        from ..plot import _figure_classes
+
+        _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
+
+
+def _step_line(k: int, label: str, seconds: float, log: TelemetryLog) -> str:
+    """One line per step: number, what, duration (s), and the worst joint's RMS tracking error (mrad)."""
+    text = f"  {k:>2}. {label:<42}{seconds:6.2f} s"
+    if len(log) > 1:
+        rms = log.rms_error() * 1e3
+        worst = int(rms.argmax())
+        text += f"   tracking RMS ≤ {rms[worst]:5.2f} mrad ({log.joint_names[worst]})"
+    return text
+
+
+def _session(arm: Arm) -> list[tuple[str, Callable[[], object]]]:
+    """The scripted steps, in order: (what is printed, what is done)."""
+    steps: list[tuple[str, Callable[[], object]]] = [("enable (no kick: gains ramp up from zero)", arm.enable)]
+    for pose in ("home", "ready", "left", "reach", "home"):
+        steps.append((f"move_to({pose!r})", lambda pose=pose: arm.move_to(pose)))
+    steps.append((f"move_through({len(WAYPOINTS)} waypoints, no stops)", lambda: arm.move_through(list(WAYPOINTS))))
+    steps.append((f"replay({DEMO_PATH.name!r}): a figure eight", lambda: arm.replay(DEMO_PATH)))
+    return steps
+
+
+def _tracking_table(log: TelemetryLog) -> str:
+    import numpy as np
+
+    err = np.abs(log.tracking_error()) * 1e3
+    rms = log.rms_error() * 1e3
+    lines = ["tracking error (desired - measured) over the session, mrad:",
+             "  (measured = the motors' latest replies, one loop period old: at 2 rad/s that alone reads 4 mrad)",
+             f"  {'joint':<16}{'RMS':>8}{'max':>9}"]
+    for k, name in enumerate(log.joint_names):
+        lines.append(f"  {name:<16}{rms[k]:8.3f}{err[:, k].max():9.3f}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo session; 0 on success."""
+    import time
+
+    from ..arm import Arm
+    from ..config_loader import load_robot
+    from ..sim import SimulatedRobot
+
+    _check_outputs(args)
+    if not DEMO_PATH.is_file():
+        raise RecordingError(f"the demo recording {DEMO_PATH} is missing",
+                             fix="reinstall akarm, or regenerate it with docs/make_demo_path.py")
+    channel = f"akarm-demo-{os.getpid()}-{next(_channels)}"
+    config = load_robot(_arm6_yaml()).with_bus(interface="virtual", channel=channel)
+    mode = "lock step (--fast)" if args.fast else "real time"
+    print(f"akarm demo: simulated {config.name} ({len(config.joints)} MIT joints, {config.rate_hz:g} Hz loop) "
+          f"on a virtual CAN bus, {mode}", flush=True)
+    wall0 = time.perf_counter()
+    with SimulatedRobot(config, realtime=not args.fast) as sim:
+        if args.fast:
+            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0)
+        else:
+            arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0)
+            print(f"  (watchdog: {REALTIME_FEEDBACK_TIMEOUT * 1e3:.0f} ms, as the simulator shares this process; "
+                  "on hardware the default is 20 ms)", flush=True)
+        with arm:
+            t_session = arm.clock.now()
+            for k, (label, action) in enumerate(_session(arm), start=1):
+                t0 = arm.clock.now()
+                action()
+                t1 = arm.clock.now()
+                print(_step_line(k, label, t1 - t0, arm.telemetry(since=t0)), flush=True)
+            log = arm.telemetry(since=t_session)
+            stats = arm.stats()
+            t0 = arm.clock.now()
+            arm.disable()
+            print(f"  {k + 1:>2}. {'disable (damping, then exit motor mode)':<42}{arm.clock.now() - t0:6.2f} s",
+                  flush=True)
+        slip = sim.slip
+    wall = time.perf_counter() - wall0
+
+    print()
+    print(_tracking_table(log))
+    print()
+    timing = "simulated (lock step)" if args.fast else "this machine, wall clock"
+    print(f"control loop ({timing}): rate {stats.rate:.1f} Hz (target {config.rate_hz:g}), {stats.cycles} cycles, "
+          f"missed slots {stats.missed}, lateness p99 {stats.late_p99 * 1e6:.0f} µs "
+          f"(max {stats.late_max * 1e6:.0f} µs), compute p99 {stats.compute_p99 * 1e6:.0f} µs")
+    if slip > 0.001:
+        print(f"simulator: fell {slip:.2f} s behind the wall clock (this machine was busy)")
+    if not args.fast and stats.missed > 0.01 * stats.cycles:
+        print(f"note: this machine could not keep {config.rate_hz:g} Hz while also simulating six motors in Python; "
+              "the tracking suffers with it. Close busy programs, or see the same session in lock step: "
+              "akarm demo --fast")
+    if args.log is not None:
+        print(f"telemetry: {log.save(args.log)} ({len(log)} cycles)")
+    if not args.no_plot:
+        from ..plot import plot_log
+
+        print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6')}")
+    print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then the README's "
+          "'From simulator to hardware'.")
+    return 0

@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     print()
     print(_tracking_table(log))
     print()
-    timing = "simulated (lock step)" if args.fast else "this machine, wall clock"
+    timing = "simulated time, lock step" if args.fast else "this machine, wall clock"
     print(f"control loop ({timing}): rate {stats.rate:.1f} Hz (target {config.rate_hz:g}), {stats.cycles} cycles, "
           f"missed slots {stats.missed}, lateness p99 {stats.late_p99 * 1e6:.0f} µs "
           f"(max {stats.late_max * 1e6:.0f} µs), compute p99 {stats.compute_p99 * 1e6:.0f} µs")

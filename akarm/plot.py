@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,7 @@ _WIDTH = 14.0  # inches
 _DPI = 100
 _TOP = 0.7  # inches above the first row (the figure's title)
 _BOTTOM = 0.6  # inches below the last row (the time axis)
+_EVENT_LABELS = 0.6  # inches more at the top for event labels
 
 
 def _figure_classes():
@@ -47,7 +49,8 @@ def _figure_classes():
     return Figure, FigureCanvasAgg
 
 
-def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | None = None) -> Path:
+def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | None = None,
+             events: Sequence[tuple[float, str]] = ()) -> Path:
     """Draw ``log`` as a PNG at ``path``: per joint, position (desired vs measured, rad), tracking
     error (mrad) and torque (measured and feed-forward, N·m) against time (s).
 
@@ -55,6 +58,8 @@ def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | No
         log: a telemetry log (``arm.telemetry()`` or :func:`akarm.telemetry.load`).
         path: the PNG to write (parent folders are created); written atomically.
         title: the figure's title; default: the number of cycles and the duration.
+        events: ``(time, label)`` pairs marked as vertical lines on every plot, labelled above the
+            first row (e.g. the steps of a session); time in s on the log's clock (like ``log.t``).
 
     Returns:
         The path written.
@@ -78,12 +83,13 @@ def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | No
     with np.errstate(invalid="ignore"):
         max_mrad = np.nanmax(np.abs(err_mrad), axis=0) if np.any(np.isfinite(err_mrad)) else np.zeros(n)
 
-    height = _TOP + _BOTTOM + _ROW_HEIGHT * n
+    top = _TOP + (_EVENT_LABELS if events else 0.0)
+    height = top + _BOTTOM + _ROW_HEIGHT * n
     fig = Figure(figsize=(_WIDTH, height), dpi=_DPI)
     FigureCanvasAgg(fig)
     # fixed margins in inches: much faster than a constrained layout, and the rows stay the same size
     axes = fig.subplots(n, 3, sharex=True, squeeze=False,
-                        gridspec_kw={"left": 0.07, "right": 0.99, "top": 1 - _TOP / height, "bottom": _BOTTOM / height,
+                        gridspec_kw={"left": 0.07, "right": 0.99, "top": 1 - top / height, "bottom": _BOTTOM / height,
                                      "wspace": 0.22, "hspace": 0.45})
     for k, name in enumerate(names):
         ax_q, ax_e, ax_tau = axes[k]
@@ -104,6 +110,13 @@ def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | No
         if k == 0:
             ax_q.legend(loc="upper right", fontsize=8)
             ax_tau.legend(loc="upper right", fontsize=8)
+    for t_event, label in events:
+        x = t_event - log.t[0]
+        for ax in axes.flat:
+            ax.axvline(x, color="0.45", lw=0.6, ls=":")
+        for ax in axes[0][::2]:  # position and torque columns: the error column has its title there
+            ax.annotate(label, (x, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2),
+                        textcoords="offset points", fontsize=7, color="0.3", rotation=90, ha="center", va="bottom")
     for ax in axes[-1]:
         ax.set_xlabel("time, s")
     duration = float(t[-1]) if len(t) else 0.0

@@ -100,3 +100,17 @@ def test_missing_matplotlib_is_an_akarm_error_naming_the_extra(tmp_path: Path,
         plot_log(_log(1), tmp_path / "m.png")
     assert "akarm[plot]" in e.value.fix
     assert not (tmp_path / "m.png").exists()
+
+
+def test_events_are_marked_and_make_room_for_their_labels(tmp_path: Path) -> None:
+    log = _log(2, seconds=2.0)
+    plain = plot_log(log, tmp_path / "plain.png")
+    marked = plot_log(log, tmp_path / "marked.png", events=[(log.t[0] + 0.5, "start"), (log.t[0] + 1.5, "replay")])
+    (w0, h0), (w1, h1) = _png_size(plain), _png_size(marked)
+    assert w0 == w1 and h1 > h0  # room above the first row for the labels
+    img = _pixels(marked)
+    # the dotted event lines are grey (0.45) and cross every row: a grey column in the bottom row too
+    bottom = img[int(h1 * 0.8):int(h1 * 0.9)]
+    assert _has_colour(bottom, (115, 115, 115), tol=20) > 20
+    assert _has_colour(_pixels(plain)[int(h0 * 0.8):int(h0 * 0.9)], (115, 115, 115), tol=20) < \
+        _has_colour(bottom, (115, 115, 115), tol=20)

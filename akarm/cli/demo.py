@@ -98,13 +98,15 @@ def _step_line(k: int, label: str, seconds: float, log: TelemetryLog) -> str:
     return text
 
 
-def _session(arm: Arm) -> list[tuple[str, Callable[[], object]]]:
-    """The scripted steps, in order: (what is printed, what is done)."""
-    steps: list[tuple[str, Callable[[], object]]] = [("enable (no kick: gains ramp up from zero)", arm.enable)]
+def _session(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
+    """The scripted steps, in order: (what is printed, its label on the plot, what is done)."""
+    steps: list[tuple[str, str, Callable[[], object]]] = [
+        ("enable (no kick: gains ramp up from zero)", "enable", arm.enable)]
     for pose in ("home", "ready", "left", "reach", "home"):
-        steps.append((f"move_to({pose!r})", lambda pose=pose: arm.move_to(pose)))
-    steps.append((f"move_through({len(WAYPOINTS)} waypoints, no stops)", lambda: arm.move_through(list(WAYPOINTS))))
-    steps.append((f"replay({DEMO_PATH.name!r}): a figure eight", lambda: arm.replay(DEMO_PATH)))
+        steps.append((f"move_to({pose!r})", pose, lambda pose=pose: arm.move_to(pose)))
+    steps.append((f"move_through({len(WAYPOINTS)} waypoints, no stops)", "waypoints",
+                  lambda: arm.move_through(list(WAYPOINTS))))
+    steps.append((f"replay({DEMO_PATH.name!r}): a figure eight", "replay", lambda: arm.replay(DEMO_PATH)))
     return steps
 
 
@@ -148,8 +150,10 @@ def run(args: argparse.Namespace) -> int:
                   "on hardware the default is 20 ms)", flush=True)
         with arm:
             t_session = arm.clock.now()
-            for k, (label, action) in enumerate(_session(arm), start=1):
+            events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
+            for k, (label, short, action) in enumerate(_session(arm), start=1):
                 t0 = arm.clock.now()
+                events.append((t0, short))
                 action()
                 t1 = arm.clock.now()
                 print(_step_line(k, label, t1 - t0, arm.telemetry(since=t0)), flush=True)
@@ -180,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plot:
         from ..plot import plot_log
 
-        print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6')}")
+        print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6', events=events)}")
     print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then the README's "
           "'From simulator to hardware'.")
     return 0

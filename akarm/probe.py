@@ -56,6 +56,7 @@ __all__ = ["Found", "JointStatus", "Probe", "read_state", "release", "scan", "ze
 #: replies from IDs no configuration describes.
 GENERIC_MIT_MODEL = "AK80-9"
 _SEND_RETRY = 0.2  # s to keep retrying a frame a full transmit queue refused
+_ZERO_READBACK = 0.01  # rad: a servo position read back after SET_ORIGIN_HERE this close to 0 shows it took
 
 
 @dataclass(frozen=True)
@@ -165,7 +166,7 @@ def _ids(ids: Iterable[int]) -> list[int]:
     return out
 
 
-def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float = 0.05, listen: float = 0.3,
+def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float = 0.1, listen: float = 0.3,
          models: Mapping[int, MotorModel | str] | None = None) -> list[Found]:
     """Find the motors on one bus: which CAN IDs answer, and in which mode.
 
@@ -368,10 +369,10 @@ class Probe:
         return j.exit_frames() if isinstance(j, MitJoint) else []
 
     def default_timeout(self) -> float:
-        """s :meth:`read_state` waits by default: 0.1, or 2.5 periods of the slowest servo status rate."""
+        """s :meth:`read_state` waits by default: 0.25, or 2.5 periods of the slowest servo status rate."""
         periods = [2.5 / j.config.status_rate_hz for j in self.joints
                    if j.mode == "servo" and j.config.status_rate_hz > 0]
-        return max([0.1, *periods])
+        return max([0.25, *periods])
 
     def read_state(self, timeout: float | None = None, listen: float = 0.05) -> list[JointStatus]:
         """Read every joint of the probe once.
@@ -432,7 +433,9 @@ class Probe:
         across power cycles depends on the firmware; ``permanent`` is not used.
 
         Servo: waits for a status frame, sends SET_ORIGIN_HERE (``permanent``: saved in flash, else
-        until power is lost), then reads the next status frame.
+        until power is lost), then reads status frames until one reads within 0.01 rad of 0 (frames
+        already on their way show the old origin), or returns the last one read after ``timeout`` s
+        (or 2.5 status periods, if longer).
 
         The value returned is motor side; joint side the joint now reads ``offset`` (± what it
         moved meanwhile).
@@ -485,14 +488,26 @@ class Probe:
         arb, data = servo.encode_origin(c.can_id, servo.OriginMode.PERMANENT if permanent else
                                         servo.OriginMode.TEMPORARY)
         self.send(j, can.Message(arbitration_id=arb, data=data, is_extended_id=True))
-        time.sleep(min(0.02, period))  # let a status frame already on its way go by
+        # Status frames already on their way still show the old origin, and nothing in a status
+        # frame says which origin it is relative to: skip a little, then take frames until one
+        # reads about 0 (a joint that moves meanwhile reads what it moved: the caller warns).
+        time.sleep(min(0.05, 2 * period))
         self.discard()
-        j.state = JointState()
-        self.pump(time.monotonic() + wait_status, lambda: j.state.stamp > -math.inf)
-        if j.state.stamp == -math.inf:
+        end = time.monotonic() + wait_status
+        heard = False
+        while True:
+            j.state = JointState()
+            self.pump(end, lambda: j.state.stamp > -math.inf)
+            if j.state.stamp == -math.inf:
+                break
+            heard = True
+            p = j.motor_position(j.state.position)
+            if abs(p) < _ZERO_READBACK:
+                return p
+        if not heard:
             raise AkarmError(f"no status frame from its motor ({where}) after setting the origin", joint=name,
                              fix="check it with akarm status")
-        return j.motor_position(j.state.position)
+        return p
 
     def _ask(self, j: Joint, timeout: float, every: float | None = None) -> bool:
         """Send ``j``'s query frames (again every ``every`` s) until it answers or ``timeout`` s pass."""

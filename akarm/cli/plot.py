@@ -1,0 +1,37 @@
+"""``akarm plot LOG``: a PNG of a telemetry log: per joint, desired vs measured position, tracking
+error and torque (measured and feed-forward).
+
+::
+
+    akarm move robots/planar2.yaml up --log up.csv
+    akarm plot up.csv                  # writes up.png
+    akarm plot up.npz -o /tmp/up.png
+
+Logs come from ``--log`` of ``akarm move`` / ``akarm replay`` or ``Arm.telemetry().save()``
+(``.csv`` or ``.npz``). Needs matplotlib (``pip install "akarm[plot]"``).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    parser.add_argument("log", metavar="LOG", help="a telemetry log, .csv or .npz")
+    parser.add_argument("-o", "--output", metavar="OUT.png", help="the PNG to write (default: LOG with .png)")
+    parser.add_argument("--title", help="the figure's title (default: cycles and duration)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load the log, draw it, print where the PNG went."""
+    from ..plot import plot_log
+    from ..telemetry import load
+
+    log = load(args.log)
+    out = Path(args.output) if args.output else Path(args.log).with_suffix(".png")
+    path = plot_log(log, out, title=args.title)
+    duration = float(log.t[-1] - log.t[0]) if len(log) else 0.0
+    print(f"wrote {path} ({len(log.joint_names)} joints, {len(log)} cycles, {duration:.2f} s)")
+    return 0

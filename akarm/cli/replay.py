@@ -1,0 +1,106 @@
+"""``akarm replay ROBOT.yaml FILE``: replay a taught recording, checked against the limits first.
+
+::
+
+    akarm replay robots/arm6.yaml pick.yaml              # keyframes: one smooth move through them
+    akarm replay robots/arm6.yaml path.csv --speed 0.5   # a path, at half its recorded speed
+
+The whole path is checked (position, velocity, acceleration and jerk of every joint, after the
+speed factor) before the arm is even enabled: a violation names the joint, the time and a speed
+factor that would pass, and nothing moves (exit 1). A soft start first moves the arm to the
+recording's first pose. A progress bar is drawn on stderr when it is a terminal. Ctrl-C brings the
+arm to rest smoothly, then disables it (exit 130).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import TYPE_CHECKING
+
+from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..arm import Arm
+    from ..recording import Keyframes, PathRecording
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    add_robot_arguments(parser)
+    parser.add_argument("file", metavar="FILE", help="a recording from akarm teach: keyframes .yaml or path .csv")
+    parser.add_argument("--speed", type=float, default=1.0, metavar="F",
+                        help="paths: recorded speed × F (any F > 0); keyframes: fraction of the joint limits, "
+                             "at most 1 (default 1)")
+    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+
+
+def check(arm: Arm, rec: Keyframes | PathRecording, speed: float) -> None:
+    """Raise :class:`~akarm.LimitError` if replaying ``rec`` at ``speed`` would break a joint limit.
+
+    Paths: the same smoothing and check :meth:`Arm.replay` applies (names joint, time and a passing
+    speed). Keyframes: every pose within the position limits (the move through them is planned
+    within the dynamic limits by construction).
+    """
+    from ..errors import LimitError
+    from ..recording import Keyframes, PathPlan, check_path
+
+    if isinstance(rec, Keyframes):
+        lim = arm.limits
+        for k, frame in enumerate(rec.frames):
+            for i, q in enumerate(frame.q):
+                if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
+                    label = f" {frame.name!r}" if frame.name else ""
+                    raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
+                                     f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=arm.names[i],
+                                     fix="edit that keyframe or the joint limits")
+        return
+    check_path(PathPlan(rec, 0.0, speed), arm.limits)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load and check the recording, then enable, replay with progress, disable."""
+    from tqdm import tqdm
+
+    from ..arm import Arm
+    from ..errors import AkarmError
+    from ..recording import Keyframes, load
+    from .enable import controlled, deferred_sigint, stop_smoothly
+
+    if not args.speed > 0:
+        raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    config = load_from_args(args)
+    rec = load(args.file, config.joint_names)
+    arm = Arm(config)
+    check(arm, rec, args.speed)
+    kind = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
+    code = 0
+    with controlled(arm):
+        t0 = arm.clock.now()
+        try:
+            arm.enable()
+            motion = arm.replay(rec, speed=args.speed, wait=False)
+            print(f"replaying {args.file} ({kind}) in {motion.duration:.2f} s at speed {args.speed:g}", flush=True)
+            bar = tqdm(total=round(motion.duration, 2), unit="s", file=sys.stderr, disable=not sys.stderr.isatty(),
+                       bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s")
+            with bar:
+                start = arm.clock.now()
+                while not motion.done:
+                    arm.sleep(0.1)
+                    bar.n = round(min(arm.clock.now() - start, motion.duration), 2)
+                    bar.refresh()
+                bar.n = bar.total
+            motion.wait()
+        except KeyboardInterrupt:
+            stop_smoothly(arm)
+            print("interrupted: stopped and disabled", file=sys.stderr)
+            code = 130
+        else:
+            rms = arm.telemetry(since=t0).rms_error()
+            with deferred_sigint():
+                arm.disable()
+            print("done; RMS tracking error " + ", ".join(f"{n} {e * 1e3:.2f} mrad"
+                                                          for n, e in zip(arm.names, rms, strict=True)))
+        if args.log:
+            print(f"telemetry saved to {arm.telemetry(since=t0).save(args.log)}")
+    return code

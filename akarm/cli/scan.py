@@ -1,0 +1,107 @@
+"""``akarm scan [ROBOT.yaml]``: which CAN IDs answer on a bus, and in which mode.
+
+::
+
+    akarm scan -i socketcan -c can0 --ids 1-32     # any bus, no robot file needed
+    akarm scan robots/arm6.yaml                    # every bus of the robot; names the joints found
+
+MIT motors are found by sending EXIT to each ID (every MIT frame is answered; EXIT leaves the motor
+in rest mode, so scan an arm that is supported or resting). Servo motors are heard from the status
+frames they send on their own: ``--listen`` must cover a period of the slowest status rate.
+A MIT motor whose replies are already flowing (a controller is driving it) is listed and left alone.
+
+Positions are motor side (rad at the output): decoded with the configured motor model when a robot
+file is given, else with the ±12.5 rad MIT range and output-side servo degrees.
+Exit status 0 when something answered (and, with a robot file, every configured joint did), else 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .common import add_robot_arguments, load_from_args
+
+
+def parse_ids(text: str) -> list[int]:
+    """``"1-32"``, ``"1,3,5-7"`` → the list of IDs; ``argparse.ArgumentTypeError`` if malformed."""
+    ids: list[int] = []
+    try:
+        for part in text.split(","):
+            part = part.strip()
+            if "-" in part:
+                lo, hi = (int(x) for x in part.split("-", 1))
+                if lo > hi:
+                    raise ValueError
+                ids.extend(range(lo, hi + 1))
+            else:
+                ids.append(int(part))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of IDs like 1-32 or 1,3,5-7") from None
+    if not all(1 <= i <= 255 for i in ids):
+        raise argparse.ArgumentTypeError(f"{text!r}: CAN IDs are 1-255")
+    return ids
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    add_robot_arguments(parser, robot_required=False)
+    parser.add_argument("--ids", type=parse_ids, default=list(range(1, 128)), metavar="IDS",
+                        help="CAN IDs to look for, e.g. 1-32 or 1,3,5-7 (default 1-127)")
+    parser.add_argument("--listen", type=float, default=0.3, metavar="S",
+                        help="seconds to listen for servo status frames before querying (default 0.3: "
+                             "motors sending at 4 Hz or more)")
+    parser.add_argument("--timeout", type=float, default=0.1, metavar="S",
+                        help="seconds to wait for MIT replies after the last query (default 0.1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Scan the bus(es); print a table of what answered."""
+    from ..config import BusConfig
+    from ..errors import AkarmError
+    from ..probe import scan
+    from .status import format_table
+
+    if args.listen < 0 or args.timeout < 0:
+        raise AkarmError("--listen and --timeout must not be negative")
+    if args.robot is None:
+        if not args.interface or not args.channel:
+            raise AkarmError("without a robot file, give the bus: -i INTERFACE -c CHANNEL",
+                             fix="e.g. akarm scan -i socketcan -c can0")
+        if "=" in args.channel:
+            raise AkarmError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
+        buses = [BusConfig("bus", args.interface, args.channel, args.bitrate or 1_000_000)]
+        joints = []
+    else:
+        config = load_from_args(args)
+        buses = [config.buses[name] for name in config.buses if any(j.bus == name for j in config.joints)]
+        joints = list(config.joints)
+
+    rows = [["bus", "CAN ID", "mode", "reply ID", "position (rad)", "temperature (°C)", "fault", "joint"]]
+    answered: set[tuple[str, int]] = set()
+    for bus in buses:
+        mine = {j.can_id: j for j in joints if j.bus == bus.name}
+        for f in scan(bus, args.ids, timeout=args.timeout, listen=args.listen,
+                      models={i: j.motor for i, j in mine.items()}):
+            answered.add((bus.name, f.can_id))
+            j = mine.get(f.can_id)
+            note = ""
+            if j is not None:
+                note = j.name
+                if j.mode != f.mode:
+                    note += f" (configured as {j.mode}!)"
+            if f.active:
+                note = (note + " " if note else "") + "[being driven: left alone]"
+            temp = "-" if f.temperature is None else f"{f.temperature:.0f}"
+            rows.append([bus.channel, str(f.can_id), f.mode, f"0x{f.reply_id:X}", f"{f.position:+.4f}", temp,
+                         f.fault_text(), note])
+    if len(rows) > 1:
+        print(format_table(rows, [False, True, False, True, True, True, False, False]))
+    lost = [j for j in joints if (j.bus, j.can_id) not in answered and j.can_id in args.ids]
+    for j in lost:
+        print(f"not found: joint {j.name!r} ({j.mode}, ID {j.can_id} on bus {j.bus!r})", file=sys.stderr)
+    if len(rows) == 1:
+        raise AkarmError("no motor answered", fix="check power, CAN wiring and termination, the bit rate, and "
+                         "that servo motors have status frames on (or listen longer: --listen 1)")
+    return 1 if lost else 0
+

@@ -1,0 +1,119 @@
+"""``akarm status ROBOT.yaml``: each joint's position, velocity, torque, temperature and fault.
+
+::
+
+    akarm status robots/arm6.yaml                 # a table, joint side, SI units
+    akarm status robots/arm6.yaml --json          # machine-readable
+    akarm status robots/arm6.yaml --watch         # again every 0.5 s until Ctrl-C
+
+Reading needs no control loop: a running controller's replies are simply listened to; a silent
+MIT joint is asked with EXIT, which leaves it **disabled** (the table says which joints were asked).
+Exit status 0 when every joint answered, 1 when one did not (it is still listed, as "no answer").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, TextIO
+
+from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..probe import JointStatus
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    add_robot_arguments(parser)
+    parser.add_argument("--json", action="store_true", help="print JSON (one object per reading) instead of a table")
+    parser.add_argument("--watch", action="store_true", help="read again every --interval s until Ctrl-C")
+    parser.add_argument("--interval", type=float, default=0.5, metavar="S",
+                        help="seconds between readings with --watch (default 0.5)")
+    parser.add_argument("--count", type=int, metavar="N", help="with --watch: stop after N readings")
+    parser.add_argument("--timeout", type=float, metavar="S",
+                        help="seconds to wait for the joints (default: 0.25, or 2.5 periods of the slowest servo "
+                             "status rate)")
+
+
+def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = None) -> str:
+    """Rows of text as an aligned table; the first row is the header, underlined.
+
+    ``right`` says per column whether to right-align it (numbers); default left.
+    """
+    n = len(rows[0])
+    right = list(right) if right is not None else [False] * n
+    widths = [max(len(r[i]) for r in rows) for i in range(n)]
+
+    def line(cells: Sequence[str]) -> str:
+        return "  ".join(c.rjust(w) if r else c.ljust(w) for c, w, r in zip(cells, widths, right, strict=True))
+
+    out = [line(rows[0]).rstrip(), "  ".join("-" * w for w in widths)]
+    out += [line(r).rstrip() for r in rows[1:]]
+    return "\n".join(out)
+
+
+def _num(x: float | None, fmt: str) -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def status_table(states: Sequence[JointStatus]) -> str:
+    """The status table: one row per joint, SI units in the headers."""
+    rows = [["joint", "mode", "bus/ID", "position (rad)", "velocity (rad/s)", "torque (N·m)", "temperature (°C)",
+             "fault"]]
+    for s in states:
+        if s.missing:
+            rows.append([s.name, s.mode, f"{s.bus}/{s.can_id}", "no answer", "-", "-", "-", "-"])
+            continue
+        rows.append([s.name, s.mode, f"{s.bus}/{s.can_id}", _num(s.position, "+.4f"), _num(s.velocity, "+.3f"),
+                     _num(s.torque, "+.3f"), _num(s.temperature, ".1f"), s.fault_text()])
+    text = format_table(rows, [False, False, False, True, True, True, True, False])
+    asked = [s.name for s in states if s.queried and not s.missing]
+    if asked:
+        text += f"\n(asked with EXIT, so now disabled: {', '.join(asked)})"
+    return text
+
+
+def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO, clear: bool) -> None:
+    if args.json:
+        doc = {"time": time.time(), "joints": [s.as_dict() for s in states]}
+        print(json.dumps(doc, allow_nan=False), file=out, flush=True)
+        return
+    if clear:
+        print("\x1b[H\x1b[2J", end="", file=out)
+    print(status_table(states), file=out, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
+    from ..errors import AkarmError
+    from ..probe import Probe
+
+    if args.watch and not args.interval > 0:
+        raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
+    config = load_from_args(args)
+    out = sys.stdout
+    tty = out.isatty()
+    missing: list[str] = []
+    with Probe(config) as probe:
+        n = 0
+        next_t = time.monotonic()
+        while True:
+            states = probe.read_state(args.timeout)
+            n += 1
+            if args.watch and n > 1 and not args.json and not tty:
+                print(file=out)
+            _print(states, args, out, clear=args.watch and tty and not args.json)
+            missing = [s.name for s in states if s.missing]
+            if not args.watch or (args.count is not None and n >= args.count):
+                break
+            next_t += args.interval
+            time.sleep(max(0.0, next_t - time.monotonic()))
+    if missing:
+        print(f"akarm status: no answer from {', '.join(missing)} (check power, wiring, bit rate and CAN ID; "
+              "akarm scan lists what answers)", file=sys.stderr)
+        return 1
+    return 0

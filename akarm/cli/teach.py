@@ -1,0 +1,158 @@
+"""``akarm teach ROBOT.yaml OUT.yaml|OUT.csv``: hand-guide the arm and record where it goes.
+
+The arm is enabled, then made hand-guidable with its weight carried (no stiffness, a little damping).
+
+- **Keyframes** (``OUT.yaml``): each Enter stores the current pose; text typed before Enter names
+  it (``pick`` + Enter); ``q`` + Enter, end of input or Ctrl-C finishes. Replay passes through the
+  poses in one smooth move.
+- **A continuous path** (``OUT.csv``): the pose is recorded ``--rate`` times a second until Enter,
+  end of input, Ctrl-C or ``--seconds``. Replay follows it at its recorded timing.
+
+Input is read line by line from stdin, so a script can drive it (``printf 'pick\\nplace\\nq\\n' | akarm teach ...``).
+The file is written atomically, also after Ctrl-C (exit 130) or a safety stop (exit 1) with what
+was taught so far; then the arm is damped and disabled.
+"""
+
+from __future__ import annotations
+
+import argparse
+import queue
+import sys
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..arm import Arm
+    from ..recording import Keyframe
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    add_robot_arguments(parser)
+    parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
+    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ",
+                        help="continuous path: samples per second (default 50, at most the loop rate)")
+    parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
+    parser.add_argument("--damping", type=float, default=0.1, metavar="D",
+                        help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
+
+
+def _reader(stream: TextIO) -> queue.Queue[str | None]:
+    """Lines of ``stream`` (without the newline) on a queue, read by a daemon thread; ``None`` at the end."""
+    lines: queue.Queue[str | None] = queue.Queue()
+
+    def read() -> None:
+        try:
+            for line in iter(stream.readline, ""):
+                lines.put(line.rstrip("\r\n"))
+        except (OSError, ValueError):  # stdin closed under us
+            pass
+        lines.put(None)
+
+    threading.Thread(target=read, name="akarm-teach-stdin", daemon=True).start()
+    return lines
+
+
+def _next_line(arm: Arm, lines: queue.Queue[str | None], until: float | None = None) -> tuple[bool, str | None]:
+    """Wait for a line while the arm keeps running (its safety stop is raised here).
+
+    Returns ``(True, line)`` (``line`` None at end of input), or ``(False, None)`` when the arm's
+    clock passed ``until``.
+    """
+    while True:
+        try:
+            return True, lines.get_nowait()
+        except queue.Empty:
+            pass
+        if until is not None and arm.clock.now() >= until:
+            return False, None
+        arm.sleep(0.02)
+
+
+def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int:
+    from ..recording import Keyframes
+    from .enable import format_q
+
+    frames: list[Keyframe] = []
+
+    def save() -> None:
+        if frames:
+            path = Keyframes(arm.names, tuple(frames), arm.config.name).save(out)
+            print(f"wrote {len(frames)} keyframe{'s' if len(frames) != 1 else ''} to {path}", flush=True)
+        else:
+            print("akarm teach: no keyframe was taught; nothing written", file=sys.stderr)
+
+    print("teach: move the arm by hand; Enter stores the pose (type a name first to name it); q + Enter finishes",
+          file=sys.stderr, flush=True)
+    try:
+        while True:
+            _, line = _next_line(arm, lines)
+            if line is None or line.strip() == "q":
+                break
+            name = line.strip() or None
+            frame = arm.keyframe(name)
+            frames.append(frame)
+            label = f" {name!r}" if name else ""
+            print(f"stored keyframe {len(frames)}{label}: {format_q(frame.q)}", flush=True)
+    except KeyboardInterrupt:
+        save()
+        return 130
+    except BaseException:
+        save()
+        raise
+    save()
+    return 0 if frames else 1
+
+
+def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
+    from ..errors import StateError
+
+    until = arm.clock.now() + seconds if seconds is not None else None
+    arm.start_recording(rate)
+    what = "Enter" + (f" or {seconds:g} s" if seconds is not None else "")
+    print(f"teach: recording at {rate:g} Hz; move the arm by hand; {what} stops", file=sys.stderr, flush=True)
+    code = 0
+    try:
+        _next_line(arm, lines, until)
+    except KeyboardInterrupt:
+        code = 130
+    try:
+        rec = arm.stop_recording()
+    except StateError as e:
+        raise StateError("nothing was recorded (stopped at once?); nothing written",
+                         fix="record for longer: press Enter after moving the arm, or use --seconds") from e
+    path = rec.save(out)
+    print(f"wrote {len(rec.t)} samples over {rec.duration:.2f} s to {path}", flush=True)
+    return code
+
+
+def run(args: argparse.Namespace) -> int:
+    """Enable, teach, write the file, disable."""
+    from ..errors import AkarmError
+    from .enable import controlled, deferred_sigint
+
+    out = Path(args.out)
+    if out.suffix not in (".yaml", ".yml", ".csv"):
+        raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
+                         fix="name it .yaml (keyframes) or .csv (a continuous path)")
+    if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
+        raise AkarmError("--rate and --seconds must be positive")
+    config = load_from_args(args)
+    if out.suffix == ".csv" and args.rate > config.rate_hz:
+        raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
+                         fix=f"use at most --rate {config.rate_hz:g}")
+    lines = _reader(sys.stdin)
+    with controlled(config) as arm:
+        arm.enable()
+        arm.teach(args.damping)
+        if out.suffix == ".csv":
+            code = _teach_path(arm, out, lines, args.rate, args.seconds)
+        else:
+            code = _teach_keyframes(arm, out, lines)
+        with deferred_sigint():
+            arm.end_teach()
+            arm.disable()
+    return code

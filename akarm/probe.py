@@ -170,7 +170,7 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
          models: Mapping[int, MotorModel | str] | None = None) -> list[Found]:
     """Find the motors on one bus: which CAN IDs answer, and in which mode.
 
-    1. Listen for ``listen`` s: servo motors' status frames (send it long enough for the slowest
+    1. Listen for ``listen`` s: servo motors' status frames (long enough for the slowest
        status rate: 0.3 s hears motors at 4 Hz and up), and MIT replies if a controller is running.
     2. Send EXIT to every ID in ``ids`` that was not heard in step 1, then wait ``timeout`` s for
        the MIT replies. A MIT motor that answers is in rest mode afterwards (EXIT keeps a disabled

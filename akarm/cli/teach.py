@@ -16,6 +16,7 @@ was taught so far; then the arm is damped and disabled.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import queue
 import sys
 import threading
@@ -108,7 +109,7 @@ def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int
 
 
 def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
-    from ..errors import StateError
+    from ..errors import AkarmError, StateError
 
     until = arm.clock.now() + seconds if seconds is not None else None
     arm.start_recording(rate)
@@ -119,6 +120,12 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
         _next_line(arm, lines, until)
     except KeyboardInterrupt:
         code = 130
+    except AkarmError:  # a safety stop: keep what was recorded up to it, then report the stop
+        with contextlib.suppress(AkarmError):
+            rec = arm.stop_recording()
+            print(f"wrote {len(rec.t)} samples over {rec.duration:.2f} s (up to the stop) to {rec.save(out)}",
+                  flush=True)
+        raise
     try:
         rec = arm.stop_recording()
     except StateError as e:

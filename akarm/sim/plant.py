@@ -92,6 +92,8 @@ class Plant:
         self._hi = [float(hi) if h else math.inf for hi, h in zip(self.model.upper, hard, strict=True)]
         self._clim = [0.0] * n
         self._drivers: list[SimulatedDriver] = []
+        # config order is Pinocchio's order and q/v hold nothing else: no mapping in the step
+        self._identity = self.model.to_pin_q(self.q) is self.q and self.model.to_pin_v(self.dq) is self.dq
         self.update_inertia()
 
     def attach(self, drivers: Sequence[SimulatedDriver]) -> None:
@@ -99,6 +101,7 @@ class Plant:
         if len(drivers) != self.n:
             raise ModelError(f"{len(drivers)} drivers for {self.n} joints")
         self._drivers = list(drivers)
+        self._build_rows()
 
     def joint_inertia(self, q: np.ndarray | None = None) -> np.ndarray:
         """Diagonal of the mass matrix at ``q`` (default: now), kg·m²: each joint's inertia, motors included."""
@@ -108,6 +111,16 @@ class Plant:
         """Recompute what depends on the inertia (the hard stops' damping), e.g. after a payload change."""
         j = self.joint_inertia()
         self._clim = [2.0 * math.sqrt(k * ji) for k, ji in zip(self._klim, j.tolist(), strict=True)]
+        self._build_rows()
+
+    def _build_rows(self) -> None:
+        """Per joint, every constant the step loop needs, in one tuple (unpacking beats indexing)."""
+        if len(self._drivers) != self.n:
+            self._rows: list[tuple] = []
+            return
+        self._rows = list(zip(self._drivers, self._dir, self._off, self._tmax, self._heat, self._res, self._amb,
+                              self._cool, self._inv_eps, self._visc, self._coul, self._lo, self._hi, self._klim,
+                              self._clim, strict=True))
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Attach a payload to the tool frame (kg, m in the tool frame); 0 kg removes it."""
@@ -121,22 +134,15 @@ class Plant:
 
     def step(self, t: float) -> None:
         """Advance the arm by one step ``dt`` from time ``t`` (s), with the drivers' torques at ``t``."""
-        n = self.n
         dt = self.dt
-        ql = self.q.tolist()
-        vl = self.dq.tolist()
-        tau_eff = [0.0] * n
-        extra = [0.0] * n
-        motor = [0.0] * n
-        drivers = self._drivers
-        dirn, off, tmax = self._dir, self._off, self._tmax
-        for i in range(n):
-            qi = ql[i]
-            vi = vl[i]
-            s = dirn[i]
-            drv = drivers[i]
-            tm, k, d = drv.output(t, (qi - off[i]) * s, vi * s)
-            cap = tmax[i]
+        dt2 = dt * dt
+        tau_eff = []
+        extra = []
+        motor = []
+        tanh = math.tanh
+        for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim), qi, vi in zip(
+                self._rows, self.q.tolist(), self.dq.tolist(), strict=True):
+            tm, k, d = drv.output(t, (qi - off) * s, vi * s)
             if tm > cap:
                 tm, k, d = cap, 0.0, 0.0
             elif tm < -cap:
@@ -145,42 +151,48 @@ class Plant:
             # winding temperature: C dT/dt = I²R - (T - T_amb)/R_th
             cur = tm / drv.kt_out
             temp = drv.temperature
-            drv.temperature = temp + self._heat[i] * (cur * cur * self._res[i] - (temp - self._amb[i]) * self._cool[i])
+            drv.temperature = temp + heat * (cur * cur * res - (temp - amb) * cool)
             tj = s * tm
-            motor[i] = tj
+            motor.append(tj)
             # smooth Coulomb + viscous friction
             # (damping: the secant coulomb·tanh(v/ε)/v, not the tangent, so a step never flips v's sign)
-            x = vi * self._inv_eps[i]
-            th = math.tanh(x)
-            visc = self._visc[i]
-            coul = self._coul[i]
+            x = vi * inv_eps
+            th = tanh(x)
             tj -= visc * vi + coul * th
-            d += visc + (coul * self._inv_eps[i] if -1e-9 < x < 1e-9 else coul * th / vi)
+            d += visc + (coul * inv_eps if -1e-9 < x < 1e-9 else coul * th / vi)
             # hard stops: push out, never pull in
-            if qi > self._hi[i]:
-                f = -self._klim[i] * (qi - self._hi[i]) - self._clim[i] * vi
+            if qi > hi:
+                f = -klim * (qi - hi) - clim * vi
                 if f < 0.0:
                     tj += f
-                    k += self._klim[i]
-                    d += self._clim[i]
-            elif qi < self._lo[i]:
-                f = self._klim[i] * (self._lo[i] - qi) - self._clim[i] * vi
+                    k += klim
+                    d += clim
+            elif qi < lo:
+                f = klim * (lo - qi) - clim * vi
                 if f > 0.0:
                     tj += f
-                    k += self._klim[i]
-                    d += self._clim[i]
-            tau_eff[i] = tj - dt * k * vi
-            extra[i] = dt * d + dt * dt * k
-        model = self.model
+                    k += klim
+                    d += clim
+            tau_eff.append(tj - dt * k * vi)
+            extra.append(dt * d + dt2 * k)
         pm = self._pm
-        pm.armature = self._arm0 + model.to_pin_v(extra)
-        try:
-            a = pin.aba(pm, self._pd, model.to_pin_q(self.q), model.to_pin_v(self.dq), model.to_pin_v(tau_eff))
-        finally:
-            pm.armature = self._arm0
-        acc = model.from_pin_v(a)
+        if self._identity:
+            pm.armature = self._arm0 + np.array(extra)
+            try:
+                acc = pin.aba(pm, self._pd, self.q, self.dq, np.array(tau_eff))
+            finally:
+                pm.armature = self._arm0
+        else:
+            model = self.model
+            pm.armature = self._arm0 + model.to_pin_v(extra)
+            try:
+                a = pin.aba(pm, self._pd, model.to_pin_q(self.q), model.to_pin_v(self.dq), model.to_pin_v(tau_eff))
+            finally:
+                pm.armature = self._arm0
+            acc = model.from_pin_v(a)
         self.ddq = acc
-        self.dq += dt * acc
-        self.q += dt * self.dq
+        dq = self.dq
+        dq += dt * acc
+        self.q += dt * dq
         self.tau = np.array(motor)
         self.steps += 1

@@ -132,6 +132,9 @@ class SimulatedRobot:
         self._threads: list[threading.Thread] = []
         self._t0 = 0.0
         self.max_lag = max_lag
+        #: real time: s between the ticker's catch-ups with the wall clock (time-driven frames are at most
+        #: this late; frames received are answered at once regardless)
+        self.tick_interval = 0.002
         self.slip = 0.0
         self.send_errors = 0
         self.thread_error: BaseException | None = None
@@ -150,7 +153,11 @@ class SimulatedRobot:
             return self
         try:
             for name, bus_cfg in self.config.buses.items():
-                self._buses[name] = open_bus(bus_cfg)
+                bus = self._buses[name] = open_bus(bus_cfg)
+                # take in only what the drivers listen to (in the kernel on socketcan): a simulator
+                # that read every frame of a busy bus could fall behind and lose the ones it needs
+                bus.set_filters([{"can_id": aid, "can_mask": 0x1FFFFFFF if ext else 0x7FF, "extended": ext}
+                                 for (aid, ext) in self._routes.get(name, {})])
         except BaseException:
             self._shutdown_buses()
             raise
@@ -407,7 +414,7 @@ class SimulatedRobot:
 
     def _tick_loop(self) -> None:
         try:
-            while not self._stop.wait(0.001):
+            while not self._stop.wait(self.tick_interval):
                 with self._lock:
                     self._integrate_to(self._wall())
         except BaseException as e:  # reported through thread_error

@@ -552,6 +552,26 @@ class Arm:
             self._mode = "active"
         self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
 
+    def check_replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
+                     speed: float = 1.0) -> rec_mod.Keyframes | rec_mod.PathRecording:
+        """Load and check a recording against every limit without moving (nor enabling) the arm.
+
+        Returns the recording. Raises :class:`~akarm.RecordingError` or :class:`~akarm.LimitError`
+        exactly as :meth:`replay` would before moving. Keyframes are checked for position and
+        planned (from rest at the first keyframe) so a path past a limit is found too.
+        """
+        rec = recording if isinstance(recording, rec_mod.Keyframes | rec_mod.PathRecording) else \
+            rec_mod.load(recording, self.names)
+        if tuple(rec.joint_names) != tuple(self.names):
+            raise LimitError(f"the recording is for joints {list(rec.joint_names)}",
+                             fix=f"replay it on an arm with joints {list(self.names)}")
+        if isinstance(rec, rec_mod.Keyframes):
+            qs = [np.array(f.q) for f in rec.frames]
+            self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, min(speed, 1.0))
+        else:
+            rec_mod.check_path(rec_mod.PathPlan(rec, 0.0, speed), self.limits)
+        return rec
+
     def replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
                speed: float = 1.0, wait: bool = True) -> Motion:
         """Replay a recording (or a recording file), checked against every limit before anything moves.
@@ -565,15 +585,10 @@ class Arm:
             LimitError: the path breaks a limit after scaling; names the joint and the time, and
                 suggests the speed factor that would pass.
         """
-        rec = recording if isinstance(recording, rec_mod.Keyframes | rec_mod.PathRecording) else \
-            rec_mod.load(recording, self.names)
-        if tuple(rec.joint_names) != tuple(self.names):
-            raise LimitError(f"the recording is for joints {list(rec.joint_names)}",
-                             fix=f"replay it on an arm with joints {list(self.names)}")
+        rec = self.check_replay(recording, speed)
         if isinstance(rec, rec_mod.Keyframes):
             return self.move_through([np.array(f.q) for f in rec.frames], speed=min(speed, 1.0), wait=wait)
         check = rec_mod.PathPlan(rec, 0.0, speed)
-        rec_mod.check_path(check, self.limits)
 
         def make(start, now):
             soft = self.planner.move(start, check.q[0], now, min(speed, 1.0))
@@ -617,6 +632,21 @@ class Arm:
         """The recorded cycles (desired and measured q, dq, τ, feed-forward), oldest first."""
         with self._lock:
             return self.telemetry_ring.snapshot(since)
+
+    def reset_stats(self) -> None:
+        """Forget the loop timings measured so far (e.g. to leave start-up out of a benchmark)."""
+        self._require_open()
+        self._loop.stats.reset()  # type: ignore[union-attr]
+
+    @property
+    def realtime_report(self) -> str:
+        """What the loop thread was granted of real-time priority and memory locking (if it asked)."""
+        return self._loop.realtime_report if self._loop is not None else "not open"
+
+    @property
+    def fault(self) -> SafetyStop | None:
+        """The safety stop that disabled the arm (it is raised by the next call), or ``None``."""
+        return self._fault
 
     def stats(self) -> StatsSummary:
         """Loop timing: achieved rate, lateness and period percentiles, missed slots, time per stage."""
@@ -829,7 +859,9 @@ class Arm:
         if rec is not None and now >= rec[1]:
             rec[2].append(now)
             rec[3].append(q)
-            self._recorder = (rec[0], rec[1] + 1.0 / rec[0], rec[2], rec[3])
+            # next sample time on the rate's grid, skipping the ones a stall missed (no burst)
+            missed = math.floor((now - rec[1]) * rec[0])
+            self._recorder = (rec[0], rec[1] + (missed + 1) / rec[0], rec[2], rec[3])
         self._record(now, q, np.zeros(self.n), g)
 
     def _cycle_enabling(self, now: float) -> None:

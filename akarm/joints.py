@@ -108,6 +108,10 @@ class MitJoint(Joint):
         """Frames that put the driver in motor mode (none for V3 firmware, which has no such frame)."""
         return [] if self.firmware == "v3" else [self._msg(mit.ENTER)]
 
+    def zero_frames(self) -> list[can.Message]:
+        """The frame that makes the motor's current position its zero (V1/V2 firmware; none on V3)."""
+        return [] if self.firmware == "v3" else [self._msg(mit.ZERO)]
+
     def exit_frames(self) -> list[can.Message]:
         """Frames that take the driver out of motor mode (V3: a zero-gain, zero-torque command)."""
         return [self.command(math.nan, 0.0, 0.0, 0.0, 0.0)] if self.firmware == "v3" else [self._msg(mit.EXIT)]

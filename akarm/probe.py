@@ -461,10 +461,8 @@ class Probe:
             if not self._ask(j, timeout):
                 raise AkarmError(f"no answer from its motor ({where}); nothing was zeroed", joint=name,
                                  fix="check power, CAN wiring, bit rate and the CAN ID (akarm scan)")
-            import can
-
-            arb, ext = mit.command_arbitration_id(c.can_id, "v2")
-            self.send(j, can.Message(arbitration_id=arb, data=mit.ZERO, is_extended_id=ext))
+            for frame in j.zero_frames():
+                self.send(j, frame)
             j.rezeroed()
             end = time.monotonic() + max(0.0, wait)
             while time.monotonic() < end:

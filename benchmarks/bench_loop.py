@@ -50,7 +50,7 @@ def realtime_run(rate: float, seconds: float, rt: bool) -> dict:
     with SimulatedRobot(cfg, realtime=True) as _sim, \
             akarm.Arm(cfg, realtime_priority=rt, feedback_timeout=0.1) as arm:
         arm.enable()
-        arm._loop.stats.reset()  # measure the steady state, not the enable
+        arm.reset_stats()  # measure the steady state, not the enable
         wall0, cpu0 = time.perf_counter(), cpu_seconds()
         k = 0
         while time.perf_counter() - wall0 < seconds:
@@ -58,7 +58,7 @@ def realtime_run(rate: float, seconds: float, rt: bool) -> dict:
             k += 1
         wall, cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0
         s = arm.stats()
-        report = arm._loop.realtime_report
+        report = arm.realtime_report
     return {"rate": rate, "stats": s, "cpu": cpu / wall, "wall": wall, "rt": report}
 
 
@@ -91,7 +91,7 @@ def compute_per_joint_count(max_joints: int) -> list[tuple[int, object]]:
             cfg = chain_config(n, Path(d), f"chain-{os.getpid()}-{n}")
             with SimulatedRobot(cfg, realtime=False) as sim, akarm.Arm(cfg, clock=sim.clock) as arm:
                 arm.enable()
-                arm._loop.stats.reset()
+                arm.reset_stats()
                 for target in (0.8, -0.8, 0.0):
                     arm.move_to(np.full(n, target))
                 rows.append((n, arm.stats()))

@@ -175,3 +175,19 @@ def test_teach_carries_the_arm_weight(channel) -> None:
         arm.end_teach()
         with pytest.raises(akarm.StateError, match="needs teach mode"):
             arm.start_recording()
+
+
+def test_check_replay_needs_no_enabled_arm(channel, tmp_path) -> None:
+    """A recording can be validated before anything is enabled (the CLI does so before enabling)."""
+    fast = sweep(duration=1.0, amp=(0.2, 1.2), period=(1.0, 0.5))
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        assert not arm.enabled
+        with pytest.raises(LimitError) as info:
+            arm.check_replay(fast)
+        assert info.value.joint == "elbow"
+        ok = arm.check_replay(sweep(), speed=1.0)
+        assert isinstance(ok, rec.PathRecording)
+        kf = rec.Keyframes(NAMES, (rec.Keyframe((0.1, 0.1)), rec.Keyframe((0.0, 9.0))))
+        with pytest.raises(LimitError, match="waypoint 1"):
+            arm.check_replay(kf.save(tmp_path / "k.yaml"))
+        assert not any(d.enabled for d in sim.drivers)

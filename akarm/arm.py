@@ -566,6 +566,14 @@ class Arm:
             raise LimitError(f"the recording is for joints {list(rec.joint_names)}",
                              fix=f"replay it on an arm with joints {list(self.names)}")
         if isinstance(rec, rec_mod.Keyframes):
+            lim = self.limits
+            for k, frame in enumerate(rec.frames):
+                for i, q in enumerate(frame.q):
+                    if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
+                        label = f" {frame.name!r}" if frame.name else ""
+                        raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
+                                         f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=self.names[i],
+                                         fix="edit that keyframe or the joint limits")
             qs = [np.array(f.q) for f in rec.frames]
             self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, min(speed, 1.0))
         else:

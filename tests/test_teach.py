@@ -188,6 +188,6 @@ def test_check_replay_needs_no_enabled_arm(channel, tmp_path) -> None:
         ok = arm.check_replay(sweep(), speed=1.0)
         assert isinstance(ok, rec.PathRecording)
         kf = rec.Keyframes(NAMES, (rec.Keyframe((0.1, 0.1)), rec.Keyframe((0.0, 9.0))))
-        with pytest.raises(LimitError, match="waypoint 1"):
+        with pytest.raises(LimitError, match="keyframe 1 is at"):
             arm.check_replay(kf.save(tmp_path / "k.yaml"))
         assert not any(d.enabled for d in sim.drivers)

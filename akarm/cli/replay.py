@@ -21,8 +21,7 @@ from typing import TYPE_CHECKING
 from .common import add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
-    from ..arm import Arm
-    from ..recording import Keyframes, PathRecording
+    pass
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,29 +32,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="paths: recorded speed × F (any F > 0); keyframes: fraction of the joint limits, "
                              "at most 1 (default 1)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
-
-
-def check(arm: Arm, rec: Keyframes | PathRecording, speed: float) -> None:
-    """Raise :class:`~akarm.LimitError` if replaying ``rec`` at ``speed`` would break a joint limit.
-
-    Paths: the same smoothing and check :meth:`Arm.replay` applies (names joint, time and a passing
-    speed). Keyframes: every pose within the position limits (the move through them is planned
-    within the dynamic limits by construction).
-    """
-    from ..errors import LimitError
-    from ..recording import Keyframes, PathPlan, check_path
-
-    if isinstance(rec, Keyframes):
-        lim = arm.limits
-        for k, frame in enumerate(rec.frames):
-            for i, q in enumerate(frame.q):
-                if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
-                    label = f" {frame.name!r}" if frame.name else ""
-                    raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
-                                     f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=arm.names[i],
-                                     fix="edit that keyframe or the joint limits")
-        return
-    check_path(PathPlan(rec, 0.0, speed), arm.limits)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config)
-    check(arm, rec, args.speed)
+    arm.check_replay(rec, args.speed)  # the whole path, before anything is enabled
     kind = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
     code = 0
     with controlled(arm):

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config_loader import load_robot
     from ..errors import AkarmError
     from ..sim import SimulatedRobot
-    from .enable import controlled
+    from .common import controlled
 
     if not args.seconds > 0:
         raise AkarmError(f"--seconds {args.seconds} must be positive")

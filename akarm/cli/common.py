@@ -1,11 +1,19 @@
-"""Arguments every robot verb shares: the robot YAML and python-can style bus overrides."""
+"""What the verbs share: the robot YAML and python-can style bus overrides, tables, and driving an
+Arm so that it always ends damped and disabled (:func:`controlled`, :func:`stop_smoothly`,
+:func:`deferred_sigint`)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
+import sys
+import threading
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from ..arm import Arm
     from ..config import RobotConfig
 
 
@@ -34,3 +42,77 @@ def load_from_args(args: argparse.Namespace) -> RobotConfig:
         config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
                                  bitrate=args.bitrate)
     return config
+
+
+def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = None) -> str:
+    """Rows of text as an aligned table; the first row is the header, underlined.
+
+    ``right`` says per column whether to right-align it (numbers); default left.
+    """
+    n = len(rows[0])
+    right = list(right) if right is not None else [False] * n
+    widths = [max(len(r[i]) for r in rows) for i in range(n)]
+
+    def line(cells: Sequence[str]) -> str:
+        return "  ".join(c.rjust(w) if r else c.ljust(w) for c, w, r in zip(cells, widths, right, strict=True))
+
+    out = [line(rows[0]).rstrip(), "  ".join("-" * w for w in widths)]
+    out += [line(r).rstrip() for r in rows[1:]]
+    return "\n".join(out)
+
+
+@contextlib.contextmanager
+def deferred_sigint(message: str = "stopping the arm safely; please wait") -> Iterator[None]:
+    """While inside, Ctrl-C does not interrupt (``message`` is printed instead). Main thread only;
+    elsewhere (signals cannot be handled there) it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    told: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        if not told:
+            print(message, file=sys.stderr, flush=True)
+        told.append(signum)
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def controlled(arm: Arm | RobotConfig) -> Iterator[Arm]:
+    """``arm`` (or a new :class:`~akarm.Arm` for a config), opened; on leaving (error and Ctrl-C
+    included) it is damped, disabled and closed, and a Ctrl-C meanwhile does not cut that short."""
+    from ..arm import Arm
+
+    if not isinstance(arm, Arm):
+        arm = Arm(arm)
+    arm.open()
+    try:
+        yield arm
+    finally:
+        with deferred_sigint():
+            arm.close()
+
+
+def stop_smoothly(arm: Arm) -> None:
+    """Bring a moving arm to rest (jerk-limited), then damp and disable it; Ctrl-C cannot interrupt it.
+
+    Errors while stopping (a joint that faulted meanwhile) are not raised: the arm ends disabled anyway.
+    """
+    from ..errors import AkarmError
+
+    with deferred_sigint():
+        if arm.enabled and arm.moving:
+            with contextlib.suppress(AkarmError):
+                arm.stop(wait=True)
+        with contextlib.suppress(AkarmError):
+            arm.disable()
+
+
+def format_q(q: Sequence[float]) -> str:
+    """Joint positions as ``[+0.1000, -0.2000] rad``."""
+    return "[" + ", ".join(f"{x:+.4f}" for x in q) + "] rad"

@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Send the exit frames; list per joint what was sent and whether it answered."""
     from ..probe import release
-    from .status import format_table
+    from .common import format_table
 
     config = load_from_args(args)
     states = release(config, args.timeout)

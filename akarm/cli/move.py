@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..errors import AkarmError
-    from .enable import controlled, deferred_sigint, format_q, stop_smoothly
+    from .common import controlled, deferred_sigint, format_q, stop_smoothly
 
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")

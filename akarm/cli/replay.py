@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from ..arm import Arm
     from ..errors import AkarmError
     from ..recording import Keyframes, load
-    from .enable import controlled, deferred_sigint, stop_smoothly
+    from .common import controlled, deferred_sigint, stop_smoothly
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")

@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config import BusConfig
     from ..errors import AkarmError
     from ..probe import scan
-    from .status import format_table
+    from .common import format_table
 
     if args.listen < 0 or args.timeout < 0:
         raise AkarmError("--listen and --timeout must not be negative")

@@ -20,7 +20,7 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_robot_arguments, format_table, load_from_args
 
 if TYPE_CHECKING:
     from ..probe import JointStatus
@@ -37,23 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="seconds to wait for the joints (default: 0.25, or 2.5 periods of the slowest servo "
                              "status rate)")
-
-
-def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = None) -> str:
-    """Rows of text as an aligned table; the first row is the header, underlined.
-
-    ``right`` says per column whether to right-align it (numbers); default left.
-    """
-    n = len(rows[0])
-    right = list(right) if right is not None else [False] * n
-    widths = [max(len(r[i]) for r in rows) for i in range(n)]
-
-    def line(cells: Sequence[str]) -> str:
-        return "  ".join(c.rjust(w) if r else c.ljust(w) for c, w, r in zip(cells, widths, right, strict=True))
-
-    out = [line(rows[0]).rstrip(), "  ".join("-" * w for w in widths)]
-    out += [line(r).rstrip() for r in rows[1:]]
-    return "\n".join(out)
 
 
 def _num(x: float | None, fmt: str) -> str:

@@ -75,7 +75,7 @@ def _next_line(arm: Arm, lines: queue.Queue[str | None], until: float | None = N
 
 def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int:
     from ..recording import Keyframes
-    from .enable import format_q
+    from .common import format_q
 
     frames: list[Keyframe] = []
 
@@ -139,7 +139,7 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from ..errors import AkarmError
-    from .enable import controlled, deferred_sigint
+    from .common import controlled, deferred_sigint
 
     out = Path(args.out)
     if out.suffix not in (".yaml", ".yml", ".csv"):

@@ -13,12 +13,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import TYPE_CHECKING
 
 from .common import add_robot_arguments, controlled, deferred_sigint, format_q, load_from_args, stop_smoothly
-
-if TYPE_CHECKING:
-    pass
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -204,3 +204,21 @@ def test_limp_arm6_falling_from_full_reach_stays_within_its_hard_stops(arm6: Sim
         q = arm6.q
         worst = max(worst, float(np.max(q - upper)), float(np.max(lower - q)))
     assert 0.0 < worst < 0.05   # it does reach a stop (shoulder_lift), and goes at most 50 mrad past it
+
+
+def test_external_torque_accelerates_a_limp_joint_as_the_model_says(planar2: RobotConfig, channel: str) -> None:
+    frictionless = {j.name: replace(default_params(j.motor), viscous=0.0, coulomb=0.0) for j in planar2.joints}
+    with SimulatedRobot(planar2, "virtual", channel, realtime=False, params=frictionless, q0=[0.2, 0.5]) as sim:
+        sim.model.set_gravity((0.0, 0.0, 0.0))
+        push = np.array([0.8, -0.3])
+        sim.set_external_torque(push)
+        sim.run_for(0.01)
+        reference = RobotModel(planar2, armature=True)
+        reference.set_gravity((0.0, 0.0, 0.0))
+        a = reference.forward_dynamics([0.2, 0.5], [0.0, 0.0], push)   # from rest: q̈ = M⁻¹ τ
+        assert sim.dq == pytest.approx(a * 0.01, rel=0.01)             # v = q̈·t (Coriolis ∝ v² is negligible)
+        assert sim.tau.tolist() == [0.0, 0.0]                          # the motors do nothing: it is the hand
+        sim.set_external_torque(None)
+        v = sim.dq
+        sim.run_for(0.01)
+        assert sim.dq == pytest.approx(v, rel=0.01)                   # let go: it coasts

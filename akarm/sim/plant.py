@@ -17,6 +17,8 @@ Coulomb friction near zero speed and the hard stops stay stable at 2 kHz. The so
 adding ``dt·D + dt²·K`` to the armature (the diagonal of M) for the call turns ABA's
 ``(M)⁻¹(τ - h)`` into the system above.
 
+An external torque per joint (a hand pushing the arm) can be set; it acts until changed.
+
 Friction per joint: ``τ_f = -viscous·v - coulomb·tanh(v / coulomb_eps)``. Hard stops past the URDF
 limits (revolute joints): a spring of ``limit_stiffness`` with critical damping for the joint's
 inertia, pushing only (it never pulls the joint into the stop). Motor torque saturates at ``t_max``.
@@ -91,6 +93,7 @@ class Plant:
         self._lo = [float(lo) if h else -math.inf for lo, h in zip(self.model.lower, hard, strict=True)]
         self._hi = [float(hi) if h else math.inf for hi, h in zip(self.model.upper, hard, strict=True)]
         self._clim = [0.0] * n
+        self._external = [0.0] * n
         self._drivers: list[SimulatedDriver] = []
         # config order is Pinocchio's order and q/v hold nothing else: no mapping in the step
         self._identity = self.model.to_pin_q(self.q) is self.q and self.model.to_pin_v(self.dq) is self.dq
@@ -127,6 +130,22 @@ class Plant:
         self.model.set_payload(mass, com)
         self.update_inertia()
 
+    @property
+    def external_torque(self) -> np.ndarray:
+        """Torques applied to the joints from outside (a hand pushing the arm), N·m, config order."""
+        return np.array(self._external)
+
+    def set_external_torque(self, tau: Sequence[float] | np.ndarray | None) -> None:
+        """Apply ``tau`` (N·m per joint, config order) from outside until changed; ``None`` clears it."""
+        if tau is None:
+            self._external = [0.0] * self.n
+            return
+        t = np.asarray(tau, dtype=float)
+        if t.shape != (self.n,) or not np.all(np.isfinite(t)):
+            raise ModelError(f"external torque must be {self.n} finite numbers (N·m, config order), got {tau!r}",
+                             fix="give one torque per joint, or None to clear")
+        self._external = t.tolist()
+
     def motor_state(self, i: int) -> tuple[float, float]:
         """Joint ``i``'s motor-side (position rad before the driver's zero, velocity rad/s)."""
         s = self._dir[i]
@@ -140,8 +159,8 @@ class Plant:
         extra = []
         motor = []
         tanh = math.tanh
-        for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim), qi, vi in zip(
-                self._rows, self.q.tolist(), self.dq.tolist(), strict=True):
+        for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim), qi, vi, ext in zip(
+                self._rows, self.q.tolist(), self.dq.tolist(), self._external, strict=True):
             tm, k, d = drv.output(t, (qi - off) * s, vi * s)
             if tm > cap:
                 tm, k, d = cap, 0.0, 0.0
@@ -173,7 +192,7 @@ class Plant:
                     tj += f
                     k += klim
                     d += clim
-            tau_eff.append(tj - dt * k * vi)
+            tau_eff.append(tj + ext - dt * k * vi)
             extra.append(dt * d + dt2 * k)
         pm = self._pm
         if self._identity:

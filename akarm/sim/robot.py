@@ -235,6 +235,13 @@ class SimulatedRobot:
         with self._lock:
             self.plant.set_payload(mass, com)
 
+    def set_external_torque(self, tau: Sequence[float] | np.ndarray | None) -> None:
+        """Push the arm: joint torques ``tau`` (N·m, config order) from outside, on top of the motors,
+        friction and gravity, until changed (a person guiding the arm in teach mode). ``None`` clears it.
+        """
+        with self._lock:
+            self.plant.set_external_torque(tau)
+
     def clear_payload(self) -> None:
         """Remove the payload."""
         self.set_payload(0.0)

@@ -16,15 +16,20 @@ its own process, for a controller or ``candump`` to talk to as to hardware.
 Modules: :mod:`~akarm.sim.robot` (the robot and its time), :mod:`~akarm.sim.drivers` (firmware
 state machines and loops), :mod:`~akarm.sim.plant` (dynamics, friction, hard stops, heating),
 :mod:`~akarm.sim.faults` (faults to inject), :mod:`~akarm.sim.params` (constants per actuator).
+The plant and the robot (numpy, Pinocchio) load on first use, so ``akarm.sim.faults`` stays light.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from . import faults
-from .drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
 from .params import MotorSimParams, default_params
-from .plant import Plant
-from .robot import SimulatedRobot
+
+if TYPE_CHECKING:
+    from .drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
+    from .plant import Plant
+    from .robot import SimulatedRobot
 
 __all__ = [
     "MitDriver",
@@ -37,3 +42,22 @@ __all__ = [
     "default_params",
     "faults",
 ]
+
+_LAZY = {
+    "MitDriver": "drivers",
+    "ServoDriver": "drivers",
+    "SimulatedDriver": "drivers",
+    "TrapezoidProfile": "drivers",
+    "Plant": "plant",
+    "SimulatedRobot": "robot",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,8 +9,10 @@ catalogue does give (torque range, rated current, mass). Override any of them pe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from ..motors import MotorModel
+if TYPE_CHECKING:
+    from ..motors import MotorModel
 
 __all__ = ["MotorSimParams", "default_params"]
 

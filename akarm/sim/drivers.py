@@ -248,7 +248,8 @@ class MitDriver(SimulatedDriver):
     frame sent to a V3 board is not a command it knows: it is answered but not applied.
 
     The last command applied persists across EXIT/ENTER (:attr:`stored_command`): entering motor
-    mode applies it again at once, the "kick on enable" of the real firmware.
+    mode applies it again at once, the "kick on enable" of the real firmware. A ZERO while enabled
+    leaves the output on: the stored command's position then counts from the new zero.
 
     Attributes:
         enabled: motor mode is on (the command is applied).

@@ -474,7 +474,7 @@ class ServoDriver(SimulatedDriver):
 
     Commands (extended ID ``(packet << 8) | id``): duty (a DC motor: supply voltage, winding
     resistance, back-EMF from kt), current (τ = I·kt·GR, limited to the peak current), brake current
-    (resists motion up to that current), speed (a PI loop on ERPM), position (a trapezoidal move at
+    (resists motion up to that current), speed (a PI loop on the speed error, ERPM), position (a trapezoidal move at
     :attr:`position_speed_erpm` and :attr:`position_accel_erpm_s`), position-speed (a trapezoidal
     move at the commanded speed and acceleration) and origin (0 temporary, 1 permanent, 2 restore
     default). Position moves are tracked by a stiff PID position loop with acceleration feed-forward.

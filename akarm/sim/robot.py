@@ -279,7 +279,7 @@ class SimulatedRobot:
                     state = "?"
                 flag = f" E{d.error}" if d.error else ""
                 flag += " X" if d.faults else ""
-                parts.append(f"{d.name} {q:+7.3f}rad {tau:+6.2f}Nm {d.temperature:5.1f}C {state}{flag}")
+                parts.append(f"{d.name} {q + 0.0:+7.3f}rad {tau + 0.0:+6.2f}Nm {d.temperature:5.1f}C {state}{flag}")
             if self.slip > 0.001:
                 parts.append(f"slip {self.slip:.2f}s")
             return " | ".join(parts)

@@ -198,6 +198,7 @@ class Arm:
         # per-joint constants of the hot path as plain lists (see the feed-forward stage)
         self._ki = [hold_integral * kp if m else 0.0 for kp, m in zip(self._kp, is_mit, strict=True)]
         self._tlim = self._torque_limit.tolist()
+        self._limp = [i for i in range(self.n) if is_mit[i] and self._kp[i] == 0.0]  # MIT joints with kp = 0
         self._imax = (0.1 * self._torque_limit).tolist()
         self._extra = [0.0] * self.n  # user torque added to MIT commands, N·m
         self._integral = [0.0] * self.n  # ∫(q_des - q) dt while holding, rad·s
@@ -467,7 +468,8 @@ class Arm:
         """Change MIT gains while running: kp in N·m/rad (0-500), kd in N·m·s/rad (0-5), per joint or one for all.
 
         ``set_gains(kp=0, kd=0.5)`` with :meth:`set_extra_torque` gives pure torque control with
-        the arm's weight carried by the feed-forward. Servo joints ignore gains.
+        the arm's weight carried: joints with kp = 0 get their gravity torque at the *measured* pose
+        (they are not held at the commanded one). Servo joints ignore gains.
         """
         with self._lock:
             for arr, new, hi, what in ((self._kp, kp, 500.0, "kp"), (self._kd, kd, 5.0, "kd")):
@@ -479,6 +481,7 @@ class Arm:
                                      fix=f"pass {what} in the MIT range 0-{hi:g}")
                 arr[:] = v
             self._ki = [self._hold_integral * kp if m else 0.0 for kp, m in zip(self._kp, self._is_mit, strict=True)]
+            self._limp = [i for i in range(self.n) if self._is_mit[i] and self._kp[i] == 0.0]
 
     def set_extra_torque(self, tau: Sequence[float] | None) -> None:
         """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
@@ -808,6 +811,11 @@ class Arm:
                 model_tau = self.model.gravity(q_d).tolist()
             else:
                 model_tau = [0.0] * self.n
+            if self._limp and self.feedforward != "none":
+                # joints without stiffness are not at the commanded pose: carry their weight where they are
+                g_meas = self.model.gravity([j.state.position for j in self.joints]).tolist()
+                for i in self._limp:
+                    model_tau[i] = g_meas[i]
             qd, vd = q_d.tolist(), dq_d.tolist()
             holding = plan is None and self._gain_scale >= 1.0
             dt = now - self._t_last

@@ -39,6 +39,7 @@ from enum import IntEnum
 from typing import NamedTuple
 
 from ..errors import FrameError, ProtocolError
+from ._fields import Field, checked, fmt
 
 __all__ = [
     "ACCEL_MAX_ERPM_S",
@@ -204,49 +205,23 @@ def _motor_id(motor_id: int) -> int:
     return mid
 
 
-def _fmt(x: float) -> str:
-    return f"{x:g}" if abs(x) < 1e6 else f"{x:.0f}"
-
-
-def _checked(name: str, value: float, lo: float, hi: float, unit: str) -> float:
-    """``value`` as a float when it is a finite number in [lo, hi], else ProtocolError saying the range."""
-    try:
-        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ProtocolError(f"{name} must be a number, got {value!r}") from None
-    if not lo <= x <= hi:  # also catches NaN
-        raise ProtocolError(f"{name} {value!r} {unit} is outside the range {_fmt(lo)} .. {_fmt(hi)} {unit}",
-                            fix=f"send a {name} within {_fmt(lo)} .. {_fmt(hi)} {unit}")
-    return x
-
-
-class _Field(NamedTuple):
-    name: str
-    unit: str
-    scale: float  # wire integer = round(value * scale)
-    lo: float
-    hi: float
-
-
 _I32 = struct.Struct(">i")
 _U8 = struct.Struct(">B")
 _POS_SPD = struct.Struct(">ihh")
 _STATUS = struct.Struct(">hhhbB")
 
 # packet -> (struct, fields)
-_COMMANDS: dict[ServoPacket, tuple[struct.Struct, tuple[_Field, ...]]] = {
-    ServoPacket.SET_DUTY: (_I32, (_Field("duty", "", 100_000.0, -DUTY_MAX, DUTY_MAX),)),
-    ServoPacket.SET_CURRENT: (_I32, (_Field("current", "A", 1000.0, -CURRENT_MAX_A, CURRENT_MAX_A),)),
-    ServoPacket.SET_CURRENT_BRAKE: (_I32, (_Field("brake current", "A", 1000.0, 0.0, BRAKE_CURRENT_MAX_A),)),
-    ServoPacket.SET_RPM: (_I32, (_Field("speed", "ERPM", 1.0, -RPM_MAX, RPM_MAX),)),
-    ServoPacket.SET_POS: (_I32, (_Field("position", "deg", 10_000.0, -POSITION_MAX_DEG, POSITION_MAX_DEG),)),
-    ServoPacket.SET_ORIGIN_HERE: (_U8, (_Field("origin mode", "", 1.0, 0.0, 2.0),)),
+_COMMANDS: dict[ServoPacket, tuple[struct.Struct, tuple[Field, ...]]] = {
+    ServoPacket.SET_DUTY: (_I32, (Field("duty", "", 100_000.0, -DUTY_MAX, DUTY_MAX),)),
+    ServoPacket.SET_CURRENT: (_I32, (Field("current", "A", 1000.0, -CURRENT_MAX_A, CURRENT_MAX_A),)),
+    ServoPacket.SET_CURRENT_BRAKE: (_I32, (Field("brake current", "A", 1000.0, 0.0, BRAKE_CURRENT_MAX_A),)),
+    ServoPacket.SET_RPM: (_I32, (Field("speed", "ERPM", 1.0, -RPM_MAX, RPM_MAX),)),
+    ServoPacket.SET_POS: (_I32, (Field("position", "deg", 10_000.0, -POSITION_MAX_DEG, POSITION_MAX_DEG),)),
+    ServoPacket.SET_ORIGIN_HERE: (_U8, (Field("origin mode", "", 1.0, 0.0, 2.0),)),
     ServoPacket.SET_POS_SPD: (_POS_SPD, (
-        _Field("position", "deg", 10_000.0, -POSITION_MAX_DEG, POSITION_MAX_DEG),
-        _Field("speed", "ERPM", 0.1, SPEED_MIN_ERPM, SPEED_MAX_ERPM),
-        _Field("acceleration", "ERPM/s", 0.1, 0.0, ACCEL_MAX_ERPM_S),
+        Field("position", "deg", 10_000.0, -POSITION_MAX_DEG, POSITION_MAX_DEG),
+        Field("speed", "ERPM", 0.1, SPEED_MIN_ERPM, SPEED_MAX_ERPM),
+        Field("acceleration", "ERPM/s", 0.1, 0.0, ACCEL_MAX_ERPM_S),
     )),
 }
 
@@ -254,7 +229,7 @@ _COMMANDS: dict[ServoPacket, tuple[struct.Struct, tuple[_Field, ...]]] = {
 def _encode(packet: ServoPacket, motor_id: int, *values: float) -> tuple[int, bytes]:
     mid = _motor_id(motor_id)
     st, fields = _COMMANDS[packet]
-    ints = [round(_checked(f.name, v, f.lo, f.hi, f.unit) * f.scale) for f, v in zip(fields, values, strict=True)]
+    ints = [round(checked(f, v) * f.scale) for f, v in zip(fields, values, strict=True)]
     return (int(packet) << 8) | mid, st.pack(*ints)
 
 
@@ -420,7 +395,7 @@ def decode_command(arbitration_id: int, data: bytes | bytearray, *, is_extended:
     for f, n in zip(fields, st.unpack(data), strict=True):
         x = n / f.scale if f.scale != 1.0 else float(n)
         if not f.lo <= x <= f.hi:
-            raise FrameError(f"{packet.name}: {f.name} {x:g} {f.unit} is outside {_fmt(f.lo)} .. {_fmt(f.hi)}",
+            raise FrameError(f"{packet.name}: {f.name} {x:g} {f.unit} is outside {fmt(f.lo)} .. {fmt(f.hi)}",
                              data=bytes(data))
         values.append(x)
     return ServoCommand(packet, arbitration_id & 0xFF, tuple(values))

@@ -38,6 +38,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 from ..errors import FrameError, ProtocolError
+from ._fields import Field, checked, fmt
 
 __all__ = [
     "DEFAULT_MAX_PAYLOAD",
@@ -426,59 +427,33 @@ class FrameDecoder:
 # ---- commands (controller → motor) ------------------------------------------------------------
 
 
-class _Arg(NamedTuple):
-    name: str
-    unit: str
-    scale: float  # wire integer = round(value * scale)
-    lo: float
-    hi: float
-
-
 _I32 = struct.Struct(">i")
 _U8 = struct.Struct(">B")
 _U32 = struct.Struct(">I")
 _3I32 = struct.Struct(">iii")
 _NONE = struct.Struct(">")
 
-_COMMANDS: dict[UartPacket, tuple[struct.Struct, tuple[_Arg, ...]]] = {
+_COMMANDS: dict[UartPacket, tuple[struct.Struct, tuple[Field, ...]]] = {
     UartPacket.FW_VERSION: (_NONE, ()),
     UartPacket.GET_VALUES: (_NONE, ()),
-    UartPacket.SET_DUTY: (_I32, (_Arg("duty", "", 100_000.0, -1.0, 1.0),)),
-    UartPacket.SET_CURRENT: (_I32, (_Arg("current", "A", 1000.0, -60.0, 60.0),)),
-    UartPacket.SET_CURRENT_BRAKE: (_I32, (_Arg("brake current", "A", 1000.0, -60.0, 60.0),)),
-    UartPacket.SET_RPM: (_I32, (_Arg("speed", "ERPM", 1.0, -100_000.0, 100_000.0),)),
-    UartPacket.SET_POS: (_I32, (_Arg("position", "deg", 1_000_000.0, _I32_MIN / 1e6, _I32_MAX / 1e6),)),
-    UartPacket.SET_HANDBRAKE: (_I32, (_Arg("handbrake current", "A", 1000.0, -60.0, 60.0),)),
-    UartPacket.SET_DETECT: (_U8, (_Arg("detect mode", "", 1.0, 0.0, 255.0),)),
-    UartPacket.GET_VALUES_SETUP: (_U32, (_Arg("field mask", "", 1.0, 1.0, float(_SETUP_KNOWN)),)),
+    UartPacket.SET_DUTY: (_I32, (Field("duty", "", 100_000.0, -1.0, 1.0),)),
+    UartPacket.SET_CURRENT: (_I32, (Field("current", "A", 1000.0, -60.0, 60.0),)),
+    UartPacket.SET_CURRENT_BRAKE: (_I32, (Field("brake current", "A", 1000.0, -60.0, 60.0),)),
+    UartPacket.SET_RPM: (_I32, (Field("speed", "ERPM", 1.0, -100_000.0, 100_000.0),)),
+    UartPacket.SET_POS: (_I32, (Field("position", "deg", 1_000_000.0, _I32_MIN / 1e6, _I32_MAX / 1e6),)),
+    UartPacket.SET_HANDBRAKE: (_I32, (Field("handbrake current", "A", 1000.0, -60.0, 60.0),)),
+    UartPacket.SET_DETECT: (_U8, (Field("detect mode", "", 1.0, 0.0, 255.0),)),
+    UartPacket.GET_VALUES_SETUP: (_U32, (Field("field mask", "", 1.0, 1.0, float(_SETUP_KNOWN)),)),
     UartPacket.SET_POS_SPD: (_3I32, (
-        _Arg("position", "deg", 1000.0, -36_000.0, 36_000.0),
-        _Arg("speed", "ERPM", 1.0, -100_000.0, 100_000.0),
-        _Arg("acceleration", "ERPM/s", 1.0, 0.0, float(_I32_MAX)),
+        Field("position", "deg", 1000.0, -36_000.0, 36_000.0),
+        Field("speed", "ERPM", 1.0, -100_000.0, 100_000.0),
+        Field("acceleration", "ERPM/s", 1.0, 0.0, float(_I32_MAX)),
     )),
-    UartPacket.SET_POS_MULTI: (_I32, (_Arg("argument", "", 1.0, _I32_MIN, _I32_MAX),)),
-    UartPacket.SET_POS_SINGLE: (_I32, (_Arg("argument", "", 1.0, _I32_MIN, _I32_MAX),)),
+    UartPacket.SET_POS_MULTI: (_I32, (Field("argument", "", 1.0, _I32_MIN, _I32_MAX),)),
+    UartPacket.SET_POS_SINGLE: (_I32, (Field("argument", "", 1.0, _I32_MIN, _I32_MAX),)),
     UartPacket.SET_POS_UNLIMITED: (_NONE, ()),
-    UartPacket.SET_POS_ORIGIN: (_U8, (_Arg("origin mode", "", 1.0, 0.0, 2.0),)),
+    UartPacket.SET_POS_ORIGIN: (_U8, (Field("origin mode", "", 1.0, 0.0, 2.0),)),
 }
-
-
-def _fmt(x: float) -> str:
-    return f"{x:g}" if abs(x) < 1e6 else f"{x:.0f}"
-
-
-def _checked(arg: _Arg, value: float) -> float:
-    try:
-        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ProtocolError(f"{arg.name} must be a number, got {value!r}") from None
-    if not arg.lo <= x <= arg.hi:  # also catches NaN
-        unit = f" {arg.unit}" if arg.unit else ""
-        raise ProtocolError(f"{arg.name} {value!r}{unit} is outside the range {_fmt(arg.lo)} .. {_fmt(arg.hi)}{unit}",
-                            fix=f"send a {arg.name} within {_fmt(arg.lo)} .. {_fmt(arg.hi)}{unit}")
-    return x
 
 
 def _integer(name: str, value: int) -> int:
@@ -499,7 +474,7 @@ def _setup_mask(fields: ValueField | int) -> int:
 
 def _command(packet: UartPacket, *values: float) -> bytes:
     st, args = _COMMANDS[packet]
-    ints = [round(_checked(a, v) * a.scale) for a, v in zip(args, values, strict=True)]
+    ints = [round(checked(a, v) * a.scale) for a, v in zip(args, values, strict=True)]
     for a, k in zip(args, ints, strict=True):  # rounding can step just past the field's edge
         if not _I32_MIN <= k <= _I32_MAX:
             raise ProtocolError(f"{a.name} does not fit the wire field after scaling")
@@ -631,7 +606,7 @@ def decode_command(payload: bytes | bytearray) -> UartCommand:
     for a, k in zip(args, st.unpack(payload[1:]), strict=True):
         x = k / a.scale if a.scale != 1.0 else float(k)
         if not a.lo <= x <= a.hi:
-            raise FrameError(f"{packet.name}: {a.name} {x:g} is outside {_fmt(a.lo)} .. {_fmt(a.hi)}", data=payload)
+            raise FrameError(f"{packet.name}: {a.name} {x:g} is outside {fmt(a.lo)} .. {fmt(a.hi)}", data=payload)
         values.append(x)
     if packet is UartPacket.GET_VALUES_SETUP and int(values[0]) & ~_SETUP_KNOWN:
         raise FrameError(f"GET_VALUES_SETUP asks for reserved bits 0x{int(values[0]) & ~_SETUP_KNOWN:X}",

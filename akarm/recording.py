@@ -36,7 +36,7 @@ import yaml
 
 from .errors import LimitError, RecordingError
 from .telemetry import atomic_write
-from .trajectory import JointLimits
+from .trajectory import JointLimits, Timed
 
 __all__ = ["Keyframe", "Keyframes", "PathPlan", "PathRecording", "check_path", "load", "load_keyframes", "load_path"]
 
@@ -209,7 +209,7 @@ def _smooth(t: np.ndarray, q: np.ndarray, window: float, dt: float) -> tuple[np.
     return qq, lead
 
 
-class PathPlan:
+class PathPlan(Timed):
     """A recorded path made ready for replay: smoothed, time-scaled, with derivatives.
 
     Has the same sampling interface as :class:`akarm.trajectory.Plan` (``t0``, ``t_end``,
@@ -233,14 +233,6 @@ class PathPlan:
         self.t0 = t0
         self.t_end = t0 + (len(qq) - 1) * dt / speed
         self.segments = ()
-
-    @property
-    def duration(self) -> float:
-        """Replay duration, s (recorded duration / speed)."""
-        return self.t_end - self.t0
-
-    def done(self, t: float) -> bool:
-        return t >= self.t_end
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, dq, ddq) at absolute time ``t``, linearly interpolated between samples."""

@@ -76,16 +76,14 @@ class Segment:
         return self.traj.at_time(dt)
 
 
-class Plan:
-    """A chain of segments, each starting when the previous one ends; holds the last state after."""
+class Timed:
+    """What the control loop follows: desired states over ``[t0, t_end]`` (absolute clock time, s).
 
-    def __init__(self, segments: list[Segment], waypoints: int = 0) -> None:
-        if not segments:
-            raise ValueError("a plan needs at least one segment")
-        self.segments = segments
-        self.t0 = segments[0].t0
-        self.t_end = segments[-1].t0 + segments[-1].duration
-        self.waypoints = waypoints
+    Subclasses set ``t0`` and ``t_end`` and implement ``sample(t) -> (q, dq, ddq)``.
+    """
+
+    t0: float
+    t_end: float
 
     @property
     def duration(self) -> float:
@@ -95,6 +93,18 @@ class Plan:
     def done(self, t: float) -> bool:
         """True once ``t`` (absolute, s) is at or past the end."""
         return t >= self.t_end
+
+
+class Plan(Timed):
+    """A chain of segments, each starting when the previous one ends; holds the last state after."""
+
+    def __init__(self, segments: list[Segment], waypoints: int = 0) -> None:
+        if not segments:
+            raise ValueError("a plan needs at least one segment")
+        self.segments = segments
+        self.t0 = segments[0].t0
+        self.t_end = segments[-1].t0 + segments[-1].duration
+        self.waypoints = waypoints
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Desired (q, dq, ddq) at absolute time ``t`` as arrays."""
@@ -109,7 +119,7 @@ class Plan:
         return np.asarray(p), np.asarray(v), np.asarray(a)
 
 
-class Chain:
+class Chain(Timed):
     """Plans run one after the other (each must start where and when the previous one ends)."""
 
     def __init__(self, plans: list) -> None:
@@ -117,15 +127,6 @@ class Chain:
         self.t0 = plans[0].t0
         self.t_end = plans[-1].t_end
         self.segments = [s for p in plans for s in getattr(p, "segments", ())]
-
-    @property
-    def duration(self) -> float:
-        """Total duration, s."""
-        return self.t_end - self.t0
-
-    def done(self, t: float) -> bool:
-        """True once ``t`` is at or past the end."""
-        return t >= self.t_end
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Desired (q, dq, ddq) at absolute time ``t``."""

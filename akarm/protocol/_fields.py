@@ -23,14 +23,19 @@ def fmt(x: float) -> str:
     return f"{x:g}" if abs(x) < 1e6 else f"{x:.0f}"
 
 
-def checked(field: Field, value: float) -> float:
-    """``value`` as a float when it is a finite number in the field's range, else :class:`ProtocolError`."""
+def as_number(name: str, value: object) -> float:
+    """``value`` as a float (NaN and infinities included), or :class:`ProtocolError` naming ``name``."""
     try:
         if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
             raise TypeError
-        x = float(value)
+        return float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise ProtocolError(f"{field.name} must be a number, got {value!r}") from None
+        raise ProtocolError(f"{name} must be a number, got {value!r}") from None
+
+
+def checked(field: Field, value: float) -> float:
+    """``value`` as a float when it is a finite number in the field's range, else :class:`ProtocolError`."""
+    x = as_number(field.name, value)
     if not field.lo <= x <= field.hi:  # also catches NaN
         unit = f" {field.unit}" if field.unit else ""
         raise ProtocolError(

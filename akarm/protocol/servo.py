@@ -39,7 +39,7 @@ from enum import IntEnum
 from typing import NamedTuple
 
 from ..errors import FrameError, ProtocolError
-from ._fields import Field, checked, fmt
+from ._fields import Field, as_number, checked, fmt
 
 __all__ = [
     "ACCEL_MAX_ERPM_S",
@@ -326,12 +326,7 @@ def decode_status(arbitration_id: int, data: bytes | bytearray, *, is_extended: 
 
 
 def _saturate(name: str, value: float, scale: float, lo: int, hi: int) -> int:
-    try:
-        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ProtocolError(f"{name} must be a number, got {value!r}") from None
+    x = as_number(name, value)
     if math.isnan(x):
         raise ProtocolError(f"{name} is NaN", fix=f"report a finite {name}")
     x *= scale

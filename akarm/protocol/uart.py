@@ -38,7 +38,7 @@ from enum import IntEnum, IntFlag
 from typing import NamedTuple
 
 from ..errors import FrameError, ProtocolError
-from ._fields import Field, checked, fmt
+from ._fields import Field, as_number, checked, fmt
 
 __all__ = [
     "DEFAULT_MAX_PAYLOAD",
@@ -680,12 +680,7 @@ def decode_get_values(payload: bytes | bytearray) -> GetValues:
 
 
 def _to_int(name: str, value: float, scale: float, lo: int, hi: int) -> int:
-    try:
-        if isinstance(value, str | bytes | bytearray):  # float("5") would accept text
-            raise TypeError
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ProtocolError(f"{name} must be a number, got {value!r}") from None
+    x = as_number(name, value)
     k = round(x * scale) if x == x and abs(x) != float("inf") else None
     if k is None or not lo <= k <= hi:
         raise ProtocolError(f"{name} {value!r} does not fit its field ({lo / scale:g} .. {hi / scale:g})")

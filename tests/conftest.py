@@ -6,7 +6,10 @@ import itertools
 import os
 from pathlib import Path
 
+import can
 import pytest
+
+from akarm.bus import drain as _drain
 
 ROOT = Path(__file__).resolve().parent.parent
 ROBOTS = ROOT / "robots"
@@ -22,3 +25,21 @@ def channel(request: pytest.FixtureRequest) -> str:
 def has_vcan(name: str = "vcan0") -> bool:
     """True when a SocketCAN interface ``name`` exists on this machine."""
     return Path(f"/sys/class/net/{name}").exists()
+
+
+def send(bus: can.BusABC, arbitration_id: int, data: bytes, extended: bool = False) -> None:
+    """Send one frame on ``bus`` (a test playing the host or another node)."""
+    bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended))
+
+
+def drain(bus: can.BusABC) -> list[can.Message]:
+    """Every frame already waiting on ``bus``."""
+    return list(_drain(bus, limit=1 << 20))
+
+
+@pytest.fixture(scope="module")
+def planar2():
+    """robots/planar2.yaml, loaded once per module."""
+    from akarm.config_loader import load_robot
+
+    return load_robot(ROBOTS / "planar2.yaml")

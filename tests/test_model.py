@@ -64,11 +64,6 @@ def tau_closed(q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def planar2() -> RobotConfig:
-    return load_robot(ROBOTS / "planar2.yaml")
-
-
-@pytest.fixture(scope="module")
 def arm6() -> RobotConfig:
     return load_robot(ROBOTS / "arm6.yaml")
 

@@ -19,23 +19,7 @@ from akarm.config_loader import load_robot
 from akarm.protocol import mit, servo
 from akarm.sim import MitDriver, SimulatedRobot
 
-from .conftest import ROBOTS
-
-
-def send(bus: can.BusABC, arbitration_id: int, data: bytes, extended: bool = False) -> None:
-    bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended))
-
-
-def drain(bus: can.BusABC) -> list[can.Message]:
-    out = []
-    while (m := bus.recv(timeout=0.0)) is not None:
-        out.append(m)
-    return out
-
-
-@pytest.fixture(scope="module")
-def planar2() -> RobotConfig:
-    return load_robot(ROBOTS / "planar2.yaml")
+from .conftest import ROBOTS, drain, send
 
 
 def with_joint(config: RobotConfig, index: int, **changes: object) -> RobotConfig:

@@ -24,7 +24,7 @@ from akarm.model import RobotModel
 from akarm.protocol import mit
 from akarm.sim import SimulatedRobot, default_params
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, drain
 
 G = 9.81
 # planar2.urdf's comment: link masses, COM distances, COM inertias about the joint axis, upper arm length
@@ -33,20 +33,8 @@ M2, C2, I2 = 0.209, 0.2148, 9.69e-4
 L1 = 0.30
 
 
-@pytest.fixture(scope="module")
-def planar2() -> RobotConfig:
-    return load_robot(ROBOTS / "planar2.yaml")
-
-
 def send(bus: can.BusABC, arbitration_id: int, data: bytes) -> None:
     bus.send(can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False))
-
-
-def drain(bus: can.BusABC) -> list[can.Message]:
-    out = []
-    while (m := bus.recv(timeout=0.0)) is not None:
-        out.append(m)
-    return out
 
 
 def two_link_accel(q: np.ndarray, v: np.ndarray, ia: tuple[float, float]) -> np.ndarray:

@@ -20,20 +20,13 @@ from akarm.motors import MotorModel
 from akarm.protocol import servo
 from akarm.sim import ServoDriver, SimulatedRobot, default_params, faults
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, drain
 
 PAN, SHOULDER, ELBOW = 1, 2, 3
 
 
 def send(bus: can.BusABC, frame: tuple[int, bytes]) -> None:
     bus.send(can.Message(arbitration_id=frame[0], data=frame[1], is_extended_id=True))
-
-
-def drain(bus: can.BusABC) -> list[can.Message]:
-    out = []
-    while (m := bus.recv(timeout=0.0)) is not None:
-        out.append(m)
-    return out
 
 
 def status_of(bus: can.BusABC, motor_id: int) -> list[servo.ServoStatus]:

@@ -25,6 +25,9 @@ def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str
                 f"(check the adapter is plugged in: ip -br link)")
     if interface == "virtual":
         return "virtual buses need no setup; check the channel name"
+    if interface == "akarm_local":
+        return ("akarm_local needs no setup: check that the channel's file (see akarm.localbus.channel_path) "
+                "can be created, and that fewer than 32 buses use the channel")
     return f"check that the {interface} adapter is connected and its driver installed (see python-can's docs)"
 
 
@@ -38,7 +41,7 @@ def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusAB
 
     kwargs: dict[str, object] = {"interface": bus.interface, "channel": bus.channel,
                                  "receive_own_messages": receive_own_messages}
-    if bus.interface not in ("virtual", "socketcan"):
+    if bus.interface not in ("virtual", "socketcan", "akarm_local"):
         kwargs["bitrate"] = bus.bitrate  # socketcan takes the bit rate from `ip link`, not from us
     try:
         return can.Bus(**kwargs)  # type: ignore[arg-type]

@@ -1,0 +1,245 @@
+"""akarm_local: the machine-wide shared-memory CAN bus (frames, processes, overruns, bad files)."""
+
+from __future__ import annotations
+
+import os
+import struct
+import subprocess
+import sys
+import time
+
+import can
+import numpy as np
+import pytest
+
+import akarm
+from akarm import localbus
+from akarm.bus import open_bus
+from akarm.config import BusConfig
+from akarm.errors import BusError
+from akarm.localbus import LocalBus, channel_path
+from akarm.sim import SimulatedRobot
+
+
+@pytest.fixture
+def pair(channel):
+    a = LocalBus(channel)
+    b = LocalBus(channel)
+    yield a, b
+    a.shutdown()
+    b.shutdown()
+
+
+def _msg(arbitration_id: int, data: bytes, extended: bool = False, **kw) -> can.Message:
+    return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=extended, **kw)
+
+
+def test_a_frame_arrives_exactly_at_the_other_bus_and_not_back(pair):
+    a, b = pair
+    before = time.time()
+    a.send(_msg(0x2903, bytes.fromhex("0102030405060708"), extended=True))
+    a.send(_msg(0x7FF, b"\xaa"))
+    a.send(_msg(0x141, b"", is_remote_frame=True, dlc=6))
+    got = [b.recv(0.5) for _ in range(3)]
+    assert [(m.arbitration_id, m.is_extended_id, m.is_remote_frame, m.dlc, bytes(m.data)) for m in got] == [
+        (0x2903, True, False, 8, bytes.fromhex("0102030405060708")),
+        (0x7FF, False, False, 1, b"\xaa"),
+        (0x141, False, True, 6, b""),
+    ]
+    assert all(m.is_rx and m.channel == b.channel and before <= m.timestamp <= time.time() for m in got)
+    assert b.recv(0.0) is None
+    assert a.recv(0.0) is None  # its own frames are not echoed
+
+
+def test_receive_own_messages_echoes_them(channel):
+    a = LocalBus(channel, receive_own_messages=True)
+    try:
+        a.send(_msg(0x10, b"\x01"))
+        m = a.recv(0.1)
+        assert m is not None and m.arbitration_id == 0x10 and not m.is_rx
+    finally:
+        a.shutdown()
+
+
+def test_channels_do_not_mix(channel):
+    a, b, other = LocalBus(channel), LocalBus(channel), LocalBus(channel + "-other")
+    try:
+        a.send(_msg(1, b"x"))
+        assert other.recv(0.02) is None
+        assert b.recv(0.1).data == b"x"
+    finally:
+        for bus in (a, b, other):
+            bus.shutdown()
+
+
+def test_order_per_sender_is_kept_and_every_sender_is_heard(channel):
+    a, b, rx = LocalBus(channel), LocalBus(channel), LocalBus(channel)
+    try:
+        for k in range(200):
+            a.send(_msg(1, k.to_bytes(2, "big")))
+            b.send(_msg(2, k.to_bytes(2, "big")))
+        got: dict[int, list[int]] = {1: [], 2: []}
+        while (m := rx.recv(0.0)) is not None:
+            got[m.arbitration_id].append(int.from_bytes(m.data, "big"))
+        assert got == {1: list(range(200)), 2: list(range(200))}
+    finally:
+        for bus in (a, b, rx):
+            bus.shutdown()
+
+
+def test_a_reader_that_falls_behind_loses_the_oldest_frames_and_counts_them(pair):
+    a, b = pair
+    n = 700
+    for k in range(n):
+        a.send(_msg(1, k.to_bytes(2, "big")))
+    got = []
+    while (m := b.recv(0.0)) is not None:
+        got.append(int.from_bytes(m.data, "big"))
+    assert got == list(range(n - 512, n))
+    assert b.overruns == n - 512
+
+
+def test_a_half_written_slot_is_not_delivered(pair):
+    a, b = pair
+    a.send(_msg(1, b"good"))
+    # scribble on the body of the next slot and publish it with a matching sequence number:
+    # its CRC no longer matches, so the reader waits instead of taking it
+    at = localbus._RINGS_AT + a._ring * localbus._RING_SIZE + 1 * localbus._SLOT_SIZE
+    a._mm[at + 12:at + 20] = b"\xff" * 8
+    struct.pack_into("<Q", a._mm, at, 2)
+    assert b.recv(0.0).data == b"good"
+    assert b.recv(0.0) is None
+
+
+def test_recv_waits_for_a_frame_from_another_thread_and_times_out_without_one(pair):
+    import threading
+
+    a, b = pair
+    t0 = time.monotonic()
+    assert b.recv(0.05) is None
+    assert time.monotonic() - t0 >= 0.05
+    timer = threading.Timer(0.05, lambda: a.send(_msg(3, b"late")))
+    timer.start()
+    try:
+        m = b.recv(5.0)
+    finally:
+        timer.join()
+    assert m is not None and m.data == b"late"
+
+
+def test_filters_apply(channel):
+    a = LocalBus(channel)
+    b = LocalBus(channel, can_filters=[{"can_id": 0x20, "can_mask": 0x7FF, "extended": False}])
+    try:
+        a.send(_msg(0x10, b"no"))
+        a.send(_msg(0x20, b"yes"))
+        assert b.recv(0.1).data == b"yes"
+        assert b.recv(0.0) is None
+    finally:
+        a.shutdown()
+        b.shutdown()
+
+
+def test_frames_cross_processes(channel):
+    rx = LocalBus(channel)
+    code = ("import can, akarm.localbus as lb\n"
+            f"b = lb.LocalBus({channel!r})\n"
+            "for k in range(50):\n"
+            "    b.send(can.Message(arbitration_id=0x300 + k, data=bytes([k] * 8), is_extended_id=False))\n"
+            "b.shutdown()\n")
+    try:
+        subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+        got = []
+        while (m := rx.recv(0.0)) is not None:
+            got.append((m.arbitration_id, bytes(m.data)))
+        assert got == [(0x300 + k, bytes([k] * 8)) for k in range(50)]
+    finally:
+        rx.shutdown()
+
+
+def test_python_can_finds_it_by_name(channel):
+    a = can.Bus(interface="akarm_local", channel=channel)
+    b = open_bus(BusConfig("arm", "akarm_local", channel))
+    try:
+        assert isinstance(a, LocalBus) and isinstance(b, LocalBus)
+        a.send(_msg(5, b"hi"))
+        assert b.recv(0.1).data == b"hi"
+    finally:
+        a.shutdown()
+        b.shutdown()
+
+
+def test_classic_frames_only_and_no_send_after_shutdown(pair):
+    a, _ = pair
+    with pytest.raises(can.CanOperationError, match="classic CAN"):
+        a.send(can.Message(arbitration_id=1, data=bytes(12), is_fd=True))
+    a.shutdown()
+    with pytest.raises(can.CanOperationError, match="shut down"):
+        a.send(_msg(1, b""))
+
+
+def test_the_last_bus_deletes_the_file_and_a_new_one_starts_fresh(channel):
+    a = LocalBus(channel)
+    b = LocalBus(channel)
+    path = channel_path(channel)
+    assert path.exists()
+    a.shutdown()
+    assert path.exists()
+    b.shutdown()
+    assert not path.exists()
+    c, d = LocalBus(channel), LocalBus(channel)
+    try:
+        c.send(_msg(9, b"again"))
+        assert d.recv(0.1).data == b"again"
+    finally:
+        c.shutdown()
+        d.shutdown()
+
+
+def test_a_dead_process_ring_is_reclaimed_and_a_full_channel_is_refused(channel):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    keeper = LocalBus(channel)
+    try:
+        # every other place taken by a process that no longer exists: a new bus still gets one
+        for r in range(localbus._RINGS):
+            if r != keeper._ring:
+                localbus._OWNER.pack_into(keeper._mm, localbus._OWNERS_AT + r * localbus._OWNER.size, dead.pid, 7, 1)
+        late = LocalBus(channel)
+        late.shutdown()
+        # every place taken by a live process: refused, naming it
+        for r in range(localbus._RINGS):
+            if r != keeper._ring:
+                localbus._OWNER.pack_into(keeper._mm, localbus._OWNERS_AT + r * localbus._OWNER.size,
+                                          os.getpid(), 7, 1)
+        with pytest.raises(can.CanInitializationError, match=f"all 32 places.*{os.getpid()}"):
+            LocalBus(channel)
+        with pytest.raises(BusError, match="cannot open CAN bus 'arm'"):
+            open_bus(BusConfig("arm", "akarm_local", channel))
+    finally:
+        for r in range(localbus._RINGS):
+            if r != keeper._ring:
+                localbus._OWNER.pack_into(keeper._mm, localbus._OWNERS_AT + r * localbus._OWNER.size, 0, 0, 1)
+        keeper.shutdown()
+
+
+def test_a_foreign_file_is_refused_not_overwritten(channel):
+    path = channel_path(channel)
+    path.write_bytes(b"not a channel")
+    try:
+        with pytest.raises(can.CanInitializationError, match="not an akarm_local channel"):
+            LocalBus(channel)
+        assert path.read_bytes() == b"not a channel"
+    finally:
+        path.unlink()
+
+
+def test_arm_moves_against_the_simulator_over_it(planar2, channel):
+    config = planar2.with_bus(interface="akarm_local", channel=channel)
+    with SimulatedRobot(config, realtime=False) as sim, akarm.Arm(config, clock=sim.clock) as arm:
+        arm.enable()
+        target = np.array([0.4, -0.6])
+        arm.move_to(target)
+        for _ in range(100):
+            arm.sleep(0.01)
+        assert np.max(np.abs(arm.state().q - target)) < 1e-3

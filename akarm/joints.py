@@ -19,6 +19,7 @@ import can
 from . import units
 from .config import JointConfig
 from .errors import ProtocolError
+from .frames import message
 from .protocol import mit, servo
 
 __all__ = ["Joint", "JointState", "MitJoint", "Router", "ServoJoint", "make_joint"]
@@ -102,7 +103,7 @@ class MitJoint(Joint):
 
     # -- frames out ---------------------------------------------------------------------------
     def _msg(self, data: bytes) -> can.Message:
-        return can.Message(arbitration_id=self._arb, data=data, is_extended_id=self._ext, check=False)
+        return message(self._arb, data, self._ext)
 
     def enter_frames(self) -> list[can.Message]:
         """Frames that put the driver in motor mode (none for V3 firmware, which has no such frame)."""
@@ -171,7 +172,7 @@ class ServoJoint(Joint):
 
     @staticmethod
     def _msg(frame: tuple[int, bytes]) -> can.Message:
-        return can.Message(arbitration_id=frame[0], data=frame[1], is_extended_id=True, check=False)
+        return message(frame[0], frame[1], True)
 
     def command(self, position: float, speed_fraction: float = 1.0) -> can.Message:
         """Position-speed frame: go to ``position`` (rad, joint side) within the joint's limits.
@@ -235,12 +236,12 @@ class Router:
             if msg.is_extended_id:
                 j = self.by_status_id.get(msg.arbitration_id)
                 if j is not None:
-                    j.handle_status(msg.arbitration_id, bytes(data), now)  # type: ignore[attr-defined]
+                    j.handle_status(msg.arbitration_id, data, now)  # type: ignore[attr-defined]
                     return j
             elif msg.dlc in (6, 8) and not msg.is_remote_frame:
                 mj = self.by_driver_id.get(data[0])
                 if mj is not None:
-                    mj.handle_reply(bytes(data), now)
+                    mj.handle_reply(data, now)
                     return mj
         except ProtocolError:
             self.corrupt += 1

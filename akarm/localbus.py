@@ -48,6 +48,8 @@ from typing import Any
 
 import can
 
+from .frames import message
+
 __all__ = ["INTERFACE", "LocalBus", "channel_path"]
 
 INTERFACE = "akarm_local"
@@ -76,6 +78,7 @@ _SIZE = _RINGS_AT + _RINGS * _RING_SIZE
 _EFF, _RTR, _ERR = 0x8000_0000, 0x4000_0000, 0x2000_0000
 _ID_MASK = 0x1FFF_FFFF
 _POLL_MIN, _POLL_MAX = 20e-6, 200e-6
+_SKIPPED = object()
 
 
 def channel_path(channel: str) -> Path:
@@ -219,10 +222,7 @@ class LocalBus(can.BusABC):
         """Re-list the rings to read when a ring was claimed or released since the last look: the
         owned ones, plus released ones that still hold frames this bus has not read (a process that
         sent and exited before this bus looked)."""
-        gen = _GEN.unpack_from(self._mm, _GEN_AT)[0]
-        if gen == self._gen:
-            return
-        self._gen = gen
+        self._gen = _GEN.unpack_from(self._mm, _GEN_AT)[0]
         active = []
         for r in range(_RINGS):
             if r == self._ring and not self.receive_own_messages:
@@ -268,48 +268,50 @@ class LocalBus(can.BusABC):
             _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
             self._seq = seq
 
-    def _take(self, ring: int) -> tuple[can.Message | None, bool]:
-        """The next frame of ``ring`` if there is one; (message or None, whether the ring had news)."""
+    def _take(self, ring: int) -> can.Message | object | None:
+        """The next frame of ``ring``: a message, ``None`` if there is none, or ``_SKIPPED`` if there
+        was one this bus does not deliver (its own, or frames lost to an overrun): look again."""
         pos = self._pos[ring]
         at = _RINGS_AT + ring * _RING_SIZE + pos % _SLOTS * _SLOT_SIZE
         mm = self._mm
         seq = _SEQ.unpack_from(mm, at)[0]
         if seq <= pos:
-            return None, False
+            return None
         if seq != pos + 1:  # the writer lapped us: skip to the oldest frame still there
             oldest = self._head(ring) - _SLOTS + 1
             if oldest <= pos + 1:  # not a lap: a slot someone scribbled on; step over it
                 oldest = pos + 2
             self.overruns += oldest - pos - 1
             self._pos[ring] = oldest - 1
-            return None, True
+            return _SKIPPED
         crc, stamp, can_id, dlc, data = _BODY.unpack_from(mm, at + 8)
         if zlib.crc32(mm[at + 12:at + _SLOT_SIZE - _PAD]) != crc:
-            return None, False  # being written right now (a weakly ordered CPU): look again next time
+            return None  # being written right now (a weakly ordered CPU): look again next time
         self._pos[ring] = seq
         own = ring == self._ring
         if (own and not self.receive_own_messages) or dlc > 8:
-            return None, True
-        remote = bool(can_id & _RTR)
-        return can.Message(timestamp=stamp, arbitration_id=can_id & _ID_MASK, is_extended_id=bool(can_id & _EFF),
-                           is_remote_frame=remote, is_error_frame=bool(can_id & _ERR), dlc=dlc,
-                           data=b"" if remote else data[:dlc], channel=self.channel, is_rx=not own,
-                           check=False), True
+            return _SKIPPED
+        if can_id & _RTR:
+            data = b""
+        elif dlc < 8:
+            data = data[:dlc]
+        return message(can_id & _ID_MASK, data, bool(can_id & _EFF), stamp, bool(can_id & _RTR),
+                       bool(can_id & _ERR), dlc, self.channel, not own)
 
     def _poll(self) -> can.Message | None:
         """One pass over the rings in use, starting after the one that gave the last frame (fairness)."""
-        self._refresh()
+        if _GEN.unpack_from(self._mm, _GEN_AT)[0] != self._gen:
+            self._refresh()
         active = self._active
         n = len(active)
         for k in range(n):
             i = (self._next + k) % n
-            while True:
-                msg, news = self._take(active[i])
-                if msg is not None:
-                    self._next = i + 1
-                    return msg
-                if not news:
-                    break
+            msg = self._take(active[i])
+            while msg is _SKIPPED:
+                msg = self._take(active[i])
+            if msg is not None:
+                self._next = i + 1
+                return msg  # type: ignore[return-value]
         return None
 
     def recv(self, timeout: float | None = None) -> can.Message | None:

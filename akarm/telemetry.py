@@ -132,14 +132,14 @@ class Telemetry:
         n = len(self.joint_names)
         self.capacity = capacity
         self.t = np.zeros(capacity)
-        self.data = np.zeros((len(FIELDS), capacity, n))
+        self.rows = np.zeros((capacity, len(FIELDS) * n))  # one row per cycle: the fields side by side
         self.count = 0
 
     def record(self, t: float, q_des, dq_des, q, dq, tau, tau_ff) -> None:
-        """Record one cycle (arrays of joint values, SI)."""
+        """Record one cycle (sequences of joint values, SI)."""
         i = self.count % self.capacity
         self.t[i] = t
-        self.data[:, i] = (q_des, dq_des, q, dq, tau, tau_ff)  # one conversion for the whole record
+        self.rows[i] = [*q_des, *dq_des, *q, *dq, *tau, *tau_ff]  # one conversion for the whole record
         self.count += 1
 
     def clear(self) -> None:
@@ -158,4 +158,5 @@ class Telemetry:
         if since is not None:
             keep = t >= since
             idx, t = idx[keep], t[keep]
-        return TelemetryLog(self.joint_names, t.copy(), *(self.data[k, idx].copy() for k in range(len(FIELDS))))
+        fields = self.rows[idx].reshape(len(idx), len(FIELDS), len(self.joint_names))
+        return TelemetryLog(self.joint_names, t.copy(), *(fields[:, k].copy() for k in range(len(FIELDS))))

@@ -243,3 +243,21 @@ def test_arm_moves_against_the_simulator_over_it(planar2, channel):
         for _ in range(100):
             arm.sleep(0.01)
         assert np.max(np.abs(arm.state().q - target)) < 1e-3
+
+
+@pytest.mark.parametrize("fields", [
+    (0x141, b"\x01\x02", False, {}),
+    (0x2903, bytes(range(8)), True, {"timestamp": 12.5, "channel": "can1", "is_rx": False}),
+    (0x7FF, b"", False, {"is_remote_frame": True, "dlc": 6}),
+    (0x20000080, b"\x00" * 8, True, {"is_error_frame": True}),
+])
+def test_fast_messages_equal_python_cans_own(fields):
+    from akarm import frames
+
+    arbitration_id, data, extended, kw = fields
+    fast = frames._fast(arbitration_id, data, extended, **kw)
+    slow = frames._slow(arbitration_id, data, extended, **kw)
+    assert fast.equals(slow, timestamp_delta=None, check_channel=True, check_direction=True)
+    assert [getattr(fast, f) for f in can.Message.__slots__ if f != "__weakref__"] == \
+        [getattr(slow, f) for f in can.Message.__slots__ if f != "__weakref__"]
+    assert frames.message is frames._fast  # this python-can's Message has the fields it fills

@@ -1,0 +1,122 @@
+"""The control loop's timing: skipped slots on a stepped clock, the busy-waiting real clock, and
+what asking for real-time conditions does to the process."""
+
+from __future__ import annotations
+
+import gc
+import sys
+import threading
+import time
+
+import pytest
+
+from akarm import clock as clock_mod
+from akarm.clock import RealClock, SteppedClock
+from akarm.loop import ControlLoop, request_realtime
+
+
+def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():
+    clock = SteppedClock()
+    starts: list[float] = []
+
+    def cycle(now: float, slot: int) -> None:
+        starts.append(now)
+        if len(starts) == 3:
+            clock.sleep_until(now + 0.0075)  # this cycle overruns by 3.75 periods
+
+    loop = ControlLoop(500.0, clock, cycle)
+    loop.step(6)
+    assert starts[:3] == pytest.approx([0.002, 0.004, 0.006])
+    # the slots at 0.008 and 0.010 were missed and are skipped; the cycle runs at once in the 0.012
+    # slot, late by 1.5 ms, and the next ones are back on the grid: no burst of catch-up cycles
+    assert starts[3] == pytest.approx(0.0135)
+    assert starts[4:] == pytest.approx([0.014, 0.016])
+    s = loop.stats.summary()
+    assert s.missed == 2 and s.cycles == 6
+    assert s.late_max == pytest.approx(0.0015)
+
+
+def test_stats_summarise_stage_times():
+    clock = SteppedClock()
+    loop = ControlLoop(100.0, clock, lambda now, slot: loop.stats.stage[slot].__setitem__(0, 1e-4 * (slot + 1)),
+                       stages=("work",))
+    loop.step(100)
+    s = loop.stats.summary()
+    assert s.stage_mean["work"] == pytest.approx(1e-4 * 50.5)
+    assert s.compute_max == pytest.approx(1e-2)
+    assert s.rate == pytest.approx(100.0)
+    assert "work" in s.table()
+
+
+@pytest.mark.parametrize("busy", [False, True])
+def test_real_clock_wakes_at_the_deadline_and_lets_other_threads_run(busy):
+    # (a thread that only computes keeps the interpreter lock for the switch interval, 5 ms by
+    # default: the control loop shortens it, as here)
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(1e-4)
+    c = RealClock(busy=busy)
+    counted = [0]
+    stop = threading.Event()
+
+    def count() -> None:
+        while not stop.is_set():
+            counted[0] += 1
+
+    th = threading.Thread(target=count)
+    th.start()
+    try:
+        late = []
+        for _ in range(20):
+            t = c.now() + 0.005
+            c.sleep_until(t)
+            late.append(c.now() - t)
+    finally:
+        stop.set()
+        th.join()
+        sys.setswitchinterval(before)
+    assert min(late) >= 0.0
+    assert counted[0] > 1000  # the other thread got the interpreter while the clock waited
+    assert sorted(late)[10] < 0.002  # generous: the median wake-up is on time, even on a busy machine
+
+
+def test_a_busy_real_time_loop_naps_a_tenth_of_each_wait(monkeypatch):
+    naps = []
+    real_sleep = time.sleep
+    monkeypatch.setattr(clock_mod, "_realtime_thread", lambda: True)
+    monkeypatch.setattr(clock_mod.time, "sleep", lambda s: (naps.append(s), real_sleep(s)))
+    c = RealClock(busy=True)
+    t = c.now() + 0.010
+    c.sleep_until(t)
+    assert c.now() >= t
+    assert len(naps) == 1 and 0.0009 < naps[0] <= 0.001
+
+
+def test_request_realtime_never_raises_and_keeps_python_pauses_short():
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(0.005)  # Python's default (an earlier loop in this process may have lowered it)
+    report: list[str] = []
+    th = threading.Thread(target=lambda: report.append(request_realtime(lock_memory=False, switch_interval=1e-4)))
+    try:
+        th.start()
+        th.join()
+        assert "SCHED_FIFO priority 80 granted" in report[0] or "real-time priority refused" in report[0]
+        assert "garbage collector frozen" in report[0] and gc.get_freeze_count() > 0
+        assert sys.getswitchinterval() == pytest.approx(1e-4, abs=2e-6)
+        assert "switch interval 100 µs" in report[0]
+    finally:
+        sys.setswitchinterval(before)
+        gc.unfreeze()
+
+
+def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly():
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(0.005)
+    ran = threading.Event()
+    loop = ControlLoop(500.0, RealClock(), lambda now, slot: ran.set())
+    try:
+        loop.start()
+        assert ran.wait(5.0)
+        assert sys.getswitchinterval() == pytest.approx(100e-6, abs=2e-6)  # a twentieth of the 2 ms period
+    finally:
+        loop.stop()
+        sys.setswitchinterval(before)

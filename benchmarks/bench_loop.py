@@ -1,14 +1,17 @@
 """Control-loop benchmark: timing against the simulator, and per-cycle cost versus joint count.
 
-    .venv/bin/python benchmarks/bench_loop.py                 # 10 s at 250, 500, 1000 Hz, then 1..12 joints
+    .venv/bin/python benchmarks/bench_loop.py                 # 10 s per rate and wait mode, then 1..12 joints
     .venv/bin/python benchmarks/bench_loop.py --seconds 60 --rates 500 --realtime-priority
 
-Part 1 runs robots/arm6.yaml in real time: the simulator in its own thread on a python-can virtual
-bus, the Arm's loop thread streaming MIT frames while moving between poses. It prints the achieved
-rate, lateness percentiles, missed slots, compute time per stage and the process's CPU use (both
-threads share the 2 cores and the GIL, as they would with the simulator on the same machine).
-(1000 Hz is over the 80 % bus-load budget of a real 1 Mbit/s bus for six MIT joints; the virtual bus
-has no bit timing, so it is measured anyway.)
+Part 1 runs robots/arm6.yaml (6 MIT joints) in real time, moving between poses: the simulator in a
+process of its own (``akarm sim``, as a real arm's drivers are hardware of their own) on the
+``akarm_local`` bus, the Arm's loop in this one. For each rate and each way of waiting between
+cycles (``sleep``: sleep, then spin the last 200 µs, the default; ``busy``: ``Arm(busy_wait=True)``)
+it prints the achieved rate, lateness percentiles, missed slots, compute time per cycle and per
+stage, and the CPU use of both processes. ``--sim thread`` runs the old arrangement instead: the
+simulator in this process, on python-can's ``virtual`` bus, sharing the interpreter lock.
+(1000 Hz is over the 80 % bus-load budget of a real 1 Mbit/s bus for six MIT joints; the simulated
+bus has no bit timing, so it is measured anyway.)
 
 Part 2 measures the per-cycle compute of the loop alone (lock step with the simulator, whose time
 is not counted) for generated chain arms of 1 to 12 joints, to show how the cost grows.
@@ -17,8 +20,10 @@ is not counted) for generated chain arms of 1 to 12 joints, to show how the cost
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
+import subprocess
 import sys
 import tempfile
 import time
@@ -34,32 +39,79 @@ import akarm  # noqa: E402
 from akarm.config import BusConfig, Gains, JointConfig, Limits, RobotConfig  # noqa: E402
 from akarm.sim import SimulatedRobot  # noqa: E402
 
+ARM6 = ROOT / "robots" / "arm6.yaml"
+
 
 def cpu_seconds() -> float:
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
 
 
-def realtime_run(rate: float, seconds: float, rt: bool) -> dict:
-    cfg = akarm.load_robot(ROOT / "robots" / "arm6.yaml").with_bus(interface="virtual",
-                                                                   channel=f"bench-{os.getpid()}-{rate}")
-    cfg = replace(cfg, rate_hz=rate)
-    poses = [p for p in ("ready", "reach", "home") if p in cfg.poses]
-    # The simulator shares this process (and its GIL) with the loop: a stall of it is not a motor
-    # going silent, so the watchdog gets 100 ms here instead of the default 20 ms.
-    with SimulatedRobot(cfg, realtime=True) as _sim, \
-            akarm.Arm(cfg, realtime_priority=rt, feedback_timeout=0.1) as arm:
-        arm.enable()
-        arm.reset_stats()  # measure the steady state, not the enable
-        wall0, cpu0 = time.perf_counter(), cpu_seconds()
-        k = 0
-        while time.perf_counter() - wall0 < seconds:
-            arm.move_to(poses[k % len(poses)], speed=0.7)
-            k += 1
-        wall, cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0
-        s = arm.stats()
-        report = arm.realtime_report
-    return {"rate": rate, "stats": s, "cpu": cpu / wall, "wall": wall, "rt": report}
+def process_cpu_seconds(pid: int) -> float:
+    """CPU time of another process (Linux; NaN elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+
+
+@contextlib.contextmanager
+def simulator_process(channel: str):
+    """``akarm sim robots/arm6.yaml`` on the akarm_local channel, until the block ends."""
+    cmd = [sys.executable, "-m", "akarm", "sim", str(ARM6), "-i", "akarm_local", "-c", channel, "-q"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        for line in proc.stdout:  # type: ignore[union-attr]
+            if line.startswith("running"):
+                break
+        else:
+            raise RuntimeError(f"the simulator did not start (exit {proc.wait()})")
+        yield proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def moves(arm: akarm.Arm, seconds: float) -> None:
+    poses = [p for p in ("ready", "reach", "home") if p in arm.config.poses]
+    wall0 = time.perf_counter()
+    k = 0
+    while time.perf_counter() - wall0 < seconds:
+        arm.move_to(poses[k % len(poses)], speed=0.7)
+        k += 1
+
+
+def realtime_run(rate: float, seconds: float, rt: bool, busy: bool, sim: str) -> dict:
+    channel = f"bench-{os.getpid()}-{rate:.0f}-{int(busy)}"
+    if sim == "process":
+        cfg = replace(akarm.load_robot(ARM6).with_bus(interface="akarm_local", channel=channel), rate_hz=rate)
+        with simulator_process(channel) as proc, akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy) as arm:
+            arm.enable()
+            arm.reset_stats()  # measure the steady state, not the enable
+            wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), process_cpu_seconds(proc.pid)
+            moves(arm, seconds)
+            wall = time.perf_counter() - wall0
+            cpu, sim_cpu = cpu_seconds() - cpu0, process_cpu_seconds(proc.pid) - sim0
+            s, report = arm.stats(), arm.realtime_report
+    else:
+        cfg = replace(akarm.load_robot(ARM6).with_bus(interface="virtual", channel=channel), rate_hz=rate)
+        # the simulator shares this process and its interpreter lock: a stall of it is not a motor
+        # going silent, so the watchdog gets 100 ms here instead of the default 20 ms
+        with SimulatedRobot(cfg, realtime=True), \
+                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, feedback_timeout=0.1) as arm:
+            arm.enable()
+            arm.reset_stats()
+            wall0, cpu0 = time.perf_counter(), cpu_seconds()
+            moves(arm, seconds)
+            wall, cpu, sim_cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0, float("nan")
+            s, report = arm.stats(), arm.realtime_report
+    return {"rate": rate, "mode": "busy" if busy else "sleep", "stats": s, "cpu": cpu / wall,
+            "sim_cpu": sim_cpu / wall, "rt": report}
 
 
 CHAIN_LINK = """
@@ -76,7 +128,7 @@ def chain_config(n: int, folder: Path, channel: str) -> RobotConfig:
     links = "".join(CHAIN_LINK.format(i=i, p=i - 1, axis="0 1 0" if i % 2 else "0 0 1") for i in range(1, n + 1))
     urdf = folder / f"chain{n}.urdf"
     urdf.write_text(f'<robot name="chain{n}"><link name="l0"/>{links}\n</robot>\n')
-    buses = {"a": BusConfig("a", "virtual", f"{channel}-a"), "b": BusConfig("b", "virtual", f"{channel}-b")}
+    buses = {"a": BusConfig("a", "akarm_local", f"{channel}-a"), "b": BusConfig("b", "akarm_local", f"{channel}-b")}
     motor = akarm.motors.get("AK80-9")
     joints = tuple(JointConfig(name=f"j{i}", bus="a" if i <= 6 else "b", can_id=i, motor=motor, mode="mit",
                                limits=Limits(-2, 2, 3.0, 15.0, 150.0, 18.0), gains=Gains(60.0, 2.0))
@@ -102,34 +154,46 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=10.0, help="length of each real-time run, s")
     ap.add_argument("--rates", type=float, nargs="+", default=[250.0, 500.0, 1000.0])
-    ap.add_argument("--max-joints", type=int, default=12)
+    ap.add_argument("--modes", nargs="+", choices=("sleep", "busy"), default=["sleep", "busy"],
+                    help="how the loop waits between cycles")
+    ap.add_argument("--sim", choices=("process", "thread"), default="process",
+                    help="the simulator in its own process on akarm_local (default), or in this one on virtual")
+    ap.add_argument("--max-joints", type=int, default=12, help="part 2 up to this many joints (0: skip part 2)")
     ap.add_argument("--realtime-priority", action="store_true", help="ask for SCHED_FIFO and mlockall")
     args = ap.parse_args()
 
     print(f"akarm {akarm.__version__} loop benchmark, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}")
-    print("\nPart 1: robots/arm6.yaml (6 MIT joints) against the real-time simulator, virtual bus")
+    where = ("the simulator in its own process, akarm_local bus" if args.sim == "process"
+             else "the simulator in this process, python-can virtual bus")
+    print(f"\nPart 1: robots/arm6.yaml (6 MIT joints) in real time, {args.seconds:g} s per run; {where}")
     us = 1e6
-    print(f"{'rate Hz':>8} {'achieved':>9} {'late p50':>9} {'late p99':>9} {'late max':>9} {'missed':>7} "
-          f"{'miss %':>7} {'compute':>8} {'cmp p99':>8} {'CPU %':>6}   (times in µs)")
-    runs = [realtime_run(r, args.seconds, args.realtime_priority) for r in args.rates]
-    for run in runs:
-        s = run["stats"]
-        slots = s.cycles + s.missed
-        print(f"{run['rate']:8.0f} {s.rate:9.1f} {s.late_p50 * us:9.1f} {s.late_p99 * us:9.1f} {s.late_max * us:9.0f} "
-              f"{s.missed:7d} {100 * s.missed / max(slots, 1):7.3f} {s.compute_mean * us:8.1f} "
-              f"{s.compute_p99 * us:8.1f} {100 * run['cpu']:6.0f}")
+    print(f"{'rate Hz':>8} {'wait':>6} {'achieved':>9} {'late p50':>9} {'late p99':>9} {'late max':>9} {'missed':>7} "
+          f"{'miss %':>7} {'compute':>8} {'cmp p99':>8} {'CPU %':>6} {'sim CPU %':>9}   (times in µs)")
+    runs = []
+    for rate in args.rates:
+        for mode in args.modes:
+            run = realtime_run(rate, args.seconds, args.realtime_priority, mode == "busy", args.sim)
+            runs.append(run)
+            s = run["stats"]
+            slots = s.cycles + s.missed
+            print(f"{run['rate']:8.0f} {run['mode']:>6} {s.rate:9.1f} {s.late_p50 * us:9.1f} {s.late_p99 * us:9.1f} "
+                  f"{s.late_max * us:9.0f} {s.missed:7d} {100 * s.missed / max(slots, 1):7.3f} "
+                  f"{s.compute_mean * us:8.1f} {s.compute_p99 * us:8.1f} {100 * run['cpu']:6.0f} "
+                  f"{100 * run['sim_cpu']:9.0f}", flush=True)
     print(f"real-time priority: {runs[0]['rt']}")
-    print("\ncompute per stage at each rate (mean µs):")
+    print("\ncompute per stage (mean µs):")
     stages = list(runs[0]["stats"].stage_mean)
-    print(f"{'rate Hz':>8} " + " ".join(f"{s:>11}" for s in stages))
+    print(f"{'rate Hz':>8} {'wait':>6} " + " ".join(f"{s:>11}" for s in stages))
     for run in runs:
-        print(f"{run['rate']:8.0f} " + " ".join(f"{run['stats'].stage_mean[s] * us:11.1f}" for s in stages))
+        print(f"{run['rate']:8.0f} {run['mode']:>6} "
+              + " ".join(f"{run['stats'].stage_mean[s] * us:11.1f}" for s in stages))
 
-    print("\nPart 2: per-cycle compute vs joint count (lock step; simulator time excluded), µs")
-    print(f"{'joints':>6} {'mean':>8} {'p99':>8} {'per joint':>10}   " + " ".join(f"{s:>11}" for s in stages))
-    for n, s in compute_per_joint_count(args.max_joints):
-        print(f"{n:6d} {s.compute_mean * us:8.1f} {s.compute_p99 * us:8.1f} {s.compute_mean * us / n:10.1f}   "
-              + " ".join(f"{s.stage_mean[k] * us:11.1f}" for k in stages))
+    if args.max_joints > 0:
+        print("\nPart 2: per-cycle compute vs joint count (lock step, akarm_local; simulator time excluded), µs")
+        print(f"{'joints':>6} {'mean':>8} {'p99':>8} {'per joint':>10}   " + " ".join(f"{s:>11}" for s in stages))
+        for n, s in compute_per_joint_count(args.max_joints):
+            print(f"{n:6d} {s.compute_mean * us:8.1f} {s.compute_p99 * us:8.1f} {s.compute_mean * us / n:10.1f}   "
+                  + " ".join(f"{s.stage_mean[k] * us:11.1f}" for k in stages), flush=True)
 
 
 if __name__ == "__main__":

@@ -165,8 +165,9 @@ class Arm:
             interval (:func:`akarm.loop.request_realtime`; reported, never fatal).
         busy_wait: the loop thread never sleeps between cycles (it yields instead), so it starts
             every cycle with warm caches: about half the compute time per cycle, for a whole core
-            (:class:`~akarm.clock.RealClock`). With ``realtime_priority``, for a core of its own.
-            Only with the default clock.
+            (:class:`~akarm.clock.RealClock`). With ``realtime_priority``, give it a core of its
+            own (``loop_cpu``, and keep other busy processes off that core). Only with the default clock.
+        loop_cpu: pin the loop thread to this CPU (Linux; reported in :attr:`realtime_report`).
         hold_integral: 1/s; while holding still (no motion running), MIT joints add integral action
             ``ki = hold_integral · kp`` to their torque, which removes the steady-state error that
             friction leaves with a pure PD (kp = 40 N·m/rad against 0.3 N·m of friction: 7.5 mrad).
@@ -178,7 +179,8 @@ class Arm:
                  feedback_timeout: float = _DEFAULT_FEEDBACK_TIMEOUT, enable_ramp: float = 0.3,
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
-                 hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False) -> None:
+                 hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
+                 loop_cpu: int | None = None) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         self.config = config
@@ -219,6 +221,7 @@ class Arm:
         self._can_log_path = can_log
         self._can_logger = None
         self._realtime_priority = realtime_priority
+        self._loop_cpu = loop_cpu
 
         self._lock = threading.RLock()
         self._buses: dict[str, object] = {}
@@ -289,7 +292,8 @@ class Arm:
             self._can_logger = can.Logger(str(self._can_log_path))
         self._mode = "disabled"
         self._loop = ControlLoop(self.config.rate_hz, self.clock, self._cycle, stages=_STAGES,
-                                 realtime_priority=self._realtime_priority, on_crash=self._crashed)
+                                 realtime_priority=self._realtime_priority, cpu=self._loop_cpu,
+                                 on_crash=self._crashed)
         self._loop.start()
         return self
 
@@ -663,7 +667,7 @@ class Arm:
 
     @property
     def realtime_report(self) -> str:
-        """What the loop thread was granted of real-time priority and memory locking (if it asked)."""
+        """What the loop thread was granted of real-time priority, memory locking and CPU pinning (if it asked)."""
         return self._loop.realtime_report if self._loop is not None else "not open"
 
     @property

@@ -5,11 +5,12 @@
 
 Part 1 runs robots/arm6.yaml (6 MIT joints) in real time, moving between poses: the simulator in a
 process of its own (``akarm sim``, as a real arm's drivers are hardware of their own) on the
-``akarm_local`` bus, the Arm's loop in this one. For each rate and each way of waiting between
-cycles (``sleep``: sleep, then spin the last 200 µs, the default; ``busy``: ``Arm(busy_wait=True)``)
-it prints the achieved rate, lateness percentiles, missed slots, compute time per cycle and per
-stage, and the CPU use of both processes. ``--sim thread`` runs the old arrangement instead: the
-simulator in this process, on python-can's ``virtual`` bus, sharing the interpreter lock.
+``akarm_local`` bus, the Arm's loop in this one (with ``busy``, pinned to the last CPU and the
+simulator to the others). For each rate and each way of waiting between cycles (``sleep``: sleep, then spin the last
+200 µs, the default; ``busy``: ``Arm(busy_wait=True)``) it prints the achieved rate, lateness
+percentiles, missed slots, compute time per cycle and per stage, and the CPU use of both processes.
+``--sim thread`` runs the old arrangement instead: the simulator in this process, on python-can's
+``virtual`` bus, sharing the interpreter lock.
 (1000 Hz is over the 80 % bus-load budget of a real 1 Mbit/s bus for six MIT joints; the simulated
 bus has no bit timing, so it is measured anyway.)
 
@@ -20,10 +21,8 @@ is not counted) for generated chain arms of 1 to 12 joints, to show how the cost
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import resource
-import subprocess
 import sys
 import tempfile
 import time
@@ -38,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 import akarm  # noqa: E402
 from akarm.config import BusConfig, Gains, JointConfig, Limits, RobotConfig  # noqa: E402
 from akarm.sim import SimulatedRobot  # noqa: E402
+from akarm.sim.process import SimulatorProcess  # noqa: E402
 
 ARM6 = ROOT / "robots" / "arm6.yaml"
 
@@ -45,36 +45,6 @@ ARM6 = ROOT / "robots" / "arm6.yaml"
 def cpu_seconds() -> float:
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
-
-
-def process_cpu_seconds(pid: int) -> float:
-    """CPU time of another process (Linux; NaN elsewhere)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-    except (OSError, IndexError, ValueError):
-        return float("nan")
-
-
-@contextlib.contextmanager
-def simulator_process(channel: str):
-    """``akarm sim robots/arm6.yaml`` on the akarm_local channel, until the block ends."""
-    cmd = [sys.executable, "-m", "akarm", "sim", str(ARM6), "-i", "akarm_local", "-c", channel, "-q"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, cwd=ROOT)
-    try:
-        for line in proc.stdout:  # type: ignore[union-attr]
-            if line.startswith("running"):
-                break
-        else:
-            raise RuntimeError(f"the simulator did not start (exit {proc.wait()})")
-        yield proc
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def moves(arm: akarm.Arm, seconds: float) -> None:
@@ -88,22 +58,27 @@ def moves(arm: akarm.Arm, seconds: float) -> None:
 
 def realtime_run(rate: float, seconds: float, rt: bool, busy: bool, sim: str) -> dict:
     channel = f"bench-{os.getpid()}-{rate:.0f}-{int(busy)}"
+    ncpu = os.cpu_count() or 1
+    # a busy loop gets the last CPU to itself (the simulator is kept off it); a sleeping one is left
+    # to the scheduler, as a CPU of its own would be idle, and so cold, when each cycle starts
+    loop_cpu = ncpu - 1 if ncpu > 1 and busy else None
     if sim == "process":
         cfg = replace(akarm.load_robot(ARM6).with_bus(interface="akarm_local", channel=channel), rate_hz=rate)
-        with simulator_process(channel) as proc, akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy) as arm:
+        with SimulatorProcess(ARM6, channel=channel, cpus=range(ncpu - 1) if loop_cpu else None) as proc, \
+                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, loop_cpu=loop_cpu) as arm:
             arm.enable()
             arm.reset_stats()  # measure the steady state, not the enable
-            wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), process_cpu_seconds(proc.pid)
+            wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), proc.cpu_seconds()
             moves(arm, seconds)
             wall = time.perf_counter() - wall0
-            cpu, sim_cpu = cpu_seconds() - cpu0, process_cpu_seconds(proc.pid) - sim0
+            cpu, sim_cpu = cpu_seconds() - cpu0, proc.cpu_seconds() - sim0
             s, report = arm.stats(), arm.realtime_report
     else:
         cfg = replace(akarm.load_robot(ARM6).with_bus(interface="virtual", channel=channel), rate_hz=rate)
         # the simulator shares this process and its interpreter lock: a stall of it is not a motor
         # going silent, so the watchdog gets 100 ms here instead of the default 20 ms
         with SimulatedRobot(cfg, realtime=True), \
-                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, feedback_timeout=0.1) as arm:
+                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, feedback_timeout=0.1, loop_cpu=loop_cpu) as arm:
             arm.enable()
             arm.reset_stats()
             wall0, cpu0 = time.perf_counter(), cpu_seconds()

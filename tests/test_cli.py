@@ -15,6 +15,7 @@ import io
 import json
 import math
 import os
+import re
 import signal
 import threading
 import time
@@ -466,10 +467,14 @@ def test_plot_a_bad_log_is_one_clear_error(tmp_path: Path, capsys: pytest.Captur
     assert not (tmp_path / "bad.png").exists()
 
 
-def test_bench_prints_loop_statistics_and_cpu(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["bench", PLANAR2, "--seconds", "1", "--rate", "250"]) == 0
+@pytest.mark.parametrize("where", ["own", "in-process"])
+def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.CaptureFixture[str]) -> None:
+    extra = ["--in-process"] if where == "in-process" else []
+    assert main(["bench", PLANAR2, "--seconds", "1", "--rate", "250", *extra]) == 0
     out = capsys.readouterr().out
     assert "bench: planar2, 2 joints at 250 Hz" in out
+    assert ("in this process" if extra else "in its own process") in out
     cycles = int(out.split("cycles ")[1].split(",")[0])
     assert cycles > 100
     assert "feedforward" in out and "CPU: " in out and "% of one core" in out
+    assert re.search(r"simulator \d+ %", out)

@@ -3,13 +3,15 @@
 ::
 
     akarm bench robots/arm6.yaml                    # 5 s at the file's rate_hz
-    akarm bench robots/arm6.yaml --rate 1000 --seconds 10
+    akarm bench robots/arm6.yaml --rate 1000 --seconds 10 --busy-wait --realtime-priority
 
-Runs the arm on an in-process, real-time simulator on a private virtual bus (the file's buses are
-not used: no hardware is touched), moving between the file's poses (or small moves about the
-starting pose when it has none), then prints the loop's statistics (achieved rate, period and
-lateness percentiles, missed slots, time per stage) and the CPU the process used. The simulator
-shares the process and its CPU, so a real arm leaves the loop more room than this shows.
+Runs the arm against a real-time simulator in a process of its own (``akarm sim``) on a private
+``akarm_local`` channel (the file's buses are not used: no hardware is touched), moving between the
+file's poses (or small moves about the starting pose when it has none), then prints the loop's
+statistics (achieved rate, period and lateness percentiles, missed slots, time per stage) and the
+CPU used by the control loop, the rest of this process and the simulator. ``--in-process`` puts the
+simulator in this process instead (python-can ``virtual`` bus), where it competes with the loop for
+the interpreter lock: slower, and what a notebook running both sees.
 
 The feedback watchdog is relaxed to 0.5 s here (a busy machine would otherwise stop the run): this
 measures timing, not safety.
@@ -18,6 +20,8 @@ measures timing, not safety.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import os
 import threading
 import time
@@ -29,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("robot", metavar="ROBOT.yaml", help="the robot's YAML configuration")
     parser.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long to run (default 5)")
     parser.add_argument("--rate", type=float, metavar="HZ", help="loop rate (default: the file's rate_hz)")
+    parser.add_argument("--busy-wait", action="store_true",
+                        help="the loop keeps its core between cycles: faster cycles for a whole core")
+    parser.add_argument("--realtime-priority", action="store_true", help="ask for SCHED_FIFO and locked memory")
+    parser.add_argument("--in-process", action="store_true",
+                        help="run the simulator in this process, on a virtual bus, instead of in its own")
 
 
 def _thread_cpu() -> dict[str, float]:
@@ -62,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config_loader import load_robot
     from ..errors import AkarmError
     from ..sim import SimulatedRobot
+    from ..sim.process import SimulatorProcess
     from .common import controlled
 
     if not args.seconds > 0:
@@ -69,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None and not args.rate > 0:
         raise AkarmError(f"--rate {args.rate} must be positive", fix="e.g. --rate 500")
     config = load_robot(args.robot)
-    config = config.with_bus(interface="virtual", channel=f"akarm-bench-{os.getpid()}-{time.monotonic_ns()}")
+    channel = f"akarm-bench-{os.getpid()}-{time.monotonic_ns()}"
+    config = config.with_bus(interface="virtual" if args.in_process else "akarm_local", channel=channel)
     config = replace(config, joints=tuple(replace(j, feedback_timeout=None) for j in config.joints))
     if args.rate is not None:
         config = replace(config, rate_hz=float(args.rate))
@@ -81,15 +92,23 @@ def run(args: argparse.Namespace) -> int:
         mid, span = (lower + upper) / 2, (upper - lower) / 10
         targets = [mid + span, mid - span]
     start = np.clip(targets[0], lower, upper)
+    where = "in this process" if args.in_process else "in its own process"
     print(f"bench: {config.name}, {len(config.joints)} joints at {config.rate_hz:g} Hz for {args.seconds:g} s "
-          f"against the simulator (moving between {len(targets)} poses)", flush=True)
-    moves = 0
-    with SimulatedRobot(config, realtime=True, q0=start) as sim, \
-            controlled(Arm(config, feedback_timeout=0.5)) as arm:
+          f"against the simulator {where} (moving between {len(targets)} poses)", flush=True)
+    with contextlib.ExitStack() as stack:
+        if args.in_process:
+            sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start))
+        else:
+            first = next(iter(config.poses), None)
+            sim = stack.enter_context(SimulatorProcess(args.robot, channel=channel, pose=first))
+        arm = stack.enter_context(controlled(Arm(config, feedback_timeout=0.5, busy_wait=args.busy_wait,
+                                                 realtime_priority=args.realtime_priority)))
         arm.enable()
         cpu0, wall0, th0 = time.process_time(), time.monotonic(), _thread_cpu()
+        sim0 = sim.cpu_seconds() if isinstance(sim, SimulatorProcess) else 0.0
         end = wall0 + args.seconds
         k = 1 % len(targets)
+        moves = 0
         while time.monotonic() < end:
             motion = arm.move_to(targets[k], wait=False)
             moves += 1
@@ -100,16 +119,27 @@ def run(args: argparse.Namespace) -> int:
             k = (k + 1) % len(targets)
         cpu1, wall1, th1 = time.process_time(), time.monotonic(), _thread_cpu()
         stats = arm.stats()
+        report = arm.realtime_report
         arm.disable()
-        slip = sim.slip
+        if isinstance(sim, SimulatorProcess):
+            sim_cpu, slip = sim.cpu_seconds() - sim0, 0.0
+        else:
+            sim_cpu, slip = math.nan, sim.slip
     wall = wall1 - wall0
     print(stats.table())
-    line = f"CPU: {100 * (cpu1 - cpu0) / wall:.0f} % of one core for the whole process"
+    line = f"CPU: {100 * (cpu1 - cpu0) / wall:.0f} % of one core for this process"
     if th0 and th1:
-        loop0, sim0 = _group(th0)
-        loop1, sim1 = _group(th1)
-        line += f" (control loop {100 * (loop1 - loop0) / wall:.0f} %, simulator {100 * (sim1 - sim0) / wall:.0f} %)"
+        loop0, thread_sim0 = _group(th0)
+        loop1, thread_sim1 = _group(th1)
+        line += f" (control loop {100 * (loop1 - loop0) / wall:.0f} %"
+        if args.in_process:
+            sim_cpu = thread_sim1 - thread_sim0
+        line += ")"
+    if sim_cpu == sim_cpu:
+        line += f"; simulator {100 * sim_cpu / wall:.0f} %"
     print(line)
+    if args.busy_wait or args.realtime_priority:
+        print(f"real time: {report}")
     print(f"{moves} moves in {wall:.2f} s" + (f"; the simulator fell {slip:.3f} s behind the wall clock" if slip > 0.001
                                                else ""))
     return 0

@@ -1,0 +1,107 @@
+"""The simulator in a process of its own, as a real arm's drivers are hardware of their own.
+
+::
+
+    from akarm.sim.process import SimulatorProcess
+
+    with SimulatorProcess("robots/arm6.yaml", channel="bench") as sim:     # akarm_local bus
+        config = akarm.load_robot("robots/arm6.yaml").with_bus(interface="akarm_local", channel="bench")
+        with akarm.Arm(config) as arm:
+            arm.enable()
+            ...
+        print(sim.cpu_seconds())
+
+It runs ``akarm sim`` (real time) and waits until the simulated drivers are on the bus. An
+in-process :class:`~akarm.sim.SimulatedRobot` shares the controller's interpreter lock, so each
+delays the other; in its own process the simulator costs the controller nothing but the bus.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+from ..errors import StateError
+
+__all__ = ["SimulatorProcess"]
+
+
+class SimulatorProcess:
+    """``akarm sim ROBOT`` in a child process, for a ``with`` block.
+
+    Args:
+        robot: the robot's YAML file.
+        interface, channel: the bus to simulate the drivers on (default: ``akarm_local``, ``can0``).
+        pose: start the simulated arm at this named pose (default: all joints at zero).
+        cpus: pin the simulator to these CPUs (Linux), e.g. to keep it off the control loop's core.
+        args: more ``akarm sim`` arguments (``["--fault", "elbow:drop:0.3"]``).
+        start_timeout: s to wait for the simulator to come up.
+
+    Raises:
+        StateError: the simulator did not start (with what it printed).
+    """
+
+    def __init__(self, robot: str | os.PathLike[str], *, interface: str = "akarm_local", channel: str = "can0",
+                 pose: str | None = None, cpus: Iterable[int] | None = None, args: Sequence[str] = (),
+                 start_timeout: float = 60.0) -> None:
+        self.robot = Path(robot)
+        self.interface = interface
+        self.channel = channel
+        self.command = [sys.executable, "-m", "akarm", "sim", str(self.robot), "-i", interface, "-c", channel, "-q",
+                        *(["--pose", pose] if pose else []), *args]
+        self.cpus = set(cpus) if cpus is not None else None
+        self.start_timeout = start_timeout
+        self.proc: subprocess.Popen[str] | None = None
+
+    @property
+    def pid(self) -> int:
+        """The simulator's process ID."""
+        if self.proc is None:
+            raise StateError("the simulator process is not running", fix="use it in a `with` block")
+        return self.proc.pid
+
+    def __enter__(self) -> SimulatorProcess:
+        self.proc = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        if self.cpus and hasattr(os, "sched_setaffinity"):
+            # at once, while the child is still starting Python: the threads it starts later inherit it
+            os.sched_setaffinity(self.proc.pid, self.cpus)
+        seen: list[str] = []
+        ready = threading.Event()
+
+        def read() -> None:  # until "running" (and afterwards, so a full pipe never blocks it)
+            for line in self.proc.stdout:  # type: ignore[union-attr]
+                if not ready.is_set():
+                    seen.append(line)
+                    if line.startswith("running"):
+                        ready.set()
+            ready.set()
+
+        threading.Thread(target=read, name="akarm-sim-output", daemon=True).start()
+        if not ready.wait(self.start_timeout) or self.proc.poll() is not None:
+            self.__exit__()
+            raise StateError(f"the simulator did not start: {' '.join(self.command)}\n{''.join(seen[-20:])}",
+                             fix="run that command yourself to see what is wrong")
+        return self
+
+    def cpu_seconds(self) -> float:
+        """CPU time the simulator has used so far, s (Linux; NaN elsewhere)."""
+        try:
+            fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, IndexError, ValueError):
+            return float("nan")
+
+    def __exit__(self, *exc: object) -> None:
+        proc, self.proc = self.proc, None
+        if proc is None:
+            return
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

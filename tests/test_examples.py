@@ -210,3 +210,17 @@ def test_readme_python_tour_runs(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     assert "missed slots 0" in r.stdout and "wrist_roll" in r.stdout
     assert (tmp_path / "run.csv").read_text().startswith("t [s],q_des.shoulder_pan [rad]")
+
+
+def test_readme_two_terminals_on_akarm_local_work(channel: str) -> None:
+    """Step 0 of "From simulator to hardware": `akarm sim` and `akarm move` as two processes."""
+    from akarm.sim.process import SimulatorProcess
+
+    sim_cmd = ".venv/bin/akarm sim robots/arm6.yaml -i akarm_local -c can0"
+    move_cmd = ".venv/bin/akarm move robots/arm6.yaml ready -i akarm_local -c can0"
+    assert sim_cmd in README and move_cmd in README
+    # the same commands, on a channel of this test's own
+    with SimulatorProcess(ROOT / "robots" / "arm6.yaml", channel=channel):
+        r = subprocess.run([sys.executable, "-m", "akarm", "move", str(ROOT / "robots" / "arm6.yaml"), "ready",
+                            "-i", "akarm_local", "-c", channel], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr

@@ -131,10 +131,9 @@ def run(args: argparse.Namespace) -> int:
     if th0 and th1:
         loop0, thread_sim0 = _group(th0)
         loop1, thread_sim1 = _group(th1)
-        line += f" (control loop {100 * (loop1 - loop0) / wall:.0f} %"
+        line += f" (control loop {100 * (loop1 - loop0) / wall:.0f} %)"
         if args.in_process:
             sim_cpu = thread_sim1 - thread_sim0
-        line += ")"
     if sim_cpu == sim_cpu:
         line += f"; simulator {100 * sim_cpu / wall:.0f} %"
     print(line)

@@ -81,6 +81,11 @@ _POLL_MIN, _POLL_MAX = 20e-6, 200e-6
 _SKIPPED = object()
 
 
+def _slot(ring: int, k: int) -> int:
+    """Offset in the file of the slot that holds frame ``k`` of ``ring``."""
+    return _RINGS_AT + ring * _RING_SIZE + k % _SLOTS * _SLOT_SIZE
+
+
 def channel_path(channel: str) -> Path:
     """The file behind ``channel`` (per user; in ``/dev/shm`` where it exists)."""
     safe = re.sub(r"[^A-Za-z0-9_.-]", "_", channel)[:64]
@@ -234,13 +239,13 @@ class LocalBus(can.BusABC):
 
     def _pending(self, ring: int) -> bool:
         pos = self._pos[ring]
-        return _SEQ.unpack_from(self._mm, _RINGS_AT + ring * _RING_SIZE + pos % _SLOTS * _SLOT_SIZE)[0] > pos
+        return _SEQ.unpack_from(self._mm, _slot(ring, pos))[0] > pos
 
     def _head(self, ring: int) -> int:
         """The next sequence number ``ring``'s writer will use (the highest written, from the slots)."""
         if not _OWNER.unpack_from(self._mm, _OWNERS_AT + ring * _OWNER.size)[2]:
             return 0  # never used: do not touch (and so allocate) its pages
-        base = _RINGS_AT + ring * _RING_SIZE
+        base = _slot(ring, 0)
         return max(seq for seq, in struct.iter_unpack(f"<Q{_SLOT_SIZE - 8}x", self._mm[base:base + _RING_SIZE]))
 
     # -- python-can's interface -----------------------------------------------------------------
@@ -262,7 +267,7 @@ class LocalBus(can.BusABC):
         mm = self._mm
         with self._send_lock:
             seq = self._seq + 1
-            at = _RINGS_AT + self._ring * _RING_SIZE + (seq - 1) % _SLOTS * _SLOT_SIZE
+            at = _slot(self._ring, seq - 1)
             mm[at + 12:at + _SLOT_SIZE - _PAD] = rest
             mm[at + 8:at + 12] = crc
             _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
@@ -272,7 +277,7 @@ class LocalBus(can.BusABC):
         """The next frame of ``ring``: a message, ``None`` if there is none, or ``_SKIPPED`` if there
         was one this bus does not deliver (its own, or frames lost to an overrun): look again."""
         pos = self._pos[ring]
-        at = _RINGS_AT + ring * _RING_SIZE + pos % _SLOTS * _SLOT_SIZE
+        at = _slot(ring, pos)
         mm = self._mm
         seq = _SEQ.unpack_from(mm, at)[0]
         if seq <= pos:
@@ -323,28 +328,19 @@ class LocalBus(can.BusABC):
         return super().recv(timeout)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        try:
-            msg = None if self._closed else self._poll()
-        except ValueError:  # shut down by another thread meanwhile
-            return None, False
-        if msg is not None or timeout == 0.0:
-            return msg, False
         deadline = None if timeout is None else time.monotonic() + timeout
         nap = _POLL_MIN
         while not self._closed:
-            if deadline is not None:
-                left = deadline - time.monotonic()
-                if left <= 0.0:
-                    return None, False
-                time.sleep(min(nap, left))
-            else:
-                time.sleep(nap)
             try:
                 msg = self._poll()
-            except ValueError:
-                return None, False
+            except ValueError:  # shut down by another thread meanwhile
+                break
             if msg is not None:
                 return msg, False
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0.0:
+                break
+            time.sleep(nap if left is None else min(nap, left))
             nap = min(2.0 * nap, _POLL_MAX)
         return None, False
 

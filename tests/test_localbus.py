@@ -104,7 +104,7 @@ def test_a_half_written_slot_is_not_delivered(pair):
     a.send(_msg(1, b"good"))
     # scribble on the body of the next slot and publish it with a matching sequence number:
     # its CRC no longer matches, so the reader waits instead of taking it
-    at = localbus._RINGS_AT + a._ring * localbus._RING_SIZE + 1 * localbus._SLOT_SIZE
+    at = localbus._slot(a._ring, 1)
     a._mm[at + 12:at + 20] = b"\xff" * 8
     struct.pack_into("<Q", a._mm, at, 2)
     assert b.recv(0.0).data == b"good"

@@ -22,12 +22,24 @@ from akarm.sim import SimulatedRobot
 
 
 @pytest.fixture
-def pair(channel):
-    a = LocalBus(channel)
-    b = LocalBus(channel)
-    yield a, b
-    a.shutdown()
-    b.shutdown()
+def bus(channel):
+    """``bus(**kw)`` opens a LocalBus on this test's channel (``bus(channel=...)`` elsewhere); every
+    bus opened is shut down when the test ends."""
+    opened: list[LocalBus] = []
+
+    def open_(**kw) -> LocalBus:
+        kw.setdefault("channel", channel)
+        opened.append(LocalBus(**kw))
+        return opened[-1]
+
+    yield open_
+    for b in opened:
+        b.shutdown()
+
+
+@pytest.fixture
+def pair(bus):
+    return bus(), bus()
 
 
 def _msg(arbitration_id: int, data: bytes, extended: bool = False, **kw) -> can.Message:
@@ -51,40 +63,29 @@ def test_a_frame_arrives_exactly_at_the_other_bus_and_not_back(pair):
     assert a.recv(0.0) is None  # its own frames are not echoed
 
 
-def test_receive_own_messages_echoes_them(channel):
-    a = LocalBus(channel, receive_own_messages=True)
-    try:
-        a.send(_msg(0x10, b"\x01"))
-        m = a.recv(0.1)
-        assert m is not None and m.arbitration_id == 0x10 and not m.is_rx
-    finally:
-        a.shutdown()
+def test_receive_own_messages_echoes_them(bus):
+    a = bus(receive_own_messages=True)
+    a.send(_msg(0x10, b"\x01"))
+    m = a.recv(0.1)
+    assert m is not None and m.arbitration_id == 0x10 and not m.is_rx
 
 
-def test_channels_do_not_mix(channel):
-    a, b, other = LocalBus(channel), LocalBus(channel), LocalBus(channel + "-other")
-    try:
-        a.send(_msg(1, b"x"))
-        assert other.recv(0.02) is None
-        assert b.recv(0.1).data == b"x"
-    finally:
-        for bus in (a, b, other):
-            bus.shutdown()
+def test_channels_do_not_mix(bus, channel):
+    a, b, other = bus(), bus(), bus(channel=channel + "-other")
+    a.send(_msg(1, b"x"))
+    assert other.recv(0.02) is None
+    assert b.recv(0.1).data == b"x"
 
 
-def test_order_per_sender_is_kept_and_every_sender_is_heard(channel):
-    a, b, rx = LocalBus(channel), LocalBus(channel), LocalBus(channel)
-    try:
-        for k in range(200):
-            a.send(_msg(1, k.to_bytes(2, "big")))
-            b.send(_msg(2, k.to_bytes(2, "big")))
-        got: dict[int, list[int]] = {1: [], 2: []}
-        while (m := rx.recv(0.0)) is not None:
-            got[m.arbitration_id].append(int.from_bytes(m.data, "big"))
-        assert got == {1: list(range(200)), 2: list(range(200))}
-    finally:
-        for bus in (a, b, rx):
-            bus.shutdown()
+def test_order_per_sender_is_kept_and_every_sender_is_heard(bus):
+    a, b, rx = bus(), bus(), bus()
+    for k in range(200):
+        a.send(_msg(1, k.to_bytes(2, "big")))
+        b.send(_msg(2, k.to_bytes(2, "big")))
+    got: dict[int, list[int]] = {1: [], 2: []}
+    while (m := rx.recv(0.0)) is not None:
+        got[m.arbitration_id].append(int.from_bytes(m.data, "big"))
+    assert got == {1: list(range(200)), 2: list(range(200))}
 
 
 def test_a_reader_that_falls_behind_loses_the_oldest_frames_and_counts_them(pair):
@@ -127,34 +128,27 @@ def test_recv_waits_for_a_frame_from_another_thread_and_times_out_without_one(pa
     assert m is not None and m.data == b"late"
 
 
-def test_filters_apply(channel):
-    a = LocalBus(channel)
-    b = LocalBus(channel, can_filters=[{"can_id": 0x20, "can_mask": 0x7FF, "extended": False}])
-    try:
-        a.send(_msg(0x10, b"no"))
-        a.send(_msg(0x20, b"yes"))
-        assert b.recv(0.1).data == b"yes"
-        assert b.recv(0.0) is None
-    finally:
-        a.shutdown()
-        b.shutdown()
+def test_filters_apply(bus):
+    a = bus()
+    b = bus(can_filters=[{"can_id": 0x20, "can_mask": 0x7FF, "extended": False}])
+    a.send(_msg(0x10, b"no"))
+    a.send(_msg(0x20, b"yes"))
+    assert b.recv(0.1).data == b"yes"
+    assert b.recv(0.0) is None
 
 
-def test_frames_cross_processes(channel):
-    rx = LocalBus(channel)
+def test_frames_cross_processes(bus, channel):
+    rx = bus()
     code = ("import can, akarm.localbus as lb\n"
             f"b = lb.LocalBus({channel!r})\n"
             "for k in range(50):\n"
             "    b.send(can.Message(arbitration_id=0x300 + k, data=bytes([k] * 8), is_extended_id=False))\n"
             "b.shutdown()\n")
-    try:
-        subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
-        got = []
-        while (m := rx.recv(0.0)) is not None:
-            got.append((m.arbitration_id, bytes(m.data)))
-        assert got == [(0x300 + k, bytes([k] * 8)) for k in range(50)]
-    finally:
-        rx.shutdown()
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+    got = []
+    while (m := rx.recv(0.0)) is not None:
+        got.append((m.arbitration_id, bytes(m.data)))
+    assert got == [(0x300 + k, bytes([k] * 8)) for k in range(50)]
 
 
 def test_python_can_finds_it_by_name(channel):
@@ -178,22 +172,17 @@ def test_classic_frames_only_and_no_send_after_shutdown(pair):
         a.send(_msg(1, b""))
 
 
-def test_the_last_bus_deletes_the_file_and_a_new_one_starts_fresh(channel):
-    a = LocalBus(channel)
-    b = LocalBus(channel)
+def test_the_last_bus_deletes_the_file_and_a_new_one_starts_fresh(bus, channel):
+    a, b = bus(), bus()
     path = channel_path(channel)
     assert path.exists()
     a.shutdown()
     assert path.exists()
     b.shutdown()
     assert not path.exists()
-    c, d = LocalBus(channel), LocalBus(channel)
-    try:
-        c.send(_msg(9, b"again"))
-        assert d.recv(0.1).data == b"again"
-    finally:
-        c.shutdown()
-        d.shutdown()
+    c, d = bus(), bus()
+    c.send(_msg(9, b"again"))
+    assert d.recv(0.1).data == b"again"
 
 
 def test_a_dead_process_ring_is_reclaimed_and_a_full_channel_is_refused(channel):

@@ -48,11 +48,20 @@ def test_stats_summarise_stage_times():
     assert "work" in s.table()
 
 
+@pytest.fixture
+def default_switch_interval():
+    """Python's default switch interval, 5 ms, for the test (an earlier loop in this process may
+    have lowered it); the process's own is restored after."""
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(0.005)
+    yield
+    sys.setswitchinterval(before)
+
+
 @pytest.mark.parametrize("busy", [False, True])
-def test_real_clock_wakes_at_the_deadline_and_lets_other_threads_run(busy):
+def test_real_clock_wakes_at_the_deadline_and_lets_other_threads_run(busy, default_switch_interval):
     # (a thread that only computes keeps the interpreter lock for the switch interval, 5 ms by
     # default: the control loop shortens it, as here)
-    before = sys.getswitchinterval()
     sys.setswitchinterval(1e-4)
     c = RealClock(busy=busy)
     counted = [0]
@@ -73,7 +82,6 @@ def test_real_clock_wakes_at_the_deadline_and_lets_other_threads_run(busy):
     finally:
         stop.set()
         th.join()
-        sys.setswitchinterval(before)
     assert min(late) >= 0.0
     assert counted[0] > 1000  # the other thread got the interpreter while the clock waited
     assert sorted(late)[10] < 0.002  # generous: the median wake-up is on time, even on a busy machine
@@ -91,9 +99,7 @@ def test_a_busy_real_time_loop_naps_a_tenth_of_each_wait(monkeypatch):
     assert len(naps) == 1 and 0.0009 < naps[0] <= 0.001
 
 
-def test_request_realtime_never_raises_and_keeps_python_pauses_short():
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(0.005)  # Python's default (an earlier loop in this process may have lowered it)
+def test_request_realtime_never_raises_and_keeps_python_pauses_short(default_switch_interval):
     report: list[str] = []
     th = threading.Thread(target=lambda: report.append(request_realtime(lock_memory=False, switch_interval=1e-4)))
     try:
@@ -104,13 +110,10 @@ def test_request_realtime_never_raises_and_keeps_python_pauses_short():
         assert sys.getswitchinterval() == pytest.approx(1e-4, abs=2e-6)
         assert "switch interval 100 µs" in report[0]
     finally:
-        sys.setswitchinterval(before)
         gc.unfreeze()
 
 
-def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly():
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(0.005)
+def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly(default_switch_interval):
     ran = threading.Event()
     loop = ControlLoop(500.0, RealClock(), lambda now, slot: ran.set())
     try:
@@ -119,4 +122,3 @@ def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly():
         assert sys.getswitchinterval() == pytest.approx(100e-6, abs=2e-6)  # a twentieth of the 2 ms period
     finally:
         loop.stop()
-        sys.setswitchinterval(before)

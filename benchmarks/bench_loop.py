@@ -21,6 +21,7 @@ is not counted) for generated chain arms of 1 to 12 joints, to show how the cost
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import sys
@@ -62,29 +63,26 @@ def realtime_run(rate: float, seconds: float, rt: bool, busy: bool, sim: str) ->
     # a busy loop gets the last CPU to itself (the simulator is kept off it); a sleeping one is left
     # to the scheduler, as a CPU of its own would be idle, and so cold, when each cycle starts
     loop_cpu = ncpu - 1 if ncpu > 1 and busy else None
-    if sim == "process":
-        cfg = replace(akarm.load_robot(ARM6).with_bus(interface="akarm_local", channel=channel), rate_hz=rate)
-        with SimulatorProcess(ARM6, channel=channel, cpus=range(ncpu - 1) if loop_cpu else None) as proc, \
-                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, loop_cpu=loop_cpu) as arm:
-            arm.enable()
-            arm.reset_stats()  # measure the steady state, not the enable
-            wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), proc.cpu_seconds()
-            moves(arm, seconds)
-            wall = time.perf_counter() - wall0
-            cpu, sim_cpu = cpu_seconds() - cpu0, proc.cpu_seconds() - sim0
-            s, report = arm.stats(), arm.realtime_report
-    else:
-        cfg = replace(akarm.load_robot(ARM6).with_bus(interface="virtual", channel=channel), rate_hz=rate)
-        # the simulator shares this process and its interpreter lock: a stall of it is not a motor
-        # going silent, so the watchdog gets 100 ms here instead of the default 20 ms
-        with SimulatedRobot(cfg, realtime=True), \
-                akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, feedback_timeout=0.1, loop_cpu=loop_cpu) as arm:
-            arm.enable()
-            arm.reset_stats()
-            wall0, cpu0 = time.perf_counter(), cpu_seconds()
-            moves(arm, seconds)
-            wall, cpu, sim_cpu = time.perf_counter() - wall0, cpu_seconds() - cpu0, float("nan")
-            s, report = arm.stats(), arm.realtime_report
+    interface = "akarm_local" if sim == "process" else "virtual"
+    cfg = replace(akarm.load_robot(ARM6).with_bus(interface=interface, channel=channel), rate_hz=rate)
+    with contextlib.ExitStack() as stack:
+        if sim == "process":
+            proc = stack.enter_context(SimulatorProcess(ARM6, channel=channel,
+                                                        cpus=range(ncpu - 1) if loop_cpu else None))
+            sim_cpu_seconds, options = proc.cpu_seconds, {}
+        else:
+            stack.enter_context(SimulatedRobot(cfg, realtime=True))
+            # the simulator shares this process and its interpreter lock: a stall of it is not a motor
+            # going silent, so the watchdog gets 100 ms here instead of the default 20 ms
+            sim_cpu_seconds, options = (lambda: float("nan")), {"feedback_timeout": 0.1}
+        arm = stack.enter_context(akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, loop_cpu=loop_cpu, **options))
+        arm.enable()
+        arm.reset_stats()  # measure the steady state, not the enable
+        wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), sim_cpu_seconds()
+        moves(arm, seconds)
+        wall = time.perf_counter() - wall0
+        cpu, sim_cpu = cpu_seconds() - cpu0, sim_cpu_seconds() - sim0
+        s, report = arm.stats(), arm.realtime_report
     return {"rate": rate, "mode": "busy" if busy else "sleep", "stats": s, "cpu": cpu / wall,
             "sim_cpu": sim_cpu / wall, "rt": report}
 

@@ -25,7 +25,6 @@ import math
 import os
 import threading
 import time
-from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,16 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _thread_cpu() -> dict[str, float]:
     """CPU seconds per thread name (Linux /proc; empty elsewhere), summed over threads of the same name."""
-    tick = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    from ..sim.process import stat_cpu_seconds
+
     out: dict[str, float] = {}
     for th in threading.enumerate():
-        tid = th.native_id
-        try:
-            stat = Path(f"/proc/self/task/{tid}/stat").read_text()
-        except (OSError, TypeError):
-            continue
-        fields = stat.rsplit(")", 1)[1].split()
-        out[th.name] = out.get(th.name, 0.0) + (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+        seconds = stat_cpu_seconds(f"/proc/self/task/{th.native_id}/stat")
+        if seconds == seconds:  # not NaN
+            out[th.name] = out.get(th.name, 0.0) + seconds
     return out
 
 

@@ -27,7 +27,17 @@ from pathlib import Path
 
 from ..errors import StateError
 
-__all__ = ["SimulatorProcess"]
+__all__ = ["SimulatorProcess", "stat_cpu_seconds"]
+
+
+def stat_cpu_seconds(stat_file: str | os.PathLike[str]) -> float:
+    """User plus system CPU time, s, from a Linux ``/proc/PID/stat`` or ``/proc/PID/task/TID/stat``
+    file; NaN where there is no such file (other systems, a process that has ended)."""
+    try:
+        fields = Path(stat_file).read_text().rsplit(")", 1)[1].split()  # after the command name
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    except (OSError, IndexError, ValueError, AttributeError):
+        return float("nan")
 
 
 class SimulatorProcess:
@@ -89,11 +99,7 @@ class SimulatorProcess:
 
     def cpu_seconds(self) -> float:
         """CPU time the simulator has used so far, s (Linux; NaN elsewhere)."""
-        try:
-            fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
-            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-        except (OSError, IndexError, ValueError):
-            return float("nan")
+        return stat_cpu_seconds(f"/proc/{self.pid}/stat")
 
     def __exit__(self, *exc: object) -> None:
         proc, self.proc = self.proc, None

@@ -142,6 +142,35 @@ class Motion:
         self._finished.set()
 
 
+class _PathRecorder:
+    """The samples of :meth:`Arm.start_recording`, taken by the loop on a grid of ``1 / rate`` s
+    from the first one; a stall skips the grid points it missed (no burst of samples after it)."""
+
+    __slots__ = ("_last", "_next", "duration", "positions", "rate", "times")
+
+    def __init__(self, rate: float, duration: float | None) -> None:
+        self.rate, self.duration = rate, duration
+        self.times: list[float] = []
+        self.positions: list[np.ndarray] = []
+        self._next = -math.inf
+        self._last = math.inf
+
+    @property
+    def finished(self) -> bool:
+        return self._next > self._last
+
+    def sample(self, now: float, q: np.ndarray) -> None:
+        if now < self._next - 1e-9 or self.finished:  # a nanosecond's slack: clocks sum periods
+            return
+        if not self.times:
+            self._next = now
+            if self.duration is not None:  # the last grid point within the duration (slack for rounding)
+                self._last = now + math.floor(self.duration * self.rate + 1e-9) / self.rate + 1e-9
+        self.times.append(now)
+        self.positions.append(q)
+        self._next += (max(0, math.floor((now - self._next) * self.rate)) + 1) / self.rate
+
+
 class Arm:
     """A robot arm of AK actuators, driven by a fixed-rate control loop.
 
@@ -246,7 +275,7 @@ class Arm:
         self._send_errors = 0
         self._entered = False
         self._teach_damping = np.zeros(self.n)
-        self._recorder: tuple | None = None  # (rate, next sample time, times, positions)
+        self._recorder: _PathRecorder | None = None
 
     @staticmethod
     def _feedback_timeout(j, default: float) -> float:
@@ -539,23 +568,36 @@ class Arm:
         with self._lock:
             return rec_mod.Keyframe(tuple(float(j.state.position) for j in self.joints), name)
 
-    def start_recording(self, rate_hz: float = 50.0) -> None:
-        """Start recording the measured pose continuously at ``rate_hz`` (in teach mode)."""
+    def start_recording(self, rate_hz: float = 50.0, duration: float | None = None) -> None:
+        """Start recording the measured pose continuously at ``rate_hz`` (in teach mode).
+
+        With ``duration`` (s) the loop itself stops sampling once that much is recorded, so the
+        path is ``duration`` long and holds ``floor(duration * rate_hz) + 1`` samples however late
+        the caller gets round to :meth:`stop_recording`; :attr:`recording_finished` tells when.
+        """
         if self._mode != "teach":
             raise StateError("recording a path needs teach mode", fix="call arm.teach() first")
         if not 0 < rate_hz <= self.config.rate_hz:
             raise StateError(f"rate_hz must be in (0, {self.config.rate_hz:g}] (the loop rate)")
+        if duration is not None and not 0 < duration < math.inf:
+            raise StateError(f"duration must be a positive number of seconds, not {duration}")
         with self._lock:
-            self._recorder = (rate_hz, self.clock.now(), [], [])
+            self._recorder = _PathRecorder(rate_hz, duration)
+
+    @property
+    def recording_finished(self) -> bool:
+        """True once a recording started with a ``duration`` has all its samples (False with none)."""
+        rec = self._recorder
+        return rec is not None and rec.finished
 
     def stop_recording(self) -> rec_mod.PathRecording:
         """Stop the continuous recording and return it (times from 0, s; positions rad)."""
         with self._lock:
             rec, self._recorder = self._recorder, None
-        if rec is None or len(rec[2]) < 2:
+        if rec is None or len(rec.times) < 2:
             raise StateError("no path was recorded", fix="call start_recording() and move the arm for a while")
-        t = np.array(rec[2]) - rec[2][0]
-        return rec_mod.PathRecording(self.names, t, np.array(rec[3]))
+        t = np.array(rec.times) - rec.times[0]
+        return rec_mod.PathRecording(self.names, t, np.array(rec.positions))
 
     def end_teach(self) -> None:
         """Leave teach mode: hold the pose the arm was left in, gains ramping up from zero."""
@@ -894,12 +936,8 @@ class Arm:
         self._des = (q, np.zeros(self.n), np.zeros(self.n))
         self._ff = g
         rec = self._recorder
-        if rec is not None and now >= rec[1]:
-            rec[2].append(now)
-            rec[3].append(q)
-            # next sample time on the rate's grid, skipping the ones a stall missed (no burst)
-            missed = math.floor((now - rec[1]) * rec[0])
-            self._recorder = (rec[0], rec[1] + (missed + 1) / rec[0], rec[2], rec[3])
+        if rec is not None:
+            rec.sample(now, q)
         self._record(now, q, np.zeros(self.n), g)
 
     def _cycle_enabling(self, now: float) -> None:

@@ -191,6 +191,36 @@ def test_teach_carries_the_arm_weight(channel) -> None:
             arm.start_recording()
 
 
+def test_a_recording_with_a_duration_stops_itself(channel) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        arm.teach()
+        with pytest.raises(akarm.StateError, match="duration must be a positive"):
+            arm.start_recording(100, duration=0.0)
+        arm.start_recording(100, duration=0.3)
+        arm.sleep(0.2)
+        assert not arm.recording_finished
+        arm.sleep(0.3)  # well past the duration: no more samples are taken
+        assert arm.recording_finished
+        taught = arm.stop_recording()
+        assert len(taught.t) == 31 and taught.duration == pytest.approx(0.3, abs=1e-6)
+        assert not arm.recording_finished  # nothing is recording now
+        arm.end_teach()
+
+
+def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
+    from akarm.arm import _PathRecorder
+
+    rec = _PathRecorder(100.0, duration=0.1)
+    cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms
+    for now in cycles:
+        rec.sample(now, np.zeros(2))
+    # the 10 ms grid up to the stall; the first cycle after it stands for 60 ms (40 and 50 are lost,
+    # not sent in a burst), then the first cycle at or after each grid point, the last at 100 ms
+    assert np.allclose(rec.times, [0.0, 0.01, 0.02, 0.03, 0.0615, 0.0715, 0.0815, 0.0915, 0.1015])
+    assert rec.finished
+
+
 def test_check_replay_needs_no_enabled_arm(channel, tmp_path) -> None:
     """A recording can be validated before anything is enabled (the CLI does so before enabling)."""
     fast = sweep(duration=1.0, amp=(0.2, 1.2), period=(1.0, 0.5))

@@ -57,18 +57,18 @@ def _reader(stream: TextIO) -> queue.Queue[str | None]:
     return lines
 
 
-def _next_line(arm: Arm, lines: queue.Queue[str | None], until: float | None = None) -> tuple[bool, str | None]:
+def _next_line(arm: Arm, lines: queue.Queue[str | None], timed: bool = False) -> tuple[bool, str | None]:
     """Wait for a line while the arm keeps running (its safety stop is raised here).
 
-    Returns ``(True, line)`` (``line`` None at end of input), or ``(False, None)`` when the arm's
-    clock passed ``until``.
+    Returns ``(True, line)`` (``line`` None at end of input), or ``(False, None)`` when ``timed``
+    and the arm's recording has all the samples its duration asked for.
     """
     while True:
         try:
             return True, lines.get_nowait()
         except queue.Empty:
             pass
-        if until is not None and arm.clock.now() >= until:
+        if timed and arm.recording_finished:
             return False, None
         arm.sleep(0.02)
 
@@ -111,13 +111,12 @@ def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int
 def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
     from ..errors import AkarmError, StateError
 
-    until = arm.clock.now() + seconds if seconds is not None else None
-    arm.start_recording(rate)
+    arm.start_recording(rate, seconds)
     what = "Enter" + (f" or {seconds:g} s" if seconds is not None else "")
     print(f"teach: recording at {rate:g} Hz; move the arm by hand; {what} stops", file=sys.stderr, flush=True)
     code = 0
     try:
-        _next_line(arm, lines, until)
+        _next_line(arm, lines, timed=seconds is not None)
     except KeyboardInterrupt:
         code = 130
     except AkarmError:  # a safety stop: keep what was recorded up to it, then report the stop

@@ -132,8 +132,12 @@ class MitJoint(Joint):
         return self._msg(data)
 
     # -- feedback in --------------------------------------------------------------------------
-    def _unwrap(self, raw: float) -> float:
-        """Undo the reply's wrap at ±P_MAX by counting turns of the 2·P_MAX field."""
+    def handle_reply(self, data: bytes, now: float) -> None:
+        """Take a V1/V2 reply (6 or 8 bytes, standard frame)."""
+        r = self.codec.decode_reply(data)
+        # _update inlined (this runs for every joint every cycle), after undoing the reply's wrap at
+        # ±P_MAX by counting turns of the 2·P_MAX field
+        raw = r[1]
         last = self._last_raw
         if last is not None:
             if raw - last > self._p_max:
@@ -141,12 +145,14 @@ class MitJoint(Joint):
             elif last - raw > self._p_max:
                 self._turns += 1
         self._last_raw = raw
-        return raw + self._turns * 2.0 * self._p_max
-
-    def handle_reply(self, data: bytes, now: float) -> None:
-        """Take a V1/V2 reply (6 or 8 bytes, standard frame)."""
-        r = self.codec.decode_reply(data)
-        self._update(self._unwrap(r.position), r.velocity, r.torque, r.temperature, r.error, now)
+        d, s = self.direction, self.state
+        s.position = d * (raw + self._turns * 2.0 * self._p_max) + self.offset
+        s.velocity = d * r[2]
+        s.torque = d * r[3]
+        s.temperature = r[4]
+        s.error = r[5] or 0
+        s.stamp = now
+        self.frames_received += 1
 
     def handle_status(self, arbitration_id: int, data: bytes, now: float) -> None:
         """Take a V3 reply (a 0x29xx status frame)."""

@@ -178,12 +178,38 @@ class LoopStats:
         )
 
 
+class _SwitchInterval:
+    """The process's thread switch interval, shared by the loops running in it: while any runs it is
+    the smallest they asked for (never raised above what it was); the last to stop restores it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._wanted: dict[int, float] = {}
+        self._before = 0.0
+
+    def want(self, key: int, interval: float) -> None:
+        with self._lock:
+            if not self._wanted:
+                self._before = sys.getswitchinterval()
+            self._wanted[key] = interval
+            sys.setswitchinterval(min([self._before, *self._wanted.values()]))
+
+    def release(self, key: int) -> None:
+        with self._lock:
+            if self._wanted.pop(key, None) is None:
+                return
+            sys.setswitchinterval(min([self._before, *self._wanted.values()]))
+
+
+_switch_interval = _SwitchInterval()
+
+
 class ControlLoop:
     """Calls ``cycle(now, slot)`` at ``rate_hz`` on ``clock``.
 
-    With a real clock, starting the loop lowers the process's thread switch interval to a twentieth
-    of the period (``sys.setswitchinterval``, for the rest of the process's life): otherwise any
-    thread that computes in Python holds the interpreter lock for up to 5 ms when the loop wakes.
+    With a real clock, a running loop lowers the process's thread switch interval to a twentieth of
+    the period (``sys.setswitchinterval``; restored when the last loop stops): otherwise any thread
+    that computes in Python holds the interpreter lock for up to 5 ms when the loop wakes.
 
     ``cycle`` receives the clock time at which it started and the ring index for its stage timings
     (``loop.stats.stage[slot, k]``, s). It must not raise; if it does, the loop stops and calls
@@ -255,13 +281,13 @@ class ControlLoop:
         # a thread of the process holding the interpreter lock must give it up within a twentieth of
         # a period, not Python's default 5 ms (which would cost 2 cycles at 500 Hz)
         switch = max(20e-6, self.period / 20)
+        _switch_interval.want(id(self), switch)
         reports = []
         if self.cpu is not None:
             reports.append(pin_thread(self.cpu))
         if self.realtime_priority:
-            reports.append(request_realtime(switch_interval=switch))
-        elif switch < sys.getswitchinterval():
-            sys.setswitchinterval(switch)
+            reports.append(request_realtime())
+            reports.append(f"switch interval {sys.getswitchinterval() * 1e6:.0f} µs")
         if reports:
             self.realtime_report = "; ".join(reports)
         self._next = None
@@ -278,6 +304,8 @@ class ControlLoop:
                 self.on_crash(e)
             with self.cycled:
                 self.cycled.notify_all()
+        finally:
+            _switch_interval.release(id(self))
 
     def stop(self, timeout: float = 2.0) -> None:
         """Stop the loop thread (after its current cycle)."""

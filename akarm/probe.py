@@ -538,15 +538,19 @@ class Probe:
 
         t0 = time.monotonic()
         timeout = self.default_timeout() if timeout is None else timeout
+        answers = []  # the frame count each joint reaches once it has answered all it was sent
         for j in self.joints:
             j.state = JointState()
             if isinstance(j, MitJoint):
                 frames = [j.command(math.nan, 0.0, 0.0, 0.0, 0.0), *j.exit_frames()]
             else:
                 frames = [j.release()]  # type: ignore[attr-defined]
+            answers.append(j.frames_received + len(frames))
             for f in frames:
                 self.send(j, f)
-        self.pump(t0 + timeout, lambda: all(j.state.stamp > -math.inf for j in self.joints))
+        # an MIT driver answers every frame, EXIT too: returning on the first reply (to the
+        # zero-gain command) could leave a driver not yet out of motor mode
+        self.pump(t0 + timeout, lambda: all(j.frames_received >= n for j, n in zip(self.joints, answers, strict=True)))
         return [self._status(j, isinstance(j, MitJoint)) for j in self.joints]
 
 

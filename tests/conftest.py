@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 import os
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -25,6 +27,17 @@ def channel(request: pytest.FixtureRequest) -> str:
 def has_vcan(name: str = "vcan0") -> bool:
     """True when a SocketCAN interface ``name`` exists on this machine."""
     return Path(f"/sys/class/net/{name}").exists()
+
+
+def wait_until(cond: Callable[[], bool], timeout: float) -> bool:
+    """Poll ``cond`` every 5 ms for up to ``timeout`` s (simulators and CLIs run on threads of their
+    own: a test waits for what it checks, with a deadline, instead of sleeping a fixed time)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.005)
+    return bool(cond())
 
 
 def send(bus: can.BusABC, arbitration_id: int, data: bytes, extended: bool = False) -> None:

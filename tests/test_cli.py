@@ -34,7 +34,7 @@ from akarm.sim import SimulatedRobot, faults
 from akarm.telemetry import TelemetryLog
 from akarm.telemetry import load as load_telemetry
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, wait_until
 
 PLANAR2 = str(ROBOTS / "planar2.yaml")
 SERVO3 = str(ROBOTS / "servo3.yaml")
@@ -70,15 +70,6 @@ def in_thread(argv: list[str]) -> tuple[threading.Thread, list[int]]:
     th = threading.Thread(target=lambda: result.append(main(argv)), daemon=True)
     th.start()
     return th, result
-
-
-def wait_until(cond: Callable[[], bool], timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return False
 
 
 def interrupt_when(cond: Callable[[], bool], after: float = 0.0) -> threading.Thread:

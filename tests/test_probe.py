@@ -24,7 +24,7 @@ from akarm.probe import Probe, read_state, release, scan, zero
 from akarm.protocol import mit
 from akarm.sim import SimulatedRobot, faults
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, drain, wait_until
 
 HANGING = [-math.pi / 2, 0.0]
 
@@ -45,20 +45,25 @@ def simulated(cfg: RobotConfig, **kwargs) -> Iterator[SimulatedRobot]:
 
 @contextmanager
 def controller(channel: str, can_id: int, model: str, position: float) -> Iterator[None]:
-    """A stand-in for a running controller: ENTER, then a zero-gain command to ``can_id`` every 4 ms."""
-    stop = threading.Event()
+    """A stand-in for a running controller: ENTER, then a zero-gain command to ``can_id`` every 4 ms;
+    the block starts once the driver has answered a command."""
+    stop, answered = threading.Event(), threading.Event()
     codec = mit.codec(model)
 
     def run() -> None:
         with can.Bus(interface="virtual", channel=channel) as bus:
             bus.send(can.Message(arbitration_id=can_id, data=mit.ENTER, is_extended_id=False))
+            sent = False
             while not stop.wait(0.004):
+                if sent and any(m.dlc >= 6 and m.data[0] == can_id for m in drain(bus)):
+                    answered.set()
                 bus.send(can.Message(arbitration_id=can_id, is_extended_id=False,
                                      data=codec.encode_command(position, 0.0, 0.0, 0.0, 0.0)))
+                sent = True
 
     th = threading.Thread(target=run, daemon=True)
     th.start()
-    time.sleep(0.05)
+    assert answered.wait(5.0), "the simulated driver did not answer the stand-in controller"
     try:
         yield
     finally:
@@ -155,7 +160,7 @@ def test_read_state_reports_a_silent_joint_as_missing(channel: str) -> None:
         sim.inject("elbow", faults.Unplugged())
         t0 = time.monotonic()
         shoulder, elbow = read_state(cfg, timeout=0.4)
-        assert time.monotonic() - t0 < 1.0                    # waits its timeout, then reports it
+        assert time.monotonic() - t0 < 2.0                    # waits its timeout (not for ever), then reports it
     assert not shoulder.missing and shoulder.position is not None
     assert elbow.missing and elbow.position is None and elbow.velocity is None and elbow.fault is None
     assert elbow.as_dict()["missing"] is True and elbow.fault_text() == "-"
@@ -223,8 +228,8 @@ def test_release_disables_mit_joints_and_clears_their_stored_command(channel: st
             bus.send(can.Message(arbitration_id=1, is_extended_id=False,
                                  data=codec.encode_command(-math.pi / 2, 0.0, 5.0, 0.2, 0.0)))
             bus.send(can.Message(arbitration_id=2, data=mit.ENTER, is_extended_id=False))
-            time.sleep(0.05)
-        assert sim.joint("shoulder").enabled and sim.joint("shoulder").stored_command.kp == pytest.approx(5.0, 0.01)
+            assert wait_until(lambda: sim.joint("elbow").enabled
+                              and sim.joint("shoulder").stored_command.kp == pytest.approx(5.0, 0.01), 2.0)
         states = release(cfg)
         assert not any(d.enabled for d in sim.drivers)
         assert sim.joint("shoulder").stored_command.kp == 0.0    # the next ENTER cannot kick
@@ -235,10 +240,8 @@ def test_release_servo_sends_zero_current(channel: str) -> None:
     cfg = config_of("servo3", channel)
     with simulated(cfg) as sim:
         states = release(cfg)
-        deadline = time.monotonic() + 2.0          # the simulator takes in frames on its own threads
-        while any(d.control != "current" for d in sim.drivers) and time.monotonic() < deadline:
-            time.sleep(0.005)
-        assert [d.control for d in sim.drivers] == ["current"] * 3
+        # (the simulator takes in frames on its own threads)
+        assert wait_until(lambda: [d.control for d in sim.drivers] == ["current"] * 3, 2.0)
         assert np.allclose(sim.tau, 0.0, atol=1e-9)
     assert all(not s.missing for s in states)
 

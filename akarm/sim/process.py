@@ -80,18 +80,21 @@ class SimulatorProcess:
             # at once, while the child is still starting Python: the threads it starts later inherit it
             os.sched_setaffinity(self.proc.pid, self.cpus)
         seen: list[str] = []
-        ready = threading.Event()
+        done = threading.Event()  # "running" was printed, or the output ended without it
+        running = [False]
 
         def read() -> None:  # until "running" (and afterwards, so a full pipe never blocks it)
             for line in self.proc.stdout:  # type: ignore[union-attr]
-                if not ready.is_set():
+                if not done.is_set():
                     seen.append(line)
                     if line.startswith("running"):
-                        ready.set()
-            ready.set()
+                        running[0] = True
+                        done.set()
+            done.set()
 
         threading.Thread(target=read, name="akarm-sim-output", daemon=True).start()
-        if not ready.wait(self.start_timeout) or self.proc.poll() is not None:
+        # started only on its own word: a child that closed its output may not have exited yet
+        if not done.wait(self.start_timeout) or not running[0] or self.proc.poll() is not None:
             self.__exit__()
             raise StateError(f"the simulator did not start: {' '.join(self.command)}\n{''.join(seen[-20:])}",
                              fix="run that command yourself to see what is wrong")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -34,7 +35,7 @@ def test_realtime_answers_at_once_and_follows_the_wall_clock(channel: str) -> No
     with sim, can.Bus(interface="virtual", channel=f"{channel}-left") as left, \
             can.Bus(interface="virtual", channel=f"{channel}-right") as right:
         time.sleep(0.3)
-        assert 0.2 < sim.t < 0.3 + 0.1
+        assert 0.1 < sim.t < 0.3 + 0.1                      # (it may lag on a loaded machine, never lead)
         for bus in (left, right):
             t0 = time.perf_counter()
             send(bus, 2, mit.ENTER)
@@ -56,13 +57,18 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
     runner = threading.Thread(target=lambda: result.append(main(argv)))
     with can.Bus(interface="virtual", channel=channel) as bus:
         runner.start()
-        time.sleep(0.7)                                     # building the model takes a moment
         replies = {}
         for motor_id in (1, 2):
-            send(bus, motor_id, mit.ENTER)
-            msg = bus.recv(timeout=2.0)
-            assert msg is not None
-            replies[msg.data[0]] = msg
+            # ENTER until the driver answers: frames sent before the simulator has opened its bus
+            # (it builds the model first) are lost, as on a real bus with the power off
+            deadline = time.monotonic() + 10.0
+            while motor_id not in replies and time.monotonic() < deadline:
+                send(bus, motor_id, mit.ENTER)
+                msg = bus.recv(timeout=0.1)
+                while msg is not None and motor_id not in replies:
+                    replies.setdefault(msg.data[0], msg)
+                    msg = bus.recv(timeout=0.0)
+            assert motor_id in replies, f"motor {motor_id} never answered"
         runner.join(timeout=10.0)
     assert result == [0]
     assert replies[2].data[7] == 3 and replies[1].data[7] == 0
@@ -73,7 +79,8 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
     status = [line for line in out.splitlines() if line.startswith("t=")]
     assert len(status) == 1                                 # not a terminal: one line a second
     assert "shoulder" in status[0] and "rad" in status[0] and "Nm" in status[0] and "C " in status[0]
-    assert "akarm sim: stopped at t = 1.5" in out
+    stopped = re.search(r"akarm sim: stopped at t = ([0-9.]+)", out)
+    assert stopped and float(stopped.group(1)) == pytest.approx(1.5, abs=0.1)  # simulated time may lag
 
 
 def test_cli_missing_socketcan_bus_says_how_to_create_it(capsys: pytest.CaptureFixture[str]) -> None:

@@ -217,7 +217,7 @@ def test_status_lists_a_silent_joint_and_exits_1(channel: str, capsys: pytest.Ca
 def test_enable_holds_for_its_seconds_then_disables(channel: str, relaxed: str,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     with simulated(relaxed, channel, q0=[-1.2, 0.3]) as sim:  # gravity pulls both links away from here
-        th, result = in_thread(["enable", relaxed, *bus(channel), "--seconds", "0.8"])
+        th, result = in_thread(["enable", relaxed, *bus(channel), "--seconds", "1.5"])
         assert wait_until(lambda: sim.joint("shoulder").enabled, 5.0)
         held = sim.q
         time.sleep(0.5)
@@ -289,7 +289,7 @@ def test_move_to_values_holds_there_then_disables_and_logs(channel: str, relaxed
     target = np.array([-1.2, 0.4])
     log = tmp_path / "move.csv"
     with simulated(relaxed, channel, q0=HANGING) as sim:
-        th, result = in_thread(["move", relaxed, *bus(channel), "-1.2,0.4", "--hold", "0.8", "--log", str(log)])
+        th, result = in_thread(["move", relaxed, *bus(channel), "-1.2,0.4", "--hold", "1.5", "--log", str(log)])
         assert wait_until(lambda: np.allclose(sim.q, target, atol=0.01), 5.0)
         time.sleep(0.3)
         assert np.allclose(sim.q, target, atol=0.01)               # holding at the target, against gravity

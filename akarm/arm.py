@@ -31,7 +31,7 @@ import numpy as np
 
 from . import recording as rec_mod
 from . import units
-from .bus import open_bus
+from .bus import close_buses, open_bus
 from .clock import Clock, RealClock
 from .config import RobotConfig
 from .errors import (
@@ -345,10 +345,7 @@ class Arm:
                 self._can_logger = None
 
     def _close_buses(self) -> None:
-        for bus in self._buses.values():
-            with contextlib.suppress(Exception):  # closing must not mask the original error
-                bus.shutdown()  # type: ignore[attr-defined]
-        self._buses.clear()
+        close_buses(self._buses)  # type: ignore[arg-type]
         self._routers.clear()
 
     def __enter__(self) -> Arm:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import contextlib
+from collections.abc import Iterator, MutableMapping
 from typing import TYPE_CHECKING
 
 from .errors import BusError
@@ -12,7 +13,7 @@ if TYPE_CHECKING:
 
     from .config import BusConfig
 
-__all__ = ["drain", "how_to_create", "open_bus"]
+__all__ = ["close_buses", "drain", "how_to_create", "open_bus"]
 
 
 def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str:
@@ -50,6 +51,15 @@ def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusAB
             f"cannot open CAN bus {bus.name!r} ({bus.interface} channel {bus.channel!r}): {e}",
             fix=how_to_create(bus.interface, bus.channel, bus.bitrate),
         ) from None
+
+
+def close_buses(buses: MutableMapping[str, can.BusABC]) -> None:
+    """Shut down every bus in ``buses`` and empty it; a bus that fails to close is passed over, so
+    closing (often on the way out of an error) never raises and never masks the original error."""
+    for bus in buses.values():
+        with contextlib.suppress(Exception):
+            bus.shutdown()
+    buses.clear()
 
 
 def drain(bus: can.BusABC, limit: int = 1024) -> Iterator[can.Message]:

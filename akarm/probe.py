@@ -32,14 +32,13 @@ and offset); everything :func:`read_state` reports is joint side, converted by t
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from .bus import open_bus
+from .bus import close_buses, open_bus
 from .errors import AkarmError, BusError, StateError
 from .protocol import mit, servo
 
@@ -312,10 +311,7 @@ class Probe:
 
     def close(self) -> None:
         """Close the buses."""
-        for b in self._buses.values():
-            with contextlib.suppress(Exception):  # closing must not mask an error
-                b.shutdown()
-        self._buses.clear()
+        close_buses(self._buses)
 
     def __enter__(self) -> Probe:
         return self.open()

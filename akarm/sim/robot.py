@@ -20,7 +20,6 @@ slower than the wall clock) rather than bursting: :attr:`SimulatedRobot.slip` sa
 
 from __future__ import annotations
 
-import contextlib
 import heapq
 import itertools
 import math
@@ -31,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..bus import open_bus
+from ..bus import close_buses, open_bus
 from ..clock import RealClock, SteppedClock
 from ..errors import ConfigError, ConfigProblem, StateError
 from . import faults as _faults
@@ -181,10 +180,7 @@ class SimulatedRobot:
         self._shutdown_buses()
 
     def _shutdown_buses(self) -> None:
-        for bus in self._buses.values():
-            with contextlib.suppress(Exception):  # closing must not fail
-                bus.shutdown()
-        self._buses.clear()
+        close_buses(self._buses)
 
     def __enter__(self) -> SimulatedRobot:
         return self.start()

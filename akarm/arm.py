@@ -304,9 +304,13 @@ class Arm:
 
         Raises:
             BusError: a bus cannot be opened (the message says which, and how to create it).
+            StateError: an ``akarm serve`` of another process drives one of the buses.
         """
         if self._mode != "closed":
             return self
+        from .server.registry import refuse_if_served
+
+        refuse_if_served(self.config, "opening this Arm")  # akarm serve drives these buses: one controller only
         try:
             for name, bus_cfg in self.config.buses.items():
                 if any(b == name for b in self._bus_of):

@@ -60,6 +60,10 @@ def parse_target(text: str, joint_names: tuple[str, ...]) -> str | list[float]:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     import numpy as np
 
     from ..errors import AkarmError

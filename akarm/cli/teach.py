@@ -137,6 +137,10 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from ..errors import AkarmError
     from .common import controlled, deferred_sigint
 

@@ -8,3 +8,11 @@
 
 See ``docs/ros2.md``.
 """
+
+from ..errors import AkarmError
+
+try:
+    import cyclonedds  # noqa: F401
+except ImportError as e:  # pragma: no cover - depends on the install
+    raise AkarmError("ROS 2 interfaces need Cyclone DDS's Python binding, which is not installed",
+                     fix='pip install -e ".[ros]" (or pip install cyclonedds), or serve without ROS: --no-ros') from e

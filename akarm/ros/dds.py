@@ -21,16 +21,16 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import AkarmError
-from . import msgs  # noqa: F401  (raises a clear error when cyclonedds is missing)
+from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
 
-from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState  # noqa: E402, I001
-from cyclonedds.domain import DomainParticipant  # noqa: E402
-from cyclonedds.pub import DataWriter  # noqa: E402
-from cyclonedds.qos import Policy, Qos  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
-from cyclonedds.util import duration  # noqa: E402
+from ..errors import AkarmError
+from . import msgs
 
 __all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "service_topics",
            "topic_name"]
@@ -102,7 +102,8 @@ class Node:
 
     def __init__(self, domain: int = 0, namespace: str = "") -> None:
         if not 0 <= domain <= 232:
-            raise AkarmError(f"DDS domain {domain} is out of range", fix="use a domain ID from 0 to 232 (ROS_DOMAIN_ID)")
+            raise AkarmError(f"DDS domain {domain} is out of range",
+                             fix="use a domain ID from 0 to 232 (ROS_DOMAIN_ID)")
         self.domain = domain
         self.namespace = namespace.strip("/")
         ros_name(self.namespace, "x")  # validates the namespace

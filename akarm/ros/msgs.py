@@ -12,15 +12,9 @@ the ``.srv`` part: ``guid`` (uint64) and ``seq`` (int64); see ``docs/ros2.md``.
 # no `from __future__ import annotations`: cyclonedds reads the field types at run time
 from dataclasses import dataclass, field
 
-from ..errors import AkarmError
-
-try:
-    import cyclonedds.idl.annotations as annotate
-    from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl.types import byte, float64, int32, int64, sequence, uint8, uint32, uint64
-except ImportError as e:  # pragma: no cover - depends on the install
-    raise AkarmError("ROS 2 interfaces need Cyclone DDS's Python binding, which is not installed",
-                     fix='pip install -e ".[ros]" (or pip install cyclonedds)') from e
+import cyclonedds.idl.annotations as annotate
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import byte, float64, int32, int64, sequence, uint8, uint32, uint64
 
 __all__ = [
     "DiagnosticArray",
@@ -46,7 +40,7 @@ class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
     @classmethod
     def from_seconds(cls, t: float) -> "Time":
         """Seconds (e.g. ``time.time()``) as a Time."""
-        ns = int(round(t * 1e9))
+        ns = round(t * 1e9)
         return cls(ns // 1_000_000_000, ns % 1_000_000_000)
 
     def seconds(self) -> float:

@@ -1,0 +1,145 @@
+"""Which ``akarm serve`` controls which CAN bus on this machine.
+
+A server holds an exclusive ``flock`` on one file per bus it drives
+(``$XDG_RUNTIME_DIR/akarm/serve-INTERFACE-CHANNEL.lock``, else ``/tmp/akarm-UID/...``), and writes
+into it who it is (pid, robot, control socket, DDS domain and namespace). The kernel drops the lock
+when the process ends, however it ends, so a lock is never stale. A second server for the same bus
+is refused; a CLI verb finds the server and talks to it instead of opening the bus itself.
+
+Buses of the ``virtual`` interface live inside one process and are never locked.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import re
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..errors import StateError
+
+if TYPE_CHECKING:
+    from ..config import RobotConfig
+
+__all__ = ["BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir"]
+
+_LOCAL_ONLY = {"virtual"}  # interfaces whose buses no other process can see
+
+
+def runtime_dir() -> Path:
+    """The per-user directory for lock files and control sockets (created, mode 700)."""
+    base = os.environ.get("XDG_RUNTIME_DIR")
+    path = Path(base) / "akarm" if base and Path(base).is_dir() else Path(f"/tmp/akarm-{os.getuid()}")
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    return path
+
+
+def bus_keys(config: RobotConfig) -> list[str]:
+    """One name per bus the robot's joints use and another process could share: ``akarm_local-can0``."""
+    used = {j.bus for j in config.joints}
+    keys = []
+    for name, bus in config.buses.items():
+        if name in used and bus.interface not in _LOCAL_ONLY:
+            keys.append(re.sub(r"[^A-Za-z0-9_.-]", "_", f"{bus.interface}-{bus.channel}"))
+    return sorted(keys)
+
+
+def _lock_path(key: str) -> Path:
+    return runtime_dir() / f"serve-{key}.lock"
+
+
+class BusLock:
+    """The exclusive claim of a server on its robot's buses, for as long as it is held.
+
+    Raises:
+        StateError: another process already holds one of the buses (names it and its pid).
+    """
+
+    def __init__(self, config: RobotConfig, info: dict[str, Any]) -> None:
+        self.keys = bus_keys(config)
+        self._fds: list[int] = []
+        payload = json.dumps({**info, "pid": os.getpid()}).encode()
+        try:
+            for key in self.keys:
+                fd = os.open(_lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    os.close(fd)
+                    other = _read(key)
+                    who = f"akarm serve (pid {other.get('pid', '?')}, {other.get('robot', '?')})" if other else \
+                        "another akarm serve"
+                    raise StateError(f"{who} already controls the bus {key}; two controllers on one bus are refused",
+                                     fix="use that server (the CLI verbs talk to it), or stop it first") from None
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, payload, 0)
+                self._fds.append(fd)
+        except BaseException:
+            self.release()
+            raise
+
+    def release(self) -> None:
+        """Give the buses up (the files stay; an unlocked file means no server)."""
+        fds, self._fds = self._fds, []
+        for fd in fds:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, 0)
+            os.close(fd)  # closing drops the flock
+
+
+def _read(key: str) -> dict[str, Any] | None:
+    try:
+        text = _lock_path(key).read_text()
+        return json.loads(text) if text else None
+    except (OSError, ValueError):
+        return None
+
+
+def _held(key: str) -> bool:
+    path = _lock_path(key)
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
+def any_server() -> bool:
+    """True when some ``akarm serve`` of this user runs on this machine (cheap: no config needed)."""
+    return any(_held(p.name[len("serve-"):-len(".lock")]) for p in runtime_dir().glob("serve-*.lock"))
+
+
+def find_server(config: RobotConfig, wait: float = 1.0) -> dict[str, Any] | None:
+    """The running server (its info: pid, robot, socket, domain, namespace) that controls one of
+    ``config``'s buses, or ``None``. A server of this very process does not count."""
+    for key in bus_keys(config):
+        if not _held(key):
+            continue
+        end = time.monotonic() + wait
+        info = _read(key)
+        while info is None and time.monotonic() < end:  # a server that is writing who it is
+            time.sleep(0.02)
+            info = _read(key)
+        if info is not None and info.get("pid") == os.getpid():
+            continue
+        return info or {"pid": None, "bus": key}
+    return None
+
+
+def refuse_if_served(config: RobotConfig, what: str = "this") -> None:
+    """Raise :class:`~akarm.StateError` when an ``akarm serve`` of another process drives one of the buses."""
+    info = find_server(config)
+    if info is not None:
+        raise StateError(f"akarm serve (pid {info.get('pid')}, {info.get('robot', '?')}) controls this robot's bus; "
+                         f"{what} would be a second controller on it",
+                         fix="stop the server first (Ctrl-C or kill -TERM), or let it do this (akarm CLI verbs use it)")

@@ -12,6 +12,16 @@ import can
 import pytest
 
 from akarm.bus import drain as _drain
+from akarm.errors import AkarmError
+
+# DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
+# test runs see nothing but their own participants (each also uses a domain and namespace of its own)
+try:
+    from akarm.ros.dds import LOOPBACK_CONFIG
+
+    os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG
+except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
+    pass
 
 ROOT = Path(__file__).resolve().parent.parent
 ROBOTS = ROOT / "robots"

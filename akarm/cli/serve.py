@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics and services")
     parser.add_argument("--joint-states-hz", type=float, metavar="HZ",
                         help="joint_states rate (default: the loop rate divided by round(rate/100), ~100 Hz)")
+    parser.add_argument("--feedback-timeout", type=float, metavar="S",
+                        help="watchdog: stop the arm when a joint's feedback is older (default 0.02; a joint's own "
+                             "feedback_timeout in the YAML wins)")
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
 
@@ -40,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     from .common import format_q
 
     config = load_from_args(args)
-    server = ArmServer(Arm(config), domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
+    arm = Arm(config) if args.feedback_timeout is None else Arm(config, feedback_timeout=args.feedback_timeout)
+    server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
                        joint_states_hz=args.joint_states_hz)
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,

@@ -92,8 +92,8 @@ def test_trigger_request_and_reply_carry_the_rmw_cyclonedds_header_then_the_srv_
     # reply part is registered from its definition
     store = rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_HUMBLE)
     store.register(rosbags_typesys.get_types_from_msg("bool success\nstring message\n",
-                                                      "std_srvs/srv/Trigger_Response"))
-    theirs = store.deserialize_cdr(bytes([0, 1, 0, 0]) + body[16:], "std_srvs/srv/Trigger_Response")
+                                                      "std_srvs/msg/Trigger_Response"))
+    theirs = store.deserialize_cdr(bytes([0, 1, 0, 0]) + body[16:], "std_srvs/msg/Trigger_Response")
     assert theirs.success is True and theirs.message == "ok"
 
 

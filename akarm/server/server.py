@@ -111,6 +111,7 @@ class ArmServer:
             if self._enable_at_start:
                 self.arm.enable()
             self._control = ControlServer(self.socket_path, self.dispatch)
+            threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
             if self.ros:
                 from ..ros.node import RosNode
 
@@ -141,6 +142,16 @@ class ArmServer:
             if self._lock is not None:
                 self._lock.release()
                 self._lock = None
+
+    def _report_faults(self) -> None:
+        """Say so when the arm stops for safety (it is then damped and disabled; the server goes on)."""
+        reported = None
+        while not self._stop.wait(0.1):
+            fault = self.arm.fault
+            if fault is not None and fault is not reported:
+                self.log(f"akarm serve: safety stop: {fault}; enable the arm again with akarm enable or the "
+                         "akarm/enable service")
+            reported = fault
 
     def __enter__(self) -> ArmServer:
         return self.start()

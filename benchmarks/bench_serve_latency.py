@@ -31,12 +31,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from cyclonedds.core import ReadCondition, WaitSet  # noqa: E402
+
 from akarm.config_loader import load_robot  # noqa: E402
 from akarm.protocol import mit  # noqa: E402
 from akarm.ros import dds, msgs  # noqa: E402
 from akarm.sim.process import SimulatorProcess  # noqa: E402
-
-from cyclonedds.core import ReadCondition, WaitSet  # noqa: E402, I001
 
 
 def percentiles(x: list[float]) -> str:
@@ -166,7 +166,8 @@ def main() -> None:
             to_frame.append(tt[hit[0]] - p)
     # -- reply → joint_states ----------------------------------------------------------------------
     replies = [(m.timestamp, mit.decode_reply(j0.motor, bytes(m.data))) for m in frames.frames
-               if not m.is_extended_id and m.arbitration_id == j0.reply_id and len(m.data) >= 6 and m.data[0] == j0.can_id]
+               if not m.is_extended_id and m.arbitration_id == j0.reply_id and len(m.data) >= 6
+               and m.data[0] == j0.can_id]
     rt = np.array([r[0] for r in replies])
     rq = np.array([j0.direction * r[1].position + j0.offset for r in replies])
     to_states = []

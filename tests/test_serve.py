@@ -31,7 +31,7 @@ from akarm.protocol import mit  # noqa: E402
 from akarm.ros import dds, msgs  # noqa: E402
 from akarm.sim.process import SimulatorProcess  # noqa: E402
 
-from .conftest import ROBOTS  # noqa: E402
+from .conftest import ROBOTS, ROOT  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -219,7 +219,7 @@ def test_three_cli_moves_arrive_and_the_arm_does_not_sag_between_them(served):
         time.sleep(0.7)  # the gap before the next command: a limp arm6 falls here
         t, q = w.q(since=done)
         assert len(t) > 20
-        assert np.max(np.abs(q - target)) < 5e-3, f"sagged after {pose}"
+        assert np.max(np.abs(q - target)) < 5e-3, f"sagged after {pose}; server:\n{''.join(served.server.lines)}"
     status = cli("status", *bus_args(served))
     assert "held by akarm serve" in status.stdout and "shoulder_lift" in status.stdout
 
@@ -352,3 +352,15 @@ def test_sigterm_ends_in_damping_then_exit_and_status_0(served):
         assert damping, f"joint {can_id}: damped (kp = 0, kd > 0) before exit"
         first_damped = next(i for i, c in enumerate(cmds) if c.kp == 0.0)
         assert all(c.kp == 0.0 for c in cmds[first_damped:]), "no stiffness once damping began"
+
+
+def test_the_readme_serve_commands_are_the_ones_tested_here():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    # Served runs this serve command (on a channel, domain and namespace of this run's own); the
+    # tests above run these moves and status through it
+    for cmd in (".venv/bin/akarm serve robots/arm6.yaml -i akarm_local -c can0 --namespace arm6",
+                ".venv/bin/akarm move robots/arm6.yaml ready -i akarm_local -c can0",
+                ".venv/bin/akarm move robots/arm6.yaml home -i akarm_local -c can0",
+                ".venv/bin/akarm status robots/arm6.yaml -i akarm_local -c can0"):
+        assert cmd in readme
+    assert Served("can0", "arm6").command[3:10] == ["serve", str(ARM6), "-i", "akarm_local", "-c", "can0", "--domain"]

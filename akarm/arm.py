@@ -410,6 +410,11 @@ class Arm:
             self._loop.wait_cycle(0.1)
 
     @property
+    def is_open(self) -> bool:
+        """True between :meth:`open` and :meth:`close`."""
+        return self._mode != "closed"
+
+    @property
     def enabled(self) -> bool:
         """True while the arm is enabled and tracking."""
         return self._mode == "active"

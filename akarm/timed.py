@@ -19,7 +19,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import ruckig
 
 from .errors import LimitError
 from .trajectory import Plan, Planner, Segment
@@ -27,20 +26,6 @@ from .trajectory import Plan, Planner, Segment
 __all__ = ["timed_plan"]
 
 _VIA_FACTORS = (1.0, 0.5, 0.0)  # pass-through velocities tried, as fractions of the estimate
-
-
-def _segment(planner: Planner, start, target: np.ndarray, velocity: np.ndarray, t0: float,
-             min_duration: float) -> Segment:
-    planner.limits.check_position(target)
-    inp = planner._input(planner.limits, *start)
-    inp.target_position = [float(x) for x in target]
-    inp.target_velocity = [float(x) for x in velocity]
-    inp.target_acceleration = [0.0] * planner.dofs
-    if min_duration > 0.0:
-        inp.minimum_duration = float(min_duration)
-    seg = planner._calculate(inp, t0)
-    planner.check_extrema(seg)
-    return seg
 
 
 def _vias(times: np.ndarray, q: np.ndarray, q0: np.ndarray, vmax: np.ndarray) -> np.ndarray:
@@ -109,14 +94,12 @@ def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], 
             state = start
             t = t0
             for k in range(len(q)):
-                seg = _segment(planner, state, q[k], via[k], t, (t0 + ts[k]) - t)
+                seg = planner.move(state, q[k], t, target_velocity=via[k], min_duration=(t0 + ts[k]) - t)
                 segs.append(seg)
                 t += seg.duration
                 state = seg.end
             return Plan(segs, waypoints=len(q))
         except LimitError as e:  # a pass-through velocity carried the path past a limit: slower through points
             error = e
-        except ruckig.RuckigError as e:  # pragma: no cover - _calculate translates these
-            raise LimitError(str(e)) from None
     assert error is not None
     raise error

@@ -105,17 +105,18 @@ class ArmServer:
                                                "socket": str(self.socket_path), "domain": self.domain,
                                                "namespace": self.namespace})
         try:
-            if self.arm._mode == "closed":
+            if self.ros:  # first: a missing extra or a bad domain or namespace is said before anything is enabled
+                from ..ros.node import RosNode
+
+                self._node = RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
+            if not self.arm.is_open:
                 self.arm.open()
                 self._opened_arm = True
             if self._enable_at_start:
                 self.arm.enable()
             self._control = ControlServer(self.socket_path, self.dispatch)
             threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
-            if self.ros:
-                from ..ros.node import RosNode
-
-                self._node = RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
+            if self._node is not None:
                 self._node.start()
         except BaseException:
             self.stop()
@@ -233,7 +234,7 @@ class ArmServer:
         if self._teaching:
             raise StateError("the arm is in teach mode", fix="end teaching first (akarm/hold, or finish akarm teach)")
         if not self.arm.enabled:
-            self.arm._raise_fault()
+            self._raise_fault()
             raise StateError("the arm is disabled", fix="enable it first (akarm enable, or the akarm/enable service)")
 
     def _register(self, motion: Motion) -> int:
@@ -351,15 +352,19 @@ class ArmServer:
             self.arm.teach(damping)
             self._teaching = True
 
+    def _raise_fault(self) -> None:
+        if self.arm.fault is not None:
+            raise self.arm.fault
+
     def _op_keyframe(self, name: str | None = None) -> list[float]:
-        self.arm._raise_fault()
+        self._raise_fault()
         return list(self.arm.keyframe(name).q)
 
     def _op_start_recording(self, rate: float, seconds: float | None = None) -> None:
         self.arm.start_recording(rate, seconds)
 
     def _op_recording_finished(self) -> bool:
-        self.arm._raise_fault()
+        self._raise_fault()
         return self.arm.recording_finished
 
     def _op_stop_recording(self) -> dict[str, Any]:

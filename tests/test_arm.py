@@ -393,8 +393,9 @@ def test_torque_control_with_gains_off_and_extra_torque(channel) -> None:
         arm.sleep(0.3)
         assert still < 0.01 and sim.q[1] > 0.05
         arm.set_extra_torque(None)
-        with pytest.raises(LimitError, match="kp must be within 0-500"):
+        with pytest.raises(LimitError, match="kp 600 is outside the motor's range 0-500") as info:
             arm.set_gains(kp=600)
+        assert info.value.joint == "shoulder"
         with pytest.raises(LimitError, match="extra torque needs 2"):
             arm.set_extra_torque([1.0])
 

@@ -299,7 +299,7 @@ def test_rogue_exit_disables_the_driver_seen_or_unseen(rig: tuple[SimulatedRobot
     frames = drain(bus)
     assert not drv.enabled
     if on_bus:  # the EXIT on the shoulder's command ID, and the driver's answer to it
-        assert [(f.arbitration_id, bytes(f.data)) for f in frames][0] == (SHOULDER, mit.EXIT)
+        assert (frames[0].arbitration_id, bytes(frames[0].data)) == (SHOULDER, mit.EXIT)
         assert frames[1].arbitration_id == 0 and frames[1].data[0] == SHOULDER
     else:
         assert frames == []

@@ -199,6 +199,8 @@ class Controller:
         self.kp = np.array([j.gains.kp for j in config.joints])
         self.kd = np.array([j.gains.kd for j in config.joints])
         self._mit = [j.answers_commands for j in joints]
+        self._t_max = [j.motor.t_max * 0.999 if j.answers_commands else math.inf for j in joints]
+        self._saturated = [False] * n
         fr = [j.friction_model() for j in config.joints]
         on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
         self.ff = FeedForward(model, feedforward, [f.coulomb * on for f in fr], [f.viscous * on for f in fr],
@@ -594,15 +596,14 @@ class Controller:
             return
         with self.lock:
             self.lost[name] = error
-            self._live = [x for x in self._live if x[0] != name]
+            self._live = [x for x in self._live if x[0] != name]  # sends go on being tried: damping, exit
             on_it = [j for j in self.joints if j.bus == name]
-            for j in on_it:
-                self._bus_of[j.index] = None
             cfg = self.config.buses[name]
             stop = BusLost(
                 f"bus {name!r} ({cfg.interface} channel {cfg.channel!r}) failed: {error or type(error).__name__}; "
-                f"{', '.join(j.name for j in on_it)} could not be damped or disabled (a MIT driver keeps its last "
-                "command until its CAN timeout, if it has one); the other joints were", bus=name,
+                f"{', '.join(j.name for j in on_it)} may not have been damped or disabled (the frames were tried; a "
+                "MIT driver keeps its last command until its CAN timeout, if it has one); the other joints were",
+                bus=name,
                 fix="cut the motors' power (e-stop) if they are still holding; check the adapter, cable and "
                     "interface (ip link), then close the arm and open it again")
             stop.at = now
@@ -637,7 +638,7 @@ class Controller:
         qd = q_d.tolist()
         t2 = pc()
         stage[1] = t2 - t1
-        stop = self.supervisor.check(now, qd, self._tracking)
+        stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
         t3 = pc()
         stage[2] = t3 - t2
         if stop is not None:
@@ -655,10 +656,15 @@ class Controller:
         if self.gain_scale < 1.0:
             self.gain_scale = min(1.0, (now - self._t_active) / self.enable_ramp) if self.enable_ramp > 0 else 1.0
         g = self.gain_scale
-        kp, kd = self._kp_list, self._kd_list
+        kp, kd, tmax, sat = self._kp_list, self._kd_list, self._t_max, self._saturated
         vd = dq_d.tolist()
         for i, j in enumerate(js):
-            self._send(j, j.track(qd[i], vd[i], kp[i] * g, kd[i], ff[i]))
+            k = kp[i] * g
+            self._send(j, j.track(qd[i], vd[i], k, kd[i], ff[i]))
+            # what the firmware will apply (before its clamp): saturated, the motor has no authority left
+            s = j.state
+            tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
+            sat[i] = tau >= tmax[i] or tau <= -tmax[i]
         t5 = pc()
         stage[4] = t5 - t4
         self._record(now, qd, vd, ff)

@@ -19,9 +19,11 @@ Checks, per joint, in order (the first that fires is the stop):
 4. **Feedback age** over the joint's feedback timeout. → :class:`~akarm.FeedbackTimeout`.
 5. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 6. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
-   minus the measured position over the joint's limit for three cycles in a row; or a reading that
-   repeats while the command has moved on by more than ``stuck_travel`` (a frozen encoder or a
-   blocked joint: a moving joint's reading changes every step of its 16-bit field). →
+   minus the measured position over the joint's limit for three cycles in a row; or a command
+   saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
+   ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
+   reading that repeats while the command has moved on by more than ``stuck_travel`` (a frozen
+   encoder or a blocked joint: a moving joint's reading changes every step of its 16-bit field). →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -55,6 +57,8 @@ __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_trav
 FOLLOWING_CYCLES = 3
 #: s between the comparisons of replies received with frames sent (the duplicate-responder check).
 REPLY_WINDOW = 1.0
+#: s a joint's command may stay at the motor's torque range while the joint is off its target.
+SATURATION_TIME = 0.1
 
 _FIX_FOREIGN = ("stop the other program (akarm disable or akarm status from another terminal count too), or give "
                 "each motor its own CAN ID; then enable again")
@@ -132,6 +136,7 @@ class Supervisor:
         self.armed_at = math.inf
         self._answering = [i for i, j in enumerate(self.joints) if j.answers_commands]
         self._over = [0] * n
+        self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
         self._last_stamp = [-math.inf] * n
         self._last_value = [math.nan] * n
@@ -157,6 +162,7 @@ class Supervisor:
         self.armed_at = now
         n = len(self.joints)
         self._over = [0] * n
+        self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
         self._window_end = now + REPLY_WINDOW
         self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
@@ -174,8 +180,8 @@ class Supervisor:
         return None
 
     # ------------------------------------------------------------------------------------------
-    def check(self, now: float, q_des: Sequence[float] | None = None,
-              tracking: Sequence[bool] | None = None) -> SafetyStop | None:
+    def check(self, now: float, q_des: Sequence[float] | None = None, tracking: Sequence[bool] | None = None,
+              saturated: Sequence[bool] | None = None) -> SafetyStop | None:
         """The stop the arm needs now, or ``None``.
 
         Args:
@@ -183,10 +189,12 @@ class Supervisor:
             q_des: the commanded positions this cycle (rad, config order); ``None`` skips the
                 following-error checks (teach mode, enabling).
             tracking: per joint, whether it is held at ``q_des`` (MIT with kp > 0, servo).
+            saturated: per joint, whether its last command asked for the motor's whole torque range
+                (stiffness, damping and feed-forward together); ``None``: unknown.
         """
         stop = self._check_joints(now)
         if stop is None and q_des is not None and tracking is not None:
-            stop = self._check_following(now, q_des, tracking)
+            stop = self._check_following(now, q_des, tracking, saturated)
         if stop is None and now >= self._window_end:
             stop = self._check_replies(now)
         if stop is not None:
@@ -226,14 +234,16 @@ class Supervisor:
                     fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML")
         return None
 
-    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool]) -> SafetyStop | None:
-        over, tracked = self._over, self._tracked
+    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],
+                         saturated: Sequence[bool] | None) -> SafetyStop | None:
+        over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
         for i, j in enumerate(self.joints):
             qd = q_des[i]
             if not tracking[i]:
                 tracked[i] = False
                 over[i] = 0
+                sat_since[i] = math.inf
                 continue
             s = j.state
             q = s.position
@@ -254,6 +264,19 @@ class Supervisor:
                             "following_error in the YAML only if the arm is sound")
             else:
                 over[i] = 0
+            if saturated is not None and saturated[i] and (e > self._stuck[i] or e < -self._stuck[i]):
+                if sat_since[i] == math.inf:
+                    sat_since[i] = now
+                elif now - sat_since[i] >= SATURATION_TIME:
+                    return TrackingError(
+                        f"its motor has been at the end of its torque range for {(now - sat_since[i]) * 1e3:.0f} ms "
+                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {self._stuck[i] * 1e3:.0f} "
+                        "mrad): the motor cannot hold or move the arm; the arm was damped and disabled",
+                        error=e, limit=self._stuck[i], joint=j.name,
+                        fix="a motor too small for the load (akarm check shows the gravity torque per joint), a "
+                            "payload heavier than configured, or a joint pressing on an obstacle")
+            else:
+                sat_since[i] = math.inf
             if s.stamp != last_stamp[i]:  # a new reading
                 last_stamp[i] = s.stamp
                 if q != last_value[i]:

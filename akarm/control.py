@@ -391,12 +391,9 @@ class Controller:
                           raise_fault=False)
         with self.lock:
             now = self.clock.now()
-            other = self.supervisor.foreign_since(now - _FOREIGN_RECENT)
-            if other is not None:
-                j, kind = other
-                raise ForeignTraffic(f"another program sent it a frame ({kind}) {now - j.foreign_at:.2f} s ago: "
-                                     "two controllers on one bus; nothing was enabled", kind=kind, joint=j.name,
-                                     fix="stop the other controller (or akarm serve) first, or use it instead")
+            refused = self._refuse_foreign(now, now - _FOREIGN_RECENT)
+            if refused is not None:
+                raise refused
             self.fault = None
             self.enable_error = None
             for j in self.joints:
@@ -417,6 +414,18 @@ class Controller:
             self.loop.wait_cycle(0.1)  # type: ignore[union-attr]  # deliver the exit frames
             raise self.enable_error
         self.wait_for(lambda: self.gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
+
+    def _refuse_foreign(self, now: float, since: float) -> ForeignTraffic | None:
+        """The error refusing an enable when another node sent our joints frames since ``since`` (s)."""
+        other = self.supervisor.foreign_since(since)
+        if other is None:
+            return None
+        j, kind = other
+        error = ForeignTraffic(f"another program sent it a frame ({kind}) {max(0.0, now - j.foreign_at):.2f} s ago: "
+                               "two controllers on one bus; nothing was enabled", kind=kind, joint=j.name,
+                               fix="stop the other controller (or akarm serve) first, or use it instead")
+        error.at = now
+        return error
 
     def begin_stop(self, fault: SafetyStop | None = None) -> None:
         """Start damping, then exit (caller holds the lock or is the loop)."""
@@ -729,11 +738,9 @@ class Controller:
 
     def _make_contact(self, en: _Enabling, now: float) -> None:
         js = self.joints
-        other = self.supervisor.foreign_since(en.t0 - _FOREIGN_RECENT)
-        if other is not None:  # before anything is sent: another controller must not lose its arm to us
-            stop = self.supervisor.foreign_stop(*other)
-            stop.at = now
-            self._enable_failed(stop, release=en.entered)
+        refused = self._refuse_foreign(now, en.t0 - _FOREIGN_RECENT)
+        if refused is not None:  # before anything is sent: another controller must not lose its arm to us
+            self._enable_failed(refused, release=en.entered)
             return
         if not en.entered:
             for j in js:

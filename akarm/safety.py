@@ -15,7 +15,9 @@ Checks, per joint, in order (the first that fires is the stop):
 2. **Motor error code** reported by the driver. → :class:`~akarm.MotorFault`.
 3. **Implausible feedback**: the joint rejects a reply whose position it cannot have reached since
    the last good one (the gate in :mod:`akarm.joints`); ``implausible_limit`` in a row stop the
-   arm. → :class:`~akarm.ImplausibleFeedback`.
+   arm, and so do :data:`IMPLAUSIBLE_PER_WINDOW` in one :data:`REPLY_WINDOW` between good ones (CAN's
+   own CRC makes a corrupt frame rare: these come from another node). →
+   :class:`~akarm.ImplausibleFeedback`.
 4. **Feedback age** over the joint's feedback timeout. → :class:`~akarm.FeedbackTimeout`.
 5. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 6. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
@@ -57,6 +59,8 @@ __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_trav
 FOLLOWING_CYCLES = 3
 #: s between the comparisons of replies received with frames sent (the duplicate-responder check).
 REPLY_WINDOW = 1.0
+#: Rejected replies of one joint within a REPLY_WINDOW that stop the arm, even between good ones.
+IMPLAUSIBLE_PER_WINDOW = 10
 #: s a joint's command may stay at the motor's torque range while the joint is off its target.
 SATURATION_TIME = 0.1
 
@@ -143,6 +147,7 @@ class Supervisor:
         self._des_at_value = [0.0] * n
         self._window_end = math.inf
         self._window_start: list[tuple[int, int]] = []
+        self._rejected_start = [0] * n
         self._refresh()
 
     def _refresh(self) -> None:
@@ -166,6 +171,7 @@ class Supervisor:
         self._tracked = [False] * n
         self._window_end = now + REPLY_WINDOW
         self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
 
     def disarm(self) -> None:
         """The arm is no longer powered: nothing is checked until :meth:`arm`."""
@@ -212,13 +218,15 @@ class Supervisor:
                 desc, remedy = describe_error(s.error)
                 return MotorFault(f"motor reports error {s.error} ({desc}); the arm was damped and disabled",
                                   code=s.error, joint=j.name, fix=remedy)
-            if j.rejected_run >= limit:
+            run = j.rejected_peak
+            j.rejected_peak = j.rejected_run
+            if run >= limit:
                 step = abs(j.last_rejected - s.position)
                 return ImplausibleFeedback(
-                    f"{j.rejected_run} replies in a row claimed positions it cannot have reached (the last "
+                    f"{run} replies in a row claimed positions it cannot have reached (the last "
                     f"{j.last_rejected:+.4f} rad, {step:.3f} rad from the last good reading {s.position:+.4f} rad; "
                     f"at most {j.max_speed:.1f} rad/s is possible); the arm was damped and disabled",
-                    value=j.last_rejected, limit=j.max_speed, count=j.rejected_run, joint=j.name,
+                    value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
             age = now - s.stamp
@@ -293,7 +301,16 @@ class Supervisor:
         return None
 
     def _check_replies(self, now: float) -> SafetyStop | None:
-        """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID."""
+        """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID,
+        and one that rejected many replies hears another node."""
+        for j, r0 in zip(self.joints, self._rejected_start, strict=True):
+            if j.rejected - r0 >= IMPLAUSIBLE_PER_WINDOW:
+                return ImplausibleFeedback(
+                    f"{j.rejected - r0} replies in {REPLY_WINDOW:g} s claimed positions it cannot have reached (the "
+                    f"last {j.last_rejected:+.4f} rad; the arm was at {j.state.position:+.4f} rad); the arm was damped "
+                    "and disabled", value=j.last_rejected, limit=j.max_speed, count=j.rejected - r0, joint=j.name,
+                    fix="another node sends replies with this driver ID: find it (candump), or give the motors "
+                        "distinct IDs")
         for k, i in enumerate(self._answering):
             j = self.joints[i]
             r0, s0 = self._window_start[k]
@@ -302,6 +319,7 @@ class Supervisor:
                 return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s")
         self._window_end = now + REPLY_WINDOW
         self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
         return None
 
     @staticmethod

@@ -159,10 +159,14 @@ class SimulatedRobot:
         try:
             for name, bus_cfg in self.config.buses.items():
                 bus = self._buses[name] = open_bus(bus_cfg)
-                # take in only what the drivers listen to (in the kernel on socketcan): a simulator
-                # that read every frame of a busy bus could fall behind and lose the ones it needs
-                bus.set_filters([{"can_id": aid, "can_mask": 0x1FFFFFFF if ext else 0x7FF, "extended": ext}
-                                 for (aid, ext) in self._routes.get(name, {})])
+                # real time: take in only what the drivers listen to (in the kernel on socketcan): a
+                # simulator that read every frame of a busy bus could fall behind and lose the ones it
+                # needs. Not in lock step: python-can filters in software there, and recv(0) returns
+                # None at a frame it filters out with more behind it, which would leave commands
+                # waiting a cycle behind another node's traffic (_dispatch ignores frames for no one).
+                if self.realtime:
+                    bus.set_filters([{"can_id": aid, "can_mask": 0x1FFFFFFF if ext else 0x7FF, "extended": ext}
+                                     for (aid, ext) in self._routes.get(name, {})])
         except BaseException:
             self._shutdown_buses()
             raise

@@ -559,6 +559,20 @@ def test_a_signal_while_teaching_keeps_the_recording_damps_and_exits(sig: int, l
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name)
+def test_a_signal_to_enable_damps_and_exits(sig: int, local_robot: Path, channel: str) -> None:
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        proc = _start(["enable", str(local_robot), "-i", "akarm_local", "-c", channel])
+        _wait_for_line(proc.stdout, "enabled planar2")
+        time.sleep(0.2)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=30)
+        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+    assert proc.returncode in (0, 128 + sig), err  # 0 once Ctrl-C (and its kin) is enable's documented end
+    assert "Traceback" not in err
+    damping_then_exit(wire, cfg)
+
+
 def test_teach_into_a_directory_is_refused_before_anything_is_enabled(local_robot: Path, channel: str,
                                                                       tmp_path: Path) -> None:
     out = tmp_path / "path.csv"

@@ -5,10 +5,11 @@
 
 The simulator runs in a process of its own (``akarm sim`` on ``akarm_local``), as a real arm's
 drivers are hardware of their own; the Arm is built with every default (20 ms feedback timeout,
-derived following-error limits, settle guard ...). It moves between random targets inside the
-joint ranges (seeded), at random speeds from 0.3 to 1.0, with full-speed moves between named poses
-mixed in, until the time is up. A safety stop is counted, reported and the arm enabled again: the
-goal is zero. Printed every minute and at the end: moves, stops, the loop's missed slots and late
+derived following-error limits, settle guard ...). It works as an arm at a cell does, until the time
+is up: moves to random targets in its workspace (a random blend of its named poses ready, reach,
+home and left, plus up to ±0.15 rad per joint; seeded) at random speeds from 0.5 to 1.0, with a
+full-speed move to a named pose every fourth move and a short pause at each target. A safety stop
+is counted, reported and the arm enabled again: the goal is zero. Printed every minute and at the end: moves, stops, the loop's missed slots and late
 cycles, the largest following error per joint (and its limit), the largest feedback age, and the
 process's resident memory.
 """
@@ -57,10 +58,8 @@ def main() -> int:
     print(f"akarm {akarm.__version__} soak: arm6, {args.seconds:.0f} s, {os.cpu_count()} CPUs, load {load0:.2f}",
           flush=True)
     with SimulatorProcess(ARM6, channel=args.channel, pose="home") as sim, akarm.Arm(config) as arm:
-        lo = arm.limits.lower + 0.1
-        hi = arm.limits.upper - 0.1
-        lo = np.where(np.isfinite(lo), lo, -3.0)
-        hi = np.where(np.isfinite(hi), hi, 3.0)
+        lo = arm.limits.lower + 0.05
+        hi = arm.limits.upper - 0.05
         limits = np.array([g.following_error for g in arm._ctl.supervisor.guards])
         arm.enable()
         rss0 = rss_mb()
@@ -68,6 +67,7 @@ def main() -> int:
         n_moves = 0
         worst = np.zeros(arm.n)
         worst_age = 0.0
+        max_temp = 0.0
         t0 = time.monotonic()
         last_report = t0
         since = arm.clock.now()
@@ -75,18 +75,30 @@ def main() -> int:
             if n_moves % 4 == 3:
                 target, speed = poses[rng.integers(len(poses))], 1.0
             else:
-                target, speed = rng.uniform(lo, hi), float(rng.uniform(0.3, 1.0))
+                w = rng.dirichlet(np.ones(len(poses)))
+                target = np.clip(sum(wk * p for wk, p in zip(w, poses, strict=True)) + rng.uniform(-0.15, 0.15, arm.n),
+                                 lo, hi)
+                speed = float(rng.uniform(0.5, 1.0))
             try:
                 motion = arm.move_to(target, speed=speed, wait=False)
                 while not motion.done:
                     arm.sleep(0.05)
-                    worst_age = max(worst_age, max(j.age for j in arm.state().joints))
+                    state = arm.state()
+                    worst_age = max(worst_age, max(j.age for j in state.joints))
+                    max_temp = max(max_temp, max(j.temperature or 0.0 for j in state.joints))
                 motion.wait()
                 n_moves += 1
+                arm.sleep(0.2)
             except akarm.SafetyStop as e:
                 stops.append(f"{time.monotonic() - t0:7.1f} s: {type(e).__name__}: {e}")
                 print("STOP " + stops[-1], flush=True)
-                arm.enable()
+                while True:
+                    try:
+                        arm.enable()
+                        break
+                    except akarm.SafetyStop as again:  # e.g. still too hot: wait
+                        print(f"  enable refused: {again}", flush=True)
+                        time.sleep(5.0)
                 since = arm.clock.now()  # the stop's damping is not following: leave it out
                 continue
             log = arm.telemetry(since=since)
@@ -111,8 +123,9 @@ def main() -> int:
     print("largest following error per joint (limit):")
     for name, w, lim in zip(config.joint_names, worst, limits, strict=True):
         print(f"  {name:<14} {w * 1e3:7.1f} mrad ({lim * 1e3:.0f} mrad)")
-    print(f"RSS {rss0:.1f} MB at start, {rss1:.1f} MB at end; simulator CPU {sim_cpu:.0f} s; load {load0:.2f} → "
-          f"{load1:.2f}")
+    temps = f"hottest motor {max_temp:.0f} °C"
+    print(f"RSS {rss0:.1f} MB at start, {rss1:.1f} MB at end; simulator CPU {sim_cpu:.0f} s; {temps}; load "
+          f"{load0:.2f} → {load1:.2f}")
     for s in stops:
         print("  " + s)
     return 1 if stops else 0

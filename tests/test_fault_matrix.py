@@ -261,8 +261,9 @@ def test_an_undersized_motor_does_not_return_off_target(robot: str, mass: float,
         arm.set_payload(mass)  # even known, the motor has not the torque: it must not "arrive" sagging
         arm.enable()
         target = "home" if robot == "planar2" else "reach"
-        e = stopped(arm, sim, TrackingError, None, lambda: arm.move_to(target))
-        assert abs(e.error) > e.limit
+        motion = arm.move_to(target, wait=False)
+        e = stopped(arm, sim, TrackingError, None, lambda: (motion.wait(), arm.sleep(2.0)))
+        assert abs(e.error) > e.limit and e.at - motion.plan.t0 <= motion.duration + 0.6  # stopped, not "arrived"
         damping_then_exit(wire, arm.config)
 
 

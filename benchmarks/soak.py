@@ -9,9 +9,9 @@ derived following-error limits, settle guard ...). It works as an arm at a cell 
 is up: moves to random targets in its workspace (a random blend of its named poses ready, reach,
 home and left, plus up to ±0.15 rad per joint; seeded) at random speeds from 0.5 to 1.0, with a
 full-speed move to a named pose every fourth move and a short pause at each target. A safety stop
-is counted, reported and the arm enabled again: the goal is zero. Printed every minute and at the end: moves, stops, the loop's missed slots and late
-cycles, the largest following error per joint (and its limit), the largest feedback age, and the
-process's resident memory.
+is counted, reported and the arm enabled again: the goal is zero. Printed every minute and at the
+end: moves, stops, the loop's missed slots and late cycles, the largest following error per joint
+(and its limit), the largest feedback age, the hottest motor, and the process's resident memory.
 """
 
 from __future__ import annotations

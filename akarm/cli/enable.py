@@ -14,7 +14,15 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, controlled, deferred_sigint, format_q, load_from_args, stop_smoothly
+from .common import (
+    add_robot_arguments,
+    controlled,
+    deferred_signals,
+    format_q,
+    interrupted,
+    load_from_args,
+    stop_smoothly,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,11 +54,11 @@ def run(args: argparse.Namespace) -> int:
             else:
                 while True:
                     arm.sleep(1.0)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: the arm is disabled", file=sys.stderr)
-            return 130
-        with deferred_sigint():
+            return interrupted(e)
+        with deferred_signals():
             arm.disable()
         print("disabled")
     return 0

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import AkarmError, LimitError, StateError
+from ..modes import Mode
 from .control import ControlServer
 from .registry import BusLock, runtime_dir
 
@@ -109,7 +110,7 @@ class ArmServer:
                 from ..ros.node import RosNode
 
                 self._node = RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
-            if not self.arm.is_open:
+            if self.arm.mode is Mode.CLOSED:
                 self.arm.open()
                 self._opened_arm = True
             if self._enable_at_start:
@@ -186,7 +187,7 @@ class ArmServer:
         arm = self.arm
         if arm.fault is not None:
             return "fault"
-        if self._teaching:
+        if self._teaching or arm.mode is Mode.TEACH:
             return "teach"
         if not arm.enabled:
             return "disabled"

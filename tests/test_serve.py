@@ -31,7 +31,7 @@ from akarm.protocol import mit  # noqa: E402
 from akarm.ros import dds, msgs  # noqa: E402
 from akarm.sim.process import SimulatorProcess  # noqa: E402
 
-from .conftest import ROBOTS, ROOT  # noqa: E402
+from .conftest import ROBOTS, ROOT, relaxed_robot  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -49,10 +49,9 @@ def unique(stem: str) -> str:
 class Served:
     """``akarm serve`` in a child process, started and stopped by a ``with`` block."""
 
-    def __init__(self, channel: str, namespace: str, domain: int = DOMAIN, robot: Path = ARM6) -> None:
+    def __init__(self, channel: str, namespace: str, robot: Path, domain: int = DOMAIN) -> None:
         self.command = [sys.executable, "-m", "akarm", "serve", str(robot), "-i", "akarm_local", "-c", channel,
-                        "--domain", str(domain), "--namespace", namespace,
-                        "--feedback-timeout", "0.5"]  # real time on a busy shared machine: a relaxed watchdog
+                        "--domain", str(domain), "--namespace", namespace]
         self.lines: list[str] = []
         self.proc: subprocess.Popen[str] | None = None
 
@@ -162,15 +161,16 @@ def cli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
 
 
 class Setup:
-    def __init__(self) -> None:
+    def __init__(self, robot: Path) -> None:
         self.channel = unique("serve")
         self.ns = unique("arm")
+        self.robot = robot  # arm6, with a supervisor for real time on a busy shared machine
 
 
 @pytest.fixture(scope="module")
-def served():
-    s = Setup()
-    with SimulatorProcess(ARM6, channel=s.channel) as sim, Served(s.channel, s.ns) as server:
+def served(tmp_path_factory):
+    s = Setup(relaxed_robot(ARM6, tmp_path_factory.mktemp("serve")))
+    with SimulatorProcess(s.robot, channel=s.channel) as sim, Served(s.channel, s.ns, s.robot) as server:
         s.sim, s.server = sim, server
         s.watch = Watch(s.ns)
         try:
@@ -181,7 +181,7 @@ def served():
 
 
 def bus_args(s: Setup) -> list[str]:
-    return [str(ARM6), "-i", "akarm_local", "-c", s.channel]
+    return [str(s.robot), "-i", "akarm_local", "-c", s.channel]
 
 
 def test_serve_holds_the_arm_and_publishes_joint_states(served):
@@ -302,8 +302,8 @@ def test_a_second_controller_on_the_bus_is_refused(served):
 
 
 def test_two_servers_in_one_domain_with_different_namespaces_do_not_interfere(served):
-    other = Setup()
-    with SimulatorProcess(ARM6, channel=other.channel), Served(other.channel, other.ns):
+    other = Setup(served.robot)
+    with SimulatorProcess(other.robot, channel=other.channel), Served(other.channel, other.ns, other.robot):
         w2 = Watch(other.ns)
         try:
             w2.wait_states()
@@ -363,4 +363,5 @@ def test_the_readme_serve_commands_are_the_ones_tested_here():
                 ".venv/bin/akarm move robots/arm6.yaml home -i akarm_local -c can0",
                 ".venv/bin/akarm status robots/arm6.yaml -i akarm_local -c can0"):
         assert cmd in readme
-    assert Served("can0", "arm6").command[3:10] == ["serve", str(ARM6), "-i", "akarm_local", "-c", "can0", "--domain"]
+    assert Served("can0", "arm6", ARM6).command[3:10] == ["serve", str(ARM6), "-i", "akarm_local", "-c", "can0",
+                                                          "--domain"]

@@ -20,7 +20,7 @@ import akarm
 from akarm.sim import SimulatedRobot
 from akarm.sim.process import SimulatorProcess
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, relaxed_robot
 
 pytestmark = pytest.mark.slow
 PLANAR2 = ROBOTS / "planar2.yaml"
@@ -32,11 +32,12 @@ def cli(*args: str, stdin: str | None = None, timeout: float = 60.0) -> subproce
 
 
 @pytest.fixture
-def local_arm(channel):
-    with SimulatorProcess(PLANAR2, channel=channel, pose="down"):
-        config = akarm.load_robot(PLANAR2).with_bus(interface="akarm_local", channel=channel)
-        with akarm.Arm(config, feedback_timeout=0.5) as arm:  # real time on a busy machine: relaxed watchdog
-            yield arm, [str(PLANAR2), "-i", "akarm_local", "-c", channel]
+def local_arm(channel, tmp_path):
+    robot = relaxed_robot(PLANAR2, tmp_path)  # real time against another process on a busy machine
+    with SimulatorProcess(robot, channel=channel, pose="down"):
+        config = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)
+        with akarm.Arm(config) as arm:
+            yield arm, [str(robot), "-i", "akarm_local", "-c", channel]
 
 
 def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):

@@ -299,6 +299,8 @@ def test_a_second_controller_on_the_bus_is_refused(served):
         akarm.Arm(config).open()
     out = cli("zero", *bus_args(served), "elbow")
     assert out.returncode == 1 and "akarm serve" in out.stderr
+    out = cli("scan", "-i", "akarm_local", "-c", served.channel)  # its EXIT frames would disable the held arm
+    assert out.returncode == 1 and "akarm serve" in out.stderr
 
 
 def test_two_servers_in_one_domain_with_different_namespaces_do_not_interfere(served):

@@ -182,15 +182,9 @@ def _status(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from ..errors import AkarmError
     from .teach import _reader, _teach_keyframes, _teach_path
 
-    out = Path(args.out)
-    if out.suffix not in (".yaml", ".yml", ".csv"):
-        raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
-                         fix="name it .yaml (keyframes) or .csv (a continuous path)")
-    if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
-        raise AkarmError("--rate and --seconds must be positive")
+    out = Path(args.out)  # checked by the verb before it asked the server
     lines = _reader(sys.stdin)
     arm.call("enable")
     arm.call("teach", damping=args.damping)

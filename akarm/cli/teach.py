@@ -144,10 +144,6 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
-    from .served import via_server
-
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
-        return served
     from ..errors import AkarmError
     from ..telemetry import check_writable
     from .common import controlled, deferred_signals
@@ -159,6 +155,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
         raise AkarmError("--rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
+        return served
     config = load_from_args(args)
     if out.suffix == ".csv" and args.rate > config.rate_hz:
         raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",

@@ -17,13 +17,12 @@ import json
 import os
 import re
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from ..config import BusConfig, RobotConfig
 from ..errors import StateError
-
-if TYPE_CHECKING:
-    from ..config import RobotConfig
 
 __all__ = ["BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir"]
 
@@ -38,13 +37,16 @@ def runtime_dir() -> Path:
     return path
 
 
-def bus_keys(config: RobotConfig) -> list[str]:
-    """One name per bus the robot's joints use and another process could share: ``akarm_local-can0``."""
-    used = {j.bus for j in config.joints}
-    keys = []
-    for name, bus in config.buses.items():
-        if name in used and bus.interface not in _LOCAL_ONLY:
-            keys.append(re.sub(r"[^A-Za-z0-9_.-]", "_", f"{bus.interface}-{bus.channel}"))
+def bus_keys(robot: RobotConfig | Iterable[BusConfig]) -> list[str]:
+    """One name per bus another process could share: ``akarm_local-can0``; for a robot, the buses its
+    joints use."""
+    if isinstance(robot, RobotConfig):
+        used = {j.bus for j in robot.joints}
+        buses = [b for name, b in robot.buses.items() if name in used]
+    else:
+        buses = list(robot)
+    keys = {re.sub(r"[^A-Za-z0-9_.-]", "_", f"{b.interface}-{b.channel}") for b in buses
+            if b.interface not in _LOCAL_ONLY}
     return sorted(keys)
 
 
@@ -65,7 +67,11 @@ class BusLock:
         payload = json.dumps({**info, "pid": os.getpid()}).encode()
         try:
             for key in self.keys:
-                fd = os.open(_lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
+                try:
+                    fd = os.open(_lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
+                except OSError as e:
+                    raise StateError(f"cannot create the lock file for bus {key}: {e}",
+                                     fix="set XDG_RUNTIME_DIR to a writable directory") from None
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
@@ -116,13 +122,19 @@ def _held(key: str) -> bool:
 
 def any_server() -> bool:
     """True when some ``akarm serve`` of this user runs on this machine (cheap: no config needed)."""
-    return any(_held(p.name[len("serve-"):-len(".lock")]) for p in runtime_dir().glob("serve-*.lock"))
+    try:
+        return any(_held(p.name[len("serve-"):-len(".lock")]) for p in runtime_dir().glob("serve-*.lock"))
+    except OSError:  # no runtime directory to be had: then no server could have registered either
+        return False
 
 
-def find_server(config: RobotConfig, wait: float = 1.0) -> dict[str, Any] | None:
+def find_server(robot: RobotConfig | Iterable[BusConfig], wait: float = 1.0) -> dict[str, Any] | None:
     """The running server (its info: pid, robot, socket, domain, namespace) that controls one of
-    ``config``'s buses, or ``None``. A server of this very process does not count."""
-    for key in bus_keys(config):
+    ``robot``'s buses (a robot's, or the buses given), or ``None``. A server of this very process
+    does not count."""
+    if not any_server():
+        return None
+    for key in bus_keys(robot):
         if not _held(key):
             continue
         end = time.monotonic() + wait
@@ -136,9 +148,9 @@ def find_server(config: RobotConfig, wait: float = 1.0) -> dict[str, Any] | None
     return None
 
 
-def refuse_if_served(config: RobotConfig, what: str = "this") -> None:
+def refuse_if_served(robot: RobotConfig | Iterable[BusConfig], what: str = "this") -> None:
     """Raise :class:`~akarm.StateError` when an ``akarm serve`` of another process drives one of the buses."""
-    info = find_server(config)
+    info = find_server(robot)
     if info is not None:
         raise StateError(f"akarm serve (pid {info.get('pid')}, {info.get('robot', '?')}) controls this robot's bus; "
                          f"{what} would be a second controller on it",

@@ -262,6 +262,17 @@ def test_a_trajectory_past_a_limit_is_refused_whole_and_nothing_moves(served):
     assert w.status[-1].status[0].level == 0
 
 
+def test_a_trajectory_wholly_in_the_past_is_refused(served):
+    w = served.watch
+    q0 = w.latest_q()
+    w.publish_raw(rosbags_trajectory(["shoulder_pan"], [(1.0, [0.5])], stamp=time.time() - 10.0))
+    end = time.monotonic() + 5
+    while "in the past" not in w.status_values().get("last_refusal", ""):
+        assert time.monotonic() < end, "akarm/status reports the refusal"
+        time.sleep(0.05)
+    assert np.max(np.abs(w.latest_q() - q0)) < 2e-3
+
+
 def test_services_disable_enable_and_hold(served):
     w = served.watch
     # to the upright pose first, where arm6 stays put even when limp (elsewhere it would fall when disabled)

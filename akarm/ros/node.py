@@ -118,7 +118,12 @@ class RosNode:
             for msg in self._traj.take(16):
                 if msg.sample_info.valid_data:
                     with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
-                        self.server.follow(list(msg.joint_names), *trajectory_arrays(msg))
+                        times, positions, velocities = trajectory_arrays(msg)
+                        if msg.points and not times:
+                            self.server.refuse("every point of the trajectory is already in the past "
+                                               "(header.stamp + time_from_start)",
+                                               fix="stamp it with the current time, or leave the stamp zero")
+                        self.server.follow(list(msg.joint_names), times, positions, velocities)
             for s in self._services:
                 s.poll()
             now = time.monotonic()

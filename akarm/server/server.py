@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import signals
 from ..errors import AkarmError, LimitError, StateError
 from ..modes import Mode
 from .control import ControlServer
@@ -134,7 +135,7 @@ class ArmServer:
         if control is not None:
             control.close()
         try:
-            with self._cmd, contextlib.suppress(AkarmError):
+            with signals.deferred(), self._cmd, contextlib.suppress(AkarmError):  # no signal cuts the damping short
                 self._end_teach()
                 self.arm.disable()
         finally:
@@ -282,10 +283,19 @@ class ArmServer:
                 self.counts["accepted"] += 1
                 return motion
         except AkarmError as e:
-            self.counts["refused"] += 1
-            self.last_refusal = str(e)
-            self.log(f"akarm serve: refused a trajectory, nothing moved: {e}")
+            self._refused(e)
             raise
+
+    def _refused(self, e: AkarmError) -> None:
+        self.counts["refused"] += 1
+        self.last_refusal = str(e)
+        self.log(f"akarm serve: refused a trajectory, nothing moved: {e}")
+
+    def refuse(self, what: str, fix: str = "") -> None:
+        """Refuse a trajectory the caller found unusable: counted, reported, raised as LimitError."""
+        e = LimitError(what, fix=fix)
+        self._refused(e)
+        raise e
 
     # -- the CLI's operations (JSON in, JSON out) --------------------------------------------------
     def dispatch(self, op: str, args: dict[str, Any]) -> Any:

@@ -334,6 +334,16 @@ def test_two_servers_in_one_domain_with_different_namespaces_do_not_interfere(se
             w2.close()
 
 
+def test_another_domain_sees_nothing_of_the_server(served):
+    elsewhere = Watch(served.ns, domain=DOMAIN + 1 if DOMAIN < 232 else DOMAIN - 1)
+    try:
+        time.sleep(1.5)
+        assert not elsewhere.states and not elsewhere.trajectory.get_matched_subscriptions()
+        assert len(served.watch.states) > 50
+    finally:
+        elsewhere.close()
+
+
 def test_sigterm_ends_in_damping_then_exit_and_status_0(served):
     import can
 

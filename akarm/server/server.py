@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import signals
+from .. import signals as _signals
 from ..errors import AkarmError, LimitError, StateError
 from ..modes import Mode
 from .control import ControlServer
@@ -126,19 +126,20 @@ class ArmServer:
         return self
 
     def stop(self) -> None:
-        """Stop serving, damp and disable the arm (close it if the server opened it), free the buses."""
+        """Damp and disable the arm (first: at once), stop serving, close the arm if the server opened
+        it, free the buses. Commands that arrive meanwhile are refused."""
         self._stop.set()
-        node, self._node = self._node, None
-        if node is not None:
-            node.stop()
-        control, self._control = self._control, None
-        if control is not None:
-            control.close()
         try:
-            with signals.deferred(), self._cmd, contextlib.suppress(AkarmError):  # no signal cuts the damping short
+            with _signals.deferred(), self._cmd, contextlib.suppress(AkarmError):  # no signal cuts the damping short
                 self._end_teach()
                 self.arm.disable()
         finally:
+            node, self._node = self._node, None
+            if node is not None:
+                node.stop()
+            control, self._control = self._control, None
+            if control is not None:
+                control.close()
             if self._opened_arm:
                 self.arm.close()
                 self._opened_arm = False
@@ -208,8 +209,13 @@ class ArmServer:
     # ------------------------------------------------------------------------------------------
     # commands (from the CLI socket and from ROS 2)
     # ------------------------------------------------------------------------------------------
+    def _require_serving(self) -> None:
+        if self._stop.is_set():
+            raise StateError("akarm serve is stopping: the arm is being disabled", fix="start the server again")
+
     def enable(self) -> None:
         with self._cmd:
+            self._require_serving()
             self._end_teach()
             self.arm.enable()
 
@@ -233,6 +239,7 @@ class ArmServer:
             self.arm.end_teach()
 
     def _require_commandable(self) -> None:
+        self._require_serving()
         if self._teaching:
             raise StateError("the arm is in teach mode", fix="end teaching first (akarm/hold, or finish akarm teach)")
         if not self.arm.enabled:

@@ -275,9 +275,9 @@ class ArmServer:
                 full = np.full((len(times), len(names)), math.nan)
                 vel = None
                 for k, p in enumerate(positions):
-                    if len(p) != len(index):
-                        raise LimitError(f"point {k} has {len(p)} positions for {len(index)} joint_names",
-                                         fix="give one position per name in joint_names")
+                    if len(p) != len(index) or not all(math.isfinite(x) for x in p):
+                        raise LimitError(f"point {k} has {len(p)} positions for {len(index)} joint_names, or one "
+                                         "that is not a number", fix="give one position (rad) per name in joint_names")
                     full[k, index] = p
                 if velocities is not None and any(len(v) for v in velocities):
                     vel = np.full((len(times), len(names)), math.nan)
@@ -321,9 +321,6 @@ class ArmServer:
                 "temperature": [j.temperature for j in s.joints], "fault": [j.fault for j in s.joints],
                 "age": [j.age for j in s.joints], "enabled": s.enabled, "moving": s.moving, "mode": self.mode,
                 "robot": cfg.name, "pid": os.getpid()}
-
-    def _op_info(self) -> dict[str, Any]:
-        return self._state_doc()
 
     def _op_state(self) -> dict[str, Any]:
         return self._state_doc()

@@ -164,26 +164,30 @@ class TriggerServer:
                 return "yes"
         return "maybe"
 
+    def take(self) -> list[msgs.TriggerRequest]:
+        """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
+        return [r for r in self._reader.take(16) if r.sample_info.valid_data]
+
+    def answer(self, req: msgs.TriggerRequest) -> bool:
+        """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
+        try:
+            ok, text = self.handler()
+        except AkarmError as e:
+            ok, text = False, str(e)
+        handle = req.sample_info.publication_handle
+        end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
+        state = self._client_ready(handle)
+        while state == "maybe" and time.monotonic() < end:
+            time.sleep(0.005)
+            state = self._client_ready(handle)
+        if state != "yes":
+            return False
+        self._writer.write(msgs.TriggerResponse(req.guid, req.seq, bool(ok), text))
+        return True
+
     def poll(self) -> int:
-        """Answer every waiting request; returns how many were answered."""
-        n = 0
-        for req in self._reader.take(16):
-            info = req.sample_info
-            if not info.valid_data:
-                continue
-            try:
-                ok, text = self.handler()
-            except AkarmError as e:
-                ok, text = False, str(e)
-            end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
-            state = self._client_ready(info.publication_handle)
-            while state == "maybe" and time.monotonic() < end:
-                time.sleep(0.005)
-                state = self._client_ready(info.publication_handle)
-            if state == "yes":
-                self._writer.write(msgs.TriggerResponse(req.guid, req.seq, bool(ok), text))
-                n += 1
-        return n
+        """Answer every waiting request, one after the other; returns how many were answered."""
+        return sum(self.answer(req) for req in self.take())
 
 
 class TriggerClient:

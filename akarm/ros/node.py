@@ -10,7 +10,8 @@ With ``NS`` the namespace:
   the last refused trajectory;
 - ``NS/akarm/enable``, ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
 
-One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time.
+One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
+service requests are answered in threads of their own (enabling and disabling take a while).
 """
 
 from __future__ import annotations
@@ -124,8 +125,9 @@ class RosNode:
                                                "(header.stamp + time_from_start)",
                                                fix="stamp it with the current time, or leave the stamp zero")
                         self.server.follow(list(msg.joint_names), times, positions, velocities)
-            for s in self._services:
-                s.poll()
+            for s in self._services:  # answered in threads of their own: enabling takes a while, and
+                for req in s.take():  # joint_states must go on meanwhile
+                    threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
             now = time.monotonic()
             if now >= next_js:
                 self.publish_joint_states()

@@ -7,6 +7,7 @@ verbs run as processes of their own, as a user would start them.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -69,7 +70,9 @@ def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):
                                   "0.4", "--rate", "50"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         try:  # stdin stays open: the recording ends by --seconds, not by the end of input
             assert teach.wait(60) == 0
-            assert "wrote 21 samples over 0.40 s" in teach.stdout.read()
+            wrote = re.search(r"wrote (\d+) samples over 0.40 s", teach.stdout.read())
+            # 21 on the 50 Hz grid over 0.4 s; a real-time loop on a loaded machine may skip a grid point
+            assert wrote and 16 <= int(wrote.group(1)) <= 21
         finally:
             teach.stdin.close()
             teach.stdout.close()

@@ -1,7 +1,7 @@
 """Which ``akarm serve`` controls which CAN bus on this machine.
 
 A server holds an exclusive ``flock`` on one file per bus it drives
-(``$XDG_RUNTIME_DIR/akarm/serve-INTERFACE-CHANNEL.lock``, else ``/tmp/akarm-UID/...``), and writes
+(``/tmp/akarm-UID/serve-INTERFACE-CHANNEL.lock``), and writes
 into it who it is (pid, robot, control socket, DDS domain and namespace). The kernel drops the lock
 when the process ends, however it ends, so a lock is never stale. A second server for the same bus
 is refused; a CLI verb finds the server and talks to it instead of opening the bus itself.
@@ -16,6 +16,7 @@ import fcntl
 import json
 import os
 import re
+import tempfile
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -30,9 +31,10 @@ _LOCAL_ONLY = {"virtual"}  # interfaces whose buses no other process can see
 
 
 def runtime_dir() -> Path:
-    """The per-user directory for lock files and control sockets (created, mode 700)."""
-    base = os.environ.get("XDG_RUNTIME_DIR")
-    path = Path(base) / "akarm" if base and Path(base).is_dir() else Path(f"/tmp/akarm-{os.getuid()}")
+    """The per-user directory for lock files and control sockets, ``/tmp/akarm-UID`` (created, mode
+    700). One fixed place whatever the environment says: a server started by systemd and a CLI in a
+    terminal (different ``XDG_RUNTIME_DIR``, or none) must find each other."""
+    path = Path(tempfile.gettempdir()) / f"akarm-{os.getuid()}"
     path.mkdir(mode=0o700, parents=True, exist_ok=True)
     return path
 
@@ -71,7 +73,7 @@ class BusLock:
                     fd = os.open(_lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
                 except OSError as e:
                     raise StateError(f"cannot create the lock file for bus {key}: {e}",
-                                     fix="set XDG_RUNTIME_DIR to a writable directory") from None
+                                     fix=f"make {runtime_dir()} writable for this user") from None
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .common import format_q, load_from_args
+from .common import format_q, interrupted, load_from_args
 
 if TYPE_CHECKING:
     from ..config import RobotConfig
@@ -122,10 +122,10 @@ def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
         done = _wait(arm, motion)
         if args.hold > 0:
             arm.call("sleep", seconds=args.hold)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP
         arm.interrupt()
         print(f"interrupted: stopped; {_held(arm)}", file=sys.stderr)
-        return 130
+        return interrupted(e)
     q = np.array(arm.call("state")["q"])
     err = np.abs(q - q_target)
     if done["superseded"]:
@@ -139,9 +139,26 @@ def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _enable(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """Enable and return: the server holds the arm. With ``--seconds``, as without a server: hold
+    that long, then disable."""
+    from ..errors import AkarmError
+
+    if args.seconds is not None and not args.seconds >= 0:
+        raise AkarmError(f"--seconds {args.seconds} must not be negative")
     state = arm.call("enable")
-    print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}); {_held(arm)} "
-          "(akarm disable releases it)", flush=True)
+    if args.seconds is None:
+        print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}); "
+              f"{_held(arm)} (akarm disable releases it)", flush=True)
+        return 0
+    print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}) for "
+          f"{args.seconds:g} s", flush=True)
+    try:
+        arm.call("sleep", seconds=args.seconds)
+    except KeyboardInterrupt as e:
+        print(f"interrupted: {_held(arm)}", file=sys.stderr)
+        return interrupted(e)
+    arm.call("disable")
+    print("disabled")
     return 0
 
 
@@ -212,10 +229,10 @@ def _replay(arm: RemoteArm, args: argparse.Namespace) -> int:
         print(f"replaying {args.file} ({motion['kind']}) in {motion['duration']:.2f} s at speed {args.speed:g}",
               flush=True)
         _wait(arm, motion)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP
         arm.interrupt()
         print(f"interrupted: stopped; {_held(arm)}", file=sys.stderr)
-        return 130
+        return interrupted(e)
     tel = arm.call("telemetry", since=motion["t0"], save=os.path.abspath(args.log) if args.log else None)
     print("done; RMS tracking error " + ", ".join(f"{n} {e * 1e3:.2f} mrad"
                                                   for n, e in zip(arm.names, tel["rms"], strict=True)))

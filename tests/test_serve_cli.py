@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -126,3 +127,23 @@ def test_without_a_server_the_verbs_open_the_bus_themselves(channel):
         out = cli("move", str(PLANAR2), "-i", "akarm_local", "-c", channel, "down")
         assert out.returncode == 0, out.stderr
         assert out.stdout.strip().endswith("disabled") and "akarm serve" not in out.stdout
+
+
+def test_ctrl_c_on_a_served_move_stops_the_arm_and_leaves_it_held(local_arm):
+    arm, bus = local_arm
+    with akarm.ArmServer(arm, ros=False):
+        move = subprocess.Popen([sys.executable, "-m", "akarm", "move", *bus, "up", "--speed", "0.1"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            assert move.stdout.readline().startswith("moving to up")
+            time.sleep(0.5)
+            assert arm.moving
+            move.send_signal(signal.SIGINT)
+            out, err = move.communicate(timeout=60)
+        finally:
+            if move.poll() is None:
+                move.kill()
+        assert move.returncode == 130 and "interrupted: stopped" in err
+        assert arm.enabled and not arm.moving, "came to rest, held by the server"
+        q = arm.state().q
+        assert np.abs(q - [1.2, -1.2]).max() > 0.1, "stopped on the way, not at the target"

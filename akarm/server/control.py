@@ -70,7 +70,7 @@ class ControlServer:
             threading.Thread(target=self._serve, args=(conn,), name="akarm-serve-client", daemon=True).start()
 
     def _serve(self, conn: socket.socket) -> None:
-        with conn, conn.makefile("rwb") as f:
+        with contextlib.suppress(OSError), conn, conn.makefile("rwb") as f:  # a client that left (Ctrl-C)
             for line in f:
                 try:
                     req = json.loads(line)
@@ -80,11 +80,8 @@ class ControlServer:
                     answer = {"ok": False, "error": _error_doc(e)}
                 except Exception as e:  # a bug or a malformed request: say so, keep serving
                     answer = {"ok": False, "error": {"type": "AkarmError", "what": f"server error: {e!r}"}}
-                try:
-                    f.write(json.dumps(answer).encode() + b"\n")
-                    f.flush()
-                except OSError:
-                    return
+                f.write(json.dumps(answer).encode() + b"\n")
+                f.flush()
 
     def close(self) -> None:
         self._running = False

@@ -128,9 +128,11 @@ def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
         return interrupted(e)
     q = np.array(arm.call("state")["q"])
     err = np.abs(q - q_target)
-    if done["superseded"]:
-        print("akarm move: another command replaced this motion before it arrived", file=sys.stderr)
-    print(f"arrived: {format_q(q)}, largest error {err.max() * 1e3:.2f} mrad ({arm.names[int(err.argmax())]})")
+    if done["superseded"]:  # a ROS 2 trajectory or another CLI took over
+        print(f"akarm move: another command replaced this motion before it arrived; at {format_q(q)}",
+              file=sys.stderr)
+    else:
+        print(f"arrived: {format_q(q)}, largest error {err.max() * 1e3:.2f} mrad ({arm.names[int(err.argmax())]})")
     if args.log:
         saved = arm.call("telemetry", since=motion["t0"], save=os.path.abspath(args.log))
         print(f"telemetry saved to {saved['path']}")

@@ -245,6 +245,30 @@ def test_a_rosbags_trajectory_from_another_process_moves_the_arm_through_its_poi
     assert np.abs(q[:, others] - q0[others]).max() < 0.01, "joints not in the message keep their place"
 
 
+def test_a_ros_trajectory_takes_over_from_a_cli_move_smoothly(served):
+    w = served.watch
+    move = subprocess.Popen([sys.executable, "-m", "akarm", "move", *bus_args(served), "home", "--speed", "0.2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert move.stdout.readline().startswith("moving to home")
+        time.sleep(0.8)
+        sent = time.monotonic()
+        target = [0.3] * 6
+        w.publish_raw(rosbags_trajectory(list(CONFIG.joint_names), [(1.5, target)]))
+        out, err = move.communicate(timeout=60)
+    finally:
+        if move.poll() is None:
+            move.kill()
+    assert move.returncode == 1 and "another command replaced this motion" in err and "arrived" not in out
+    time.sleep(max(0.0, sent + 2.0 - time.monotonic()))
+    t, q = w.q(since=sent - 0.2)
+    assert np.abs(q[-1] - target).max() < 3e-3
+    # no jump where the trajectory took over: joint_states at ~100 Hz step at most v_max · 10 ms (+ a stall)
+    steps = np.abs(np.diff(q, axis=0)) / np.maximum(np.diff(t), 0.01)[:, None]
+    vmax = np.array([j.limits.velocity for j in CONFIG.joints])
+    assert np.all(steps <= vmax * 1.5)
+
+
 def test_a_trajectory_past_a_limit_is_refused_whole_and_nothing_moves(served):
     w = served.watch
     q0 = w.latest_q()

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Literal
 
 from .errors import ConfigError, ConfigProblem
-from .motors import Catalogue, MotorModel
+from .motors import Catalogue, MotorModel, did_you_mean
 
 __all__ = [
     "BusConfig",
@@ -155,6 +155,12 @@ class RobotConfig:
         joints: actuated joints in config order (the order of every joint vector in akarm).
         poses: name → joint positions (rad, config order).
         catalogue: the motor catalogue in force (bundled + the YAML's ``motors:``).
+        locked: URDF joints that no motor drives, and where they are held (rad, or m for prismatic
+            joints): the YAML's ``locked:``, defaults, and joints that mimic others. The dynamics
+            model holds them there (their mass still counts); URDF joints in neither ``joints`` nor
+            ``locked`` are held at their neutral position (0, or the identity for floating joints).
+        warnings: what the loader found questionable but accepted (a joint held at a default
+            position, gravity above a motor's rated torque, ...), each with its line and a fix.
     """
 
     name: str
@@ -168,6 +174,8 @@ class RobotConfig:
     payload: Payload | None = None
     poses: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     catalogue: Catalogue | None = None
+    locked: Mapping[str, float] = field(default_factory=dict)
+    warnings: tuple[ConfigProblem, ...] = ()
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -179,7 +187,8 @@ class RobotConfig:
         for j in self.joints:
             if j.name == name:
                 return j
-        raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no joint named {name!r}",
+        raise ConfigError([ConfigProblem(str(self.source or self.name), None,
+                                         f"no joint named {name!r}{did_you_mean(name, self.joint_names)}",
                                          "joints are: " + ", ".join(self.joint_names))])
 
     def pose(self, name: str) -> tuple[float, ...]:
@@ -188,7 +197,8 @@ class RobotConfig:
             return self.poses[name]
         except KeyError:
             known = ", ".join(self.poses) or "none defined"
-            raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no pose named {name!r}",
+            hint = did_you_mean(name, list(self.poses)) if self.poses else ""
+            raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no pose named {name!r}{hint}",
                                              f"poses are: {known}; add it under `poses:`")]) from None
 
     def with_bus(

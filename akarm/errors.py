@@ -32,6 +32,7 @@ __all__ = [
     "BusError",
     "ConfigError",
     "ConfigProblem",
+    "ConfigWarning",
     "FeedbackTimeout",
     "FrameError",
     "LimitError",
@@ -140,6 +141,12 @@ class ConfigError(AkarmError):
 
     def _render(self) -> str:
         return self.what
+
+
+class ConfigWarning(UserWarning):
+    """A robot file that loads but says less than it should: a URDF joint held at a default position
+    because the file does not say where (issued by :func:`~akarm.load_robot`; ``akarm check`` lists
+    every warning, the gravity ones included)."""
 
 
 class ModelError(AkarmError):

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from .errors import ConfigError, ConfigProblem
 from .motors import Catalogue, MotorModel, did_you_mean
@@ -31,19 +31,35 @@ Firmware = Literal["v2", "v3"]
 
 @dataclass(frozen=True)
 class BusConfig:
-    """One CAN bus, passed to ``can.Bus(interface=..., channel=..., bitrate=...)``.
+    """One CAN bus, passed to ``can.Bus(interface=..., channel=..., bitrate=..., **options)``.
 
     Attributes:
         name: the name joints refer to (the key under ``buses:``).
         interface: python-can interface (``socketcan``, ``virtual``, ``pcan``, ``slcan``, ...).
         channel: python-can channel (``can0``, ``vcan0``, a virtual channel name, ...).
         bitrate: bit/s; 1 000 000 for AK drivers.
+        options: more keyword arguments for the interface's bus (``device_id``, ``app_name``,
+            ``serial``, ``fd``, ``data_bitrate``, ...), passed through as given.
+        python_can: the settings that came from python-can's own configuration (``CAN_INTERFACE``,
+            ``CAN_CHANNEL``, ``CAN_BITRATE``, ``~/can.conf``, ``~/.canrc``, ...) rather than from
+            the robot file, by name (``"interface"``, ``"bitrate"``, an option's key).
     """
 
     name: str
     interface: str = "socketcan"
     channel: str = "can0"
     bitrate: int = 1_000_000
+    options: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    python_can: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        """``socketcan:can0 @ 1000 kbit/s`` and the keyword arguments, for tables and messages."""
+        text = f"{self.interface}:{self.channel} @ {self.bitrate // 1000} kbit/s"
+        if self.options:
+            text += " " + " ".join(f"{k}={v!r}" for k, v in self.options.items())
+        if self.python_can:
+            text += f" ({', '.join(self.python_can)} from python-can's configuration)"
+        return text
 
 
 @dataclass(frozen=True)
@@ -206,12 +222,15 @@ class RobotConfig:
         interface: str | None = None,
         channel: str | Mapping[str, str] | None = None,
         bitrate: int | None = None,
+        options: Mapping[str, Any] | None = None,
     ) -> RobotConfig:
         """A copy with bus settings overridden (e.g. to run on the simulator's virtual bus).
 
         ``interface`` and ``bitrate`` apply to every bus. ``channel`` is either a mapping from bus
         name to channel, or one channel name: used as is when there is one bus, and suffixed with
-        ``-<bus name>`` for each bus when there are several (so the buses stay apart).
+        ``-<bus name>`` for each bus when there are several (so the buses stay apart). ``options``
+        (python-can keyword arguments) are added to every bus's. A bus whose interface changes drops
+        the keyword arguments it had: they were meant for the other interface.
         """
         buses = {}
         for name, b in self.buses.items():
@@ -220,10 +239,17 @@ class RobotConfig:
                 ch = channel.get(name, ch)
             elif channel is not None:
                 ch = channel if len(self.buses) == 1 else f"{channel}-{name}"
+            kept = dict(b.options) if interface is None or interface == b.interface else {}
+            given = {k for k, v in (("interface", interface), ("bitrate", bitrate)) if v is not None}
+            if channel is not None and (not isinstance(channel, Mapping) or name in channel):
+                given.add("channel")
             buses[name] = replace(
                 b,
                 interface=interface if interface is not None else b.interface,
                 channel=ch,
                 bitrate=bitrate if bitrate is not None else b.bitrate,
+                options={**kept, **(options or {})},
+                python_can=tuple(k for k in b.python_can if k not in given and k not in (options or {})
+                                 and (k in ("interface", "channel", "bitrate") or k in kept)),
             )
         return replace(self, buses=buses)

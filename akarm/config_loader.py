@@ -79,7 +79,8 @@ from .errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
 from .motors import Catalogue, MotorModel, default_catalogue, did_you_mean
 from .urdf import Urdf, UrdfJoint, read_urdf
 
-__all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joints"]
+__all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "python_can_settings", "read_urdf_joints",
+           "resolve_bus"]
 
 TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
             "defaults", "joints", "locked")
@@ -333,36 +334,154 @@ def _motors(r: _Reader, node: yaml.Node, cat: Catalogue, failed: set[str]) -> Ca
     return cat
 
 
+def python_can_settings(context: str | None = None) -> dict[str, Any]:
+    """What python-can's own configuration says about a bus, as ``can.Bus()`` would read it: ``can.rc``,
+    then the environment (``CAN_INTERFACE_<context>`` ..., then ``CAN_INTERFACE``, ``CAN_CHANNEL``,
+    ``CAN_BITRATE``, ``CAN_CONFIG``), then the configuration files (``~/can.conf``, ``/etc/can.conf``,
+    ``~/.can``, ``~/.canrc``; ``can.ini`` on Windows), section ``[context]`` before ``[default]``.
+    Values are cast as python-can casts them.
+
+    Raises:
+        ValueError: ``CAN_CONFIG`` is not JSON, or a configuration file does not parse.
+    """
+    import configparser
+
+    import can
+    from can.util import cast_from_string, load_environment_config, load_file_config
+
+    sources: list[Any] = [lambda: dict(can.rc)]
+    if context:
+        sources.append(lambda: load_environment_config(context))
+    sources.append(load_environment_config)
+    if context:
+        sources.append(lambda: load_file_config(None, context))
+    sources.append(load_file_config)
+    out: dict[str, Any] = {}
+    for source in sources:
+        try:
+            found = dict(source())
+        except (ValueError, configparser.Error) as e:
+            raise ValueError(f"python-can's configuration cannot be read: {e}") from None
+        if "bustype" in found:  # python-can's legacy name
+            found.setdefault("interface", found["bustype"])
+            del found["bustype"]
+        for key, value in found.items():
+            out.setdefault(key, cast_from_string(value) if isinstance(value, str) else value)
+    return out
+
+
+#: bus keys akarm sets itself, never passed through
+RESERVED_BUS_KEYS = ("receive_own_messages", "bustype", "context")
+
+
+def resolve_bus(name: str, given: Mapping[str, Any], settings: Mapping[str, Any] | None = None
+                ) -> tuple[BusConfig | None, list[tuple[str, str, str]]]:
+    """A bus from what the robot file (or command line) gives, completed from python-can's configuration
+    (``settings``; default :func:`python_can_settings` for context ``name``), then akarm's defaults
+    (socketcan, can0, 1 Mbit/s). The file's values take precedence.
+
+    Returns:
+        the bus (``None`` when it has problems) and its problems as ``(key, message, fix)``; ``key`` is
+        where the problem is (``"interface"``, ``"bitrate"``, an option) or ``""``.
+    """
+    import can
+
+    found: list[tuple[str, str, str]] = []
+    if settings is None:
+        try:
+            settings = python_can_settings(name)
+        except ValueError as e:
+            return None, [("", str(e), "fix CAN_CONFIG or the can.conf/.canrc file, or give the bus fully in the YAML")]
+    taken: list[str] = []
+
+    def pick(key: str, default: Any) -> Any:
+        if given.get(key) is not None:
+            return given[key]
+        if settings.get(key) is not None:
+            taken.append(key)
+            return settings[key]
+        return default
+
+    interface = str(pick("interface", "socketcan"))
+    channel = pick("channel", "can0")
+    bitrate = pick("bitrate", 1_000_000)
+    where = " (from python-can's configuration: CAN_* variables or a can.conf/.canrc file)"
+    if interface not in can.VALID_INTERFACES:
+        found.append(("interface", f"bus {name!r}: {interface!r} is not a python-can interface"
+                      f"{did_you_mean(interface, sorted(can.VALID_INTERFACES))}"
+                      f"{where if 'interface' in taken else ''}",
+                      "python-can interfaces: " + ", ".join(sorted(can.VALID_INTERFACES))))
+    if isinstance(bitrate, bool) or not isinstance(bitrate, int) or not 10_000 <= bitrate <= 1_000_000:
+        found.append(("bitrate", f"bus {name!r}: bitrate must be a whole number within 10000..1000000, got "
+                      f"{bitrate!r}{where if 'bitrate' in taken else ''}", "AK drivers use 1000000 bit/s"))
+    options = {k: v for k, v in given.items() if k not in ("interface", "channel", "bitrate")}
+    if settings.get("interface") in (None, interface):  # python-can's extras are for its own interface
+        for k, v in settings.items():
+            if k not in ("interface", "channel", "bitrate", *RESERVED_BUS_KEYS) and k not in options:
+                options[k] = v
+                taken.append(k)
+    if found:
+        return None, found
+    return BusConfig(name, interface, str(channel), int(bitrate), options, tuple(taken)), []
+
+
 def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
+    specs: dict[str, tuple[dict[str, Any], dict[str, yaml.Node], yaml.Node | None]] = {}
     if node is None:
-        return {DEFAULT_BUS: BusConfig(DEFAULT_BUS)}
+        specs[DEFAULT_BUS] = ({}, {}, None)
+    else:
+        items = r.free_mapping(node, "buses")
+        if isinstance(node, yaml.MappingNode) and not node.value:
+            r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
+        for name, (knode, vnode) in items.items():
+            given, nodes = _bus_entry(r, name, vnode)
+            if given is not None:
+                specs[name] = (given, nodes, knode)
     buses: dict[str, BusConfig] = {}
-    items = r.free_mapping(node, "buses")
-    if isinstance(node, yaml.MappingNode) and not node.value:
-        r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
-    for name, (_knode, vnode) in items.items():
-        if isinstance(vnode, yaml.ScalarNode):
-            if vnode.value == "":
-                buses[name] = BusConfig(name)  # `arm:` alone: all defaults
-            elif (channel := r.string(vnode, f"bus {name!r}", "a channel name, or {channel: ..., ...}")):
-                buses[name] = BusConfig(name, channel=channel)  # `arm: can0`: the channel
-            continue
-        fields = r.mapping(vnode, f"bus {name!r}", BUS_KEYS)
-        kw: dict[str, Any] = {}
-        if "interface" in fields:
-            kw["interface"] = r.string(fields["interface"][1], f"bus {name!r}: interface",
-                                       "a python-can interface such as socketcan, virtual, pcan")
-        if "channel" in fields:
-            ch = r.plain(fields["channel"][1])
-            if isinstance(ch, int) and not isinstance(ch, bool):
-                kw["channel"] = str(ch)  # kvaser/ixxat channels may be numbers
-            else:
-                kw["channel"] = r.string(fields["channel"][1], f"bus {name!r}: channel")
-        if "bitrate" in fields:
-            kw["bitrate"] = r.integer(fields["bitrate"][1], f"bus {name!r}: bitrate", 10_000, 1_000_000,
-                                      "AK drivers use 1000000 bit/s")
-        buses[name] = BusConfig(name, **{k: v for k, v in kw.items() if v is not None})
+    for name, (given, nodes, knode) in specs.items():
+        bus, found = resolve_bus(name, given)
+        for key, message, fix in found:
+            r.add(nodes.get(key, knode), message, fix)
+        if bus is not None:
+            buses[name] = bus
     return buses
+
+
+def _bus_entry(r: _Reader, name: str, vnode: yaml.Node) -> tuple[dict[str, Any] | None, dict[str, yaml.Node]]:
+    """A `buses:` entry: what it gives (None when it has problems) and the value node of each key."""
+    if isinstance(vnode, yaml.ScalarNode):
+        if vnode.value == "":
+            return {}, {}  # `arm:` alone: all defaults
+        channel = r.string(vnode, f"bus {name!r}", "a channel name, or {channel: ..., ...}")
+        return ({"channel": channel}, {"channel": vnode}) if channel else (None, {})  # `arm: can0`: the channel
+    fields = r.mapping(vnode, f"bus {name!r}", ())
+    n_before = len(r.problems)
+    given: dict[str, Any] = {}
+    nodes = {k: v for k, (_, v) in fields.items()}
+    for key, (knode, value) in fields.items():
+        if key == "interface":
+            given[key] = r.string(value, f"bus {name!r}: interface",
+                                  "a python-can interface such as socketcan, virtual, pcan")
+        elif key == "channel":
+            ch = r.plain(value)
+            if isinstance(ch, int) and not isinstance(ch, bool):
+                given[key] = str(ch)  # kvaser/ixxat channels may be numbers
+            else:
+                given[key] = r.string(value, f"bus {name!r}: channel")
+        elif key == "bitrate":
+            given[key] = r.integer(value, f"bus {name!r}: bitrate", 10_000, 1_000_000, "AK drivers use 1000000 bit/s")
+        elif hint := did_you_mean(key, BUS_KEYS):
+            r.add(knode, f"bus {name!r}: unknown key {key!r}{hint}",
+                  "known keys: " + ", ".join(BUS_KEYS) + ", and the keyword arguments of python-can's bus for "
+                  "the interface")
+        elif key in RESERVED_BUS_KEYS:
+            r.add(knode, f"bus {name!r}: {key!r} is set by akarm", "remove it")
+        elif not key.isidentifier():
+            r.add(knode, f"bus {name!r}: {key!r} is not a keyword argument name", "use python-can's argument names, "
+                  "e.g. device_id, app_name, serial, fd, data_bitrate")
+        else:
+            given[key] = r.plain(value)  # a keyword argument of the interface's bus, passed through
+    return (given if len(r.problems) == n_before else None), nodes
 
 
 def _clip(x: float, joint: UrdfJoint) -> float:

@@ -51,7 +51,7 @@ class GravityPeak:
 
 
 def peak_abs(gravity: Callable[[np.ndarray], np.ndarray], lower: Sequence[float], upper: Sequence[float], *,
-             samples: int = 48, starts: int = 2, sweeps: int = 5, seed: int = 1) -> list[tuple[float, np.ndarray]]:
+             samples: int = 48, starts: int = 3, sweeps: int = 5, seed: int = 1) -> list[tuple[float, np.ndarray]]:
     """Per joint, the largest ``|gravity(q)[i]|`` over the box ``lower <= q <= upper`` and where.
 
     Args:

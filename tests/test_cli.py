@@ -349,7 +349,7 @@ def test_teach_a_path_for_some_seconds(channel: str, relaxed: str, tmp_path: Pat
     with os.fdopen(r) as stdin, os.fdopen(w, "w"):
         monkeypatch.setattr("sys.stdin", stdin)
         with simulated(relaxed, channel, q0=HANGING):
-            assert main(["teach", relaxed, *bus(channel), str(out), "--rate", "100", "--seconds", "0.5"]) == 0
+            assert main(["teach", relaxed, *bus(channel), str(out), "--sample-rate", "100", "--seconds", "0.5"]) == 0
     path = load_path(out, ("shoulder", "elbow"))
     # the loop stops sampling on its own at 0.5 s, however late the waiting thread wakes: 51
     # samples on the 100 Hz grid (exactly so in lock step, test_teach), fewer only if a stall of
@@ -466,7 +466,7 @@ def test_plot_a_bad_log_is_one_clear_error(tmp_path: Path, capsys: pytest.Captur
 @pytest.mark.parametrize("where", ["own", "in-process"])
 def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.CaptureFixture[str]) -> None:
     extra = ["--in-process"] if where == "in-process" else []
-    assert main(["bench", PLANAR2, "--seconds", "1", "--rate", "250", *extra]) == 0
+    assert main(["bench", PLANAR2, "--seconds", "1", "--loop-rate", "250", *extra]) == 0
     out = capsys.readouterr().out
     assert "bench: planar2, 2 joints at 250 Hz" in out
     assert ("in this process" if extra else "in its own process") in out

@@ -52,7 +52,7 @@ def test_realtime_answers_at_once_and_follows_the_wall_clock(channel: str) -> No
 def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     result: list[int] = []
-    argv = ["sim", PLANAR2, "-i", "virtual", "-c", channel, "--duration", "1.5", "--fault", "elbow:error:3",
+    argv = ["sim", PLANAR2, "-i", "virtual", "-c", channel, "--seconds", "1.5", "--fault", "elbow:error:3",
             "--pose", "down"]
     runner = threading.Thread(target=lambda: result.append(main(argv)))
     with can.Bus(interface="virtual", channel=channel) as bus:
@@ -86,7 +86,7 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
 def test_cli_missing_socketcan_bus_says_how_to_create_it(capsys: pytest.CaptureFixture[str]) -> None:
     if has_vcan("vcan9"):
         pytest.skip("vcan9 exists here")
-    assert main(["sim", PLANAR2, "-i", "socketcan", "-c", "vcan9", "--duration", "0.1"]) == 1
+    assert main(["sim", PLANAR2, "-i", "socketcan", "-c", "vcan9", "--seconds", "0.1"]) == 1
     err = capsys.readouterr().err
     assert "vcan9" in err and "sudo ip link add dev vcan9 type vcan && sudo ip link set up vcan9" in err
     assert "Traceback" not in err

@@ -442,8 +442,8 @@ def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
         bus, found = resolve_bus(name, given)
         for key, message, fix in found:
             r.add(nodes.get(key, knode), message, fix)
-        if bus is not None:
-            buses[name] = bus
+        # a bus with problems (reported) still has its name, so its joints are checked without follow-on errors
+        buses[name] = bus if bus is not None else BusConfig(name)
     return buses
 
 

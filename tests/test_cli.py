@@ -34,7 +34,7 @@ from akarm.sim import SimulatedRobot, faults
 from akarm.telemetry import TelemetryLog
 from akarm.telemetry import load as load_telemetry
 
-from .conftest import ROBOTS, wait_until
+from .conftest import ROBOTS, missing_socketcan_fix, wait_until
 
 PLANAR2 = str(ROBOTS / "planar2.yaml")
 SERVO3 = str(ROBOTS / "servo3.yaml")
@@ -113,7 +113,7 @@ def test_a_missing_socketcan_device_says_how_to_bring_it_up(verb: list[str],
     argv = [verb[0], PLANAR2, "-i", "socketcan", "-c", "akarmnope0", *verb[1:]]
     assert main(argv) == 1
     err = capsys.readouterr().err
-    assert f"akarm {verb[0]}: error: cannot open CAN bus" in err and "ip link" in err
+    assert f"akarm {verb[0]}: error: cannot open CAN bus" in err and missing_socketcan_fix("akarmnope0") in err
     assert len(err.strip().splitlines()) == 1
 
 

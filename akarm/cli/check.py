@@ -101,7 +101,7 @@ def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0
     rows = [["bus", "channel", "joints", "load", "max rate (worst case)", "max rate (nominal)"]]
     for name, load in bus_loads(config).items():
         bus = config.buses[name]
-        rows.append([name, f"{bus.interface}:{bus.channel} @ {bus.bitrate // 1000} kbit/s", str(len(load.joints)),
+        rows.append([name, bus.describe(), str(len(load.joints)),
                      f"{load.percent:.1f} % ({load.percent_nominal:.1f} %)", _hz(load.max_rate_hz),
                      _hz(load.max_rate_hz_nominal)])
         if load.worst_case_over_limit:

@@ -166,6 +166,12 @@ class RobotModel:
                              + ", ".join(self.joint_names), fix="give one value per joint, in config order")
         return a
 
+    @property
+    def identity_mapping(self) -> bool:
+        """Config order is Pinocchio's order, and its ``q`` and ``v`` hold nothing else (no continuous
+        joints): a config-order vector may be handed to Pinocchio as it is."""
+        return bool(self._q_identity and self._v_identity)
+
     def to_pin_q(self, q: ArrayLike) -> np.ndarray:
         """Config-order joint positions (rad) → Pinocchio configuration ``q`` (continuous: cos, sin)."""
         q = self._vec(q, "q")

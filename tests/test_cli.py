@@ -229,12 +229,25 @@ def test_enable_holds_for_its_seconds_then_disables(channel: str, relaxed: str,
     assert "enabled planar2: holding at [" in out and out.rstrip().endswith("disabled")
 
 
-def test_enable_ctrl_c_disables_and_exits_130(channel: str, relaxed: str,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_enable_until_ctrl_c_disables_and_exits_0(channel: str, relaxed: str,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C is how `akarm enable` without --seconds is ended: a success."""
     with simulated(relaxed, channel, q0=HANGING) as sim:
         interrupt_when(lambda: sim.joint("shoulder").enabled, after=0.3)
         t0 = time.monotonic()
-        assert main(["enable", relaxed, *bus(channel)]) == 130
+        assert main(["enable", relaxed, *bus(channel)]) == 0
+        assert time.monotonic() - t0 < 5.0
+        assert all_disabled(sim)
+    captured = capsys.readouterr()
+    assert captured.out.rstrip().endswith("disabled") and "interrupted" not in captured.err
+
+
+def test_enable_ctrl_c_before_its_seconds_are_up_exits_130(channel: str, relaxed: str,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    with simulated(relaxed, channel, q0=HANGING) as sim:
+        interrupt_when(lambda: sim.joint("shoulder").enabled, after=0.3)
+        t0 = time.monotonic()
+        assert main(["enable", relaxed, *bus(channel), "--seconds", "30"]) == 130
         assert time.monotonic() - t0 < 5.0
         assert all_disabled(sim)
     assert "interrupted: the arm is disabled" in capsys.readouterr().err

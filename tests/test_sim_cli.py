@@ -76,9 +76,14 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
     assert mit.decode_reply(model, replies[1].data).position == pytest.approx(-1.5, abs=0.05)  # --pose down
     out = capsys.readouterr().out
     assert "bus arm: virtual" in out and "fault on elbow: ErrorCode(code=3)" in out
-    status = [line for line in out.splitlines() if line.startswith("t=")]
-    assert len(status) == 1                                 # not a terminal: one line a second
-    assert "shoulder" in status[0] and "rad" in status[0] and "Nm" in status[0] and "C " in status[0]
+    lines = out.splitlines()
+    status = [k for k, line in enumerate(lines) if line.startswith("t=")]
+    assert len(status) == 1                                 # not a terminal: one status a second
+    # two joints' status does not fit 80 columns: a line for the time, then one per joint
+    block = lines[status[0]:status[0] + 3]
+    assert block[1].startswith("  shoulder ") and block[2].startswith("  elbow ")
+    assert all(len(line) < 80 for line in lines)
+    assert "rad" in block[1] and "Nm" in block[1] and "C " in block[1] and "E3" in block[2]
     stopped = re.search(r"akarm sim: stopped at t = ([0-9.]+)", out)
     assert stopped and float(stopped.group(1)) == pytest.approx(1.5, abs=0.1)  # simulated time may lag
 
@@ -131,3 +136,15 @@ def test_cli_process_stops_cleanly_on_a_signal(sig: signal.Signals) -> None:
     assert proc.returncode == 0, err
     assert "akarm sim: stopped at" in out
     assert "Traceback" not in err
+
+
+def test_status_line_fits_80_columns_or_is_wrapped_per_joint() -> None:
+    from akarm.cli.sim import status_block
+
+    short = "t=    1.00s | a +0.000rad +0.00Nm  25.0C on"
+    assert status_block(short, 80) == [short]
+    six = "t=    1.00s | " + " | ".join(f"joint{k} +0.000rad +0.00Nm  25.0C on" for k in range(6))
+    block = status_block(six, 80)
+    assert block[0] == "t=    1.00s" and len(block) == 7
+    assert all(len(line) < 80 for line in block) and block[3] == "  joint2 +0.000rad +0.00Nm  25.0C on"
+    assert all(len(line) < 20 for line in status_block(six, 20))  # a very narrow terminal: cut

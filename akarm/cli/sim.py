@@ -54,6 +54,15 @@ def _describe(config: RobotConfig) -> str:
     return "\n".join(lines)
 
 
+def status_block(line: str, width: int) -> list[str]:
+    """The simulator's status line as it fits ``width`` columns: as it is when it fits, else one line
+    for the time and one per joint (cut to the width if even that is too wide)."""
+    if len(line) < width:
+        return [line]
+    parts = line.split(" | ")
+    return [parts[0]] + ["  " + p[: width - 3] for p in parts[1:]]
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the simulator until SIGINT/SIGTERM or ``--seconds``; 0 on a clean stop."""
     import contextlib
@@ -90,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
 
     tty = sys.stdout.isatty()
     period = 1.0 / args.status_hz if tty and args.status_hz > 0 else 1.0
+    shown = 0  # lines of the status block on screen (a terminal redraws it in place)
     try:
         with sim:
             print(_describe(sim.config), flush=True)
@@ -115,13 +125,15 @@ def run(args: argparse.Namespace) -> int:
                 if now >= next_line:
                     next_line += period
                     if not args.quiet:
-                        line = sim.status_line()
-                        if tty:
-                            width = shutil.get_terminal_size((120, 20)).columns
-                            print("\r" + line[: width - 1].ljust(width - 1), end="", flush=True)
+                        width = shutil.get_terminal_size((80, 24)).columns if tty else 80
+                        block = status_block(sim.status_line(), width)
+                        if tty:  # back to the block's first line, then each line cleared and written
+                            up = f"\x1b[{shown - 1}F" if shown > 1 else "\r"
+                            print(up + "\n".join("\x1b[2K" + s for s in block), end="", flush=True)
+                            shown = len(block)
                         else:
-                            print(line, flush=True)
-            if tty and not args.quiet:
+                            print("\n".join(block), flush=True)
+            if tty and not args.quiet and shown:
                 print()
             print(f"akarm sim: stopped at t = {sim.t:.2f} s "
                   f"(frames in {sum(d.frames_received for d in sim.drivers)}, "

@@ -82,7 +82,7 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
     # two joints' status does not fit 80 columns: a line for the time, then one per joint
     block = lines[status[0]:status[0] + 3]
     assert block[1].startswith("  shoulder ") and block[2].startswith("  elbow ")
-    assert all(len(line) < 80 for line in lines)
+    assert all(len(line) < 80 for line in block)
     assert "rad" in block[1] and "Nm" in block[1] and "C " in block[1] and "E3" in block[2]
     stopped = re.search(r"akarm sim: stopped at t = ([0-9.]+)", out)
     assert stopped and float(stopped.group(1)) == pytest.approx(1.5, abs=0.1)  # simulated time may lag

@@ -132,7 +132,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             arm.enable()
             motion = arm.move_to(target, speed=args.speed, wait=False)
-            q_target = motion.plan.sample(motion.plan.t_end)[0]
+            q_target = (np.array(config.pose(target) if isinstance(target, str) else target, dtype=float)
+                        if not isinstance(target, dict) else motion.plan.sample(motion.plan.t_end)[0])
             print(f"moving to {label} {format_q(q_target)} in {motion.duration:.2f} s", flush=True)
             motion.wait()
             if args.hold > 0:

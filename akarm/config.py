@@ -129,6 +129,10 @@ class JointConfig:
         status_rate_hz: servo joints: the rate the motor sends status frames at (its own setting).
         can_timeout: s; MIT firmware CAN timeout (0 = off, as on units in the field). Simulator only.
         friction: identified friction for feed-forward; ``None`` uses the catalogue's typical values.
+        following_error: rad; the supervisor stops the arm when the joint is further than this from
+            its commanded position. ``None``: derived (:func:`akarm.safety.default_following_error`).
+        stuck_travel: rad; the supervisor stops the arm when the command moves this far while the
+            joint's reading repeats. ``None``: derived (:func:`akarm.safety.default_stuck_travel`).
     """
 
     name: str
@@ -147,6 +151,8 @@ class JointConfig:
     status_rate_hz: float = 50.0
     can_timeout: float = 0.0
     friction: Friction | None = None
+    following_error: float | None = None
+    stuck_travel: float | None = None
 
     def friction_model(self) -> Friction:
         """The friction to compensate: this joint's own, else the motor catalogue's, else none."""

@@ -32,7 +32,8 @@ A robot is described once, in a YAML file next to its URDF::
         limits: {lower: -1.5, upper: 1.5, velocity: 3.0, acceleration: 15.0, jerk: 150.0, torque: 10.0}
         gains: {kp: 60.0, kd: 2.0}  # required for MIT joints
         # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout,
-        #   friction: {coulomb: N·m, viscous: N·m·s/rad} (identified; default: the catalogue's typical values)
+        #   friction: {coulomb: N·m, viscous: N·m·s/rad} (identified; default: the catalogue's typical values),
+        #   following_error, stuck_travel: rad, the supervisor's limits (default: derived, see akarm.safety)
 
 Rules the loader applies:
 
@@ -85,7 +86,8 @@ __all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "python_can_sett
 TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
             "defaults", "joints", "locked")
 JOINT_KEYS = ("name", "bus", "can_id", "motor", "mode", "firmware", "direction", "offset", "limits", "gains",
-              "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout", "friction")
+              "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout", "friction",
+              "following_error", "stuck_travel")
 DEFAULT_KEYS = tuple(k for k in JOINT_KEYS if k not in ("name", "can_id"))
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk", "torque")
 GAIN_KEYS = ("kp", "kd")
@@ -797,6 +799,10 @@ class _Loader:
                                                 fix="the motor's status rate setting, 1-500 Hz")
         if (node := get("can_timeout")) is not None:
             extras["can_timeout"] = r.number(node, f"{label}: can_timeout", minimum=0.0, fix="seconds; 0 = off")
+        for key, what in (("following_error", "rad: how far the joint may be from its command"),
+                          ("stuck_travel", "rad: how far the command may move while the reading repeats")):
+            if (node := get(key)) is not None:
+                extras[key] = r.number(node, f"{label}: {key}", positive=True, fix=f"{what}, e.g. 0.2")
 
         if "friction" in own or "friction" in defaults:
             fr = _merged(own, defaults, r, "friction", ("coulomb", "viscous"))

@@ -70,13 +70,14 @@ def test_move_named_joints_moves_those_and_keeps_the_others(channel: str, relaxe
     (["hme"], "no pose named 'hme' (did you mean 'home'?)"),
     (["elbw=0.2"], "no joint named 'elbw' (did you mean 'elbow'?)"),
     (["home", "--log", "run.txt"], "cannot save telemetry as 'run.txt': the name must end in .csv or .npz"),
-    (["home", "--log", "no/such/folder/run.csv"], "the folder 'no/such/folder' does not exist"),
+    (["home", "--log", "robot.yaml/run.csv"], "cannot create directory robot.yaml: robot.yaml is not a directory"),
     (["elbow=3.0"], "target +3.0000 rad is outside"),
 ])
 def test_bad_names_and_output_files_are_refused_before_anything_moves(
         words: list[str], message: str, channel: str, relaxed: str,  # noqa: F811
         capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "robot.yaml").write_text("a file, not a folder")
     with simulated(relaxed, channel, q0=HANGING) as sim:
         assert main(["move", relaxed, *bus(channel), *words]) == 1
         assert frames_received(sim) == 0  # not a frame sent

@@ -635,3 +635,15 @@ def test_friction_per_joint_and_from_defaults(tmp_path) -> None:
         load_robot(f)
     text = str(info.value)
     assert "friction coulomb" in text and "viscos" in text and "did you mean 'viscous'" in text
+
+
+def test_supervisor_limits_per_joint_and_from_defaults(tmp_path: Path) -> None:
+    text = BASE.replace("motor: AK60-6", "motor: AK60-6\n    following_error: 0.15\n    stuck_travel: 0.03")
+    c = load_robot(write(tmp_path, text))
+    el = c.joint("elbow")
+    assert (el.following_error, el.stuck_travel) == (0.15, 0.03)
+    assert c.joints[0].following_error is None  # derived by the supervisor (akarm.safety)
+    bad = BASE.replace("motor: AK60-6", "motor: AK60-6\n    following_error: 0\n    stuck_travel: far")
+    found = problems(tmp_path, bad)
+    assert one(found, "following_error must be positive").line == line_of(bad, "following_error")
+    assert one(found, "stuck_travel must be a number").line == line_of(bad, "stuck_travel")

@@ -209,7 +209,7 @@ def test_a_recording_with_a_duration_stops_itself(channel) -> None:
 
 
 def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
-    from akarm.arm import _PathRecorder
+    from akarm.control import PathRecorder as _PathRecorder
 
     rec = _PathRecorder(100.0, duration=0.1)
     cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms

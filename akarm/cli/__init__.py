@@ -2,6 +2,8 @@
 
 Each verb lives in its own module ``akarm.cli.<verb>`` with ``add_arguments(parser)`` and
 ``run(args) -> int``; modules import heavy libraries inside ``run`` so ``akarm --help`` is fast.
+SIGTERM and SIGHUP end every verb as Ctrl-C does (:mod:`akarm.signals`): the arm is damped and
+disabled, what was recorded is written, and the exit status is 128 + the signal's number.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
+from .. import signals
 from .._version import __version__
 from ..errors import AkarmError
 
@@ -59,11 +62,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     module = importlib.import_module(VERBS[args.verb][0])
+    installed = signals.install()  # SIGTERM and SIGHUP end a verb as Ctrl-C does: damped, disabled, saved
     try:
         return int(module.run(args) or 0)
     except AkarmError as e:
         print(f"akarm {args.verb}: error: {e}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         print(f"akarm {args.verb}: interrupted", file=sys.stderr)
-        return 130
+        return signals.exit_code(e)
+    finally:
+        if installed:
+            signals.uninstall()

@@ -1,14 +1,11 @@
 """What the verbs share: the robot YAML and python-can style bus overrides, tables, and driving an
 Arm so that it always ends damped and disabled (:func:`controlled`, :func:`stop_smoothly`,
-:func:`deferred_sigint`)."""
+:func:`deferred_signals`), and the exit status of an interrupted verb (:func:`interrupted`)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import signal
-import sys
-import threading
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
@@ -77,25 +74,12 @@ def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = N
     return "\n".join(out)
 
 
-@contextlib.contextmanager
-def deferred_sigint(message: str = "stopping the arm safely; please wait") -> Iterator[None]:
-    """While inside, Ctrl-C does not interrupt (``message`` is printed instead). Main thread only;
-    elsewhere (signals cannot be handled there) it does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    told: list[int] = []
+def deferred_signals(message: str = "stopping the arm safely; please wait") -> contextlib.AbstractContextManager[None]:
+    """While inside, Ctrl-C, SIGTERM and SIGHUP do not interrupt (``message`` is printed instead):
+    the arm's stop must not be cut short. Main thread only (:func:`akarm.signals.deferred`)."""
+    from .. import signals
 
-    def handler(signum: int, frame: object) -> None:
-        if not told:
-            print(message, file=sys.stderr, flush=True)
-        told.append(signum)
-
-    previous = signal.signal(signal.SIGINT, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    return signals.deferred(message)
 
 
 @contextlib.contextmanager
@@ -110,7 +94,7 @@ def controlled(arm: Arm | RobotConfig) -> Iterator[Arm]:
     try:
         yield arm
     finally:
-        with deferred_sigint():
+        with deferred_signals():
             arm.close()
 
 
@@ -121,12 +105,19 @@ def stop_smoothly(arm: Arm) -> None:
     """
     from ..errors import AkarmError
 
-    with deferred_sigint():
+    with deferred_signals():
         if arm.enabled and arm.moving:
             with contextlib.suppress(AkarmError):
                 arm.stop(wait=True)
         with contextlib.suppress(AkarmError):
             arm.disable()
+
+
+def interrupted(e: KeyboardInterrupt) -> int:
+    """The exit status of a verb ended by Ctrl-C (130) or a signal (128 + its number)."""
+    from .. import signals
+
+    return signals.exit_code(e)
 
 
 def format_q(q: Sequence[float]) -> str:

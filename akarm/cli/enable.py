@@ -15,7 +15,15 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, controlled, deferred_sigint, format_q, load_from_args, stop_smoothly
+from .common import (
+    add_robot_arguments,
+    controlled,
+    deferred_signals,
+    format_q,
+    interrupted,
+    load_from_args,
+    stop_smoothly,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,14 +51,14 @@ def run(args: argparse.Namespace) -> int:
             else:
                 while True:
                     arm.sleep(1.0)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
-            if args.seconds is None:  # Ctrl-C is how this is ended
+            if args.seconds is None and interrupted(e) == 130:  # Ctrl-C is how this is ended
                 print("disabled")
                 return 0
             print("interrupted: the arm is disabled", file=sys.stderr)
-            return 130
-        with deferred_sigint():
+            return interrupted(e)
+        with deferred_signals():
             arm.disable()
         print("disabled")
     return 0

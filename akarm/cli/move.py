@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..errors import AkarmError
-    from .common import controlled, deferred_sigint, format_q, stop_smoothly
+    from .common import controlled, deferred_signals, format_q, interrupted, stop_smoothly
     from .options import check_output
 
     if not 0 < args.speed <= 1:
@@ -138,16 +138,16 @@ def run(args: argparse.Namespace) -> int:
             motion.wait()
             if args.hold > 0:
                 arm.sleep(args.hold)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: stopped and disabled", file=sys.stderr)
-            code = 130
+            code = interrupted(e)
         else:
             state = arm.state()
             err = np.abs(state.q - q_target)
             print(f"arrived: {format_q(state.q)}, largest error {err.max() * 1e3:.2f} mrad "
                   f"({arm.names[int(err.argmax())]})")
-            with deferred_sigint():
+            with deferred_signals():
                 arm.disable()
         if args.log:
             path = arm.telemetry(since=t0).save(args.log)

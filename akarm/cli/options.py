@@ -55,13 +55,14 @@ def renamed(parser: argparse.ArgumentParser, old: str, new: str, *more: str) -> 
 
 
 def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], what: str) -> Path | None:
-    """An output file named on the command line, checked before anything moves: a known suffix, in a
-    folder that exists and can be written. ``None`` passes through.
+    """An output file named on the command line, checked before anything moves: a known suffix, and a
+    place it can be written (:func:`akarm.telemetry.check_writable`). ``None`` passes through.
 
     Raises:
         RecordingError: naming the file, what is wrong and the fix.
     """
     from ..errors import RecordingError
+    from ..telemetry import check_writable
 
     if path is None:
         return None
@@ -69,16 +70,7 @@ def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], w
     if p.suffix.lower() not in suffixes:
         raise RecordingError(f"cannot save {what} as {str(p)!r}: the name must end in {' or '.join(suffixes)}",
                              fix=f"use a {' or '.join(suffixes)} file name")
-    if p.is_dir():
-        raise RecordingError(f"cannot save {what} as {str(p)!r}: it is a folder", fix="give a file name")
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise RecordingError(f"cannot save {what} as {str(p)!r}: the folder {str(folder)!r} does not exist",
-                             fix="create the folder first, or choose another path")
-    if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise RecordingError(f"cannot save {what} as {str(p)!r}: not allowed to write there",
-                             fix="choose a path you can write to")
-    return p
+    return check_writable(p)
 
 
 #: a negative number, or comma-separated numbers starting with one ("-0.1", "-1e-3,0.2", "-.5,-.5")

@@ -5,7 +5,8 @@ poses and the bus load, each suggestion commented as one.
 out, per movable joint in chain order:
 
 - **driven or locked**: revolute and continuous joints are driven (CAN IDs 1..n on one bus); other
-  joints (a gripper's prismatic fingers) are held under ``locked:``; ``<mimic>`` joints follow;
+  joints (a gripper's prismatic fingers), and joints that others ``<mimic>`` (a gripper's finger
+  joint, moved by the gripper's own motor), are held under ``locked:``; ``<mimic>`` joints follow;
 - **range**: the URDF's, within the motors' MIT position range (±12.5 rad); continuous joints ±π;
 - **gravity**: the largest gravity torque over the ranges (:mod:`akarm.gravity`), with ``payload``
   kg at the tool frame;
@@ -215,7 +216,9 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
         raise _problems(path, [(None, f"not a valid robot model: {complaint}", "fix the URDF")])
 
     movable = urdf.movable
-    driven = [j for j in movable if j.type in ("revolute", "continuous") and j.mimic is None]
+    # a joint others mimic is a gripper's (a Robotiq's finger_joint): its own motor, not an AK; held
+    mimicked = {j.mimic.joint for j in movable if j.mimic is not None}
+    driven = [j for j in movable if j.type in ("revolute", "continuous") and j.mimic is None and j.name not in mimicked]
     if not driven:
         raise _problems(path, [(None, "the URDF has no revolute or continuous joint for a motor to drive",
                                 "akarm drives revolute and continuous joints")])
@@ -350,6 +353,8 @@ def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion],
             rng = f", {j.lower:g}..{j.upper:g} {unit}" if j.lower is not None and j.upper is not None else ""
             also = f"; {', '.join(followers)} follow{'s' if len(followers) == 1 else ''} it (mimic)" if followers \
                 else ""
+            if followers and j.type != "prismatic":
+                also += "; a gripper's joint? move it under joints: if an AK motor drives it"
             lines.append(f"  {_name(name)}: {_num(x)}   # suggested: where it is held ({j.type}{rng}){also}")
     lines += [
         "",

@@ -179,3 +179,26 @@ def test_init_sim_and_move_on_the_command_line(tmp_path: Path, channel: str) -> 
                             channel], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "arrived" in r.stdout and "disabled" in r.stdout
+
+
+def test_a_revolute_joint_others_mimic_is_taken_for_a_grippers_and_held(tmp_path: Path) -> None:
+    """A Robotiq-style gripper: a revolute finger_joint that other revolute joints mimic."""
+    text = (URDFS / "cad_arm4.urdf").read_text().replace("</robot>", """\
+  <link name="knuckle"><inertial><mass value="0.02"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/>
+  </inertial></link>
+  <link name="inner"><inertial><mass value="0.02"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/>
+  </inertial></link>
+  <joint name="finger_joint" type="revolute"><parent link="link4"/><child link="knuckle"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.8" effort="1000" velocity="2"/></joint>
+  <joint name="inner_finger_joint" type="revolute"><parent link="knuckle"/><child link="inner"/><axis xyz="1 0 0"/>
+    <limit lower="-0.8757" upper="0" effort="1000" velocity="2"/><mimic joint="finger_joint" multiplier="-1"/></joint>
+</robot>""")
+    urdf = tmp_path / "g.urdf"
+    urdf.write_text(text)
+    s = suggest(urdf, tmp_path / "g.yaml")
+    assert [j.urdf.name for j in s.joints] == ["Joint1", "Joint2", "Joint3", "Joint4"]
+    assert s.locked == {"finger_joint": 0.0, "inner_finger_joint": 0.0}
+    assert "a gripper's joint? move it under joints: if an AK motor drives it" in s.text
+    out = tmp_path / "g.yaml"
+    out.write_text(s.text)
+    assert load_robot(out).warnings == ()

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config_loader import load_robot
     from ..errors import AkarmError, ConfigError, ConfigWarning
     from ..starter import suggest
-    from ..telemetry import atomic_write
+    from ..telemetry import atomic_write, check_writable
     from .check import _print_problems
 
     urdf = Path(args.urdf)
@@ -52,14 +52,16 @@ def run(args: argparse.Namespace) -> int:
     if not args.payload >= 0 or not args.margin >= 1:
         raise AkarmError(f"--payload {args.payload:g} and --margin {args.margin:g} must be >= 0 and >= 1",
                          fix="e.g. --payload 0.5 --margin 1.5")
-    if not out.resolve().parent.is_dir():
-        raise AkarmError(f"the folder of {out} does not exist", fix="create it first, or choose another path")
+    check_writable(out)
     try:
         s = suggest(urdf, out, payload=args.payload, margin=args.margin)
     except ConfigError as e:
         _print_problems(str(urdf), e.problems, sys.stderr)
         return 1
-    atomic_write(out, lambda f: f.write(s.text.encode("utf-8")))
+    try:
+        atomic_write(out, lambda f: f.write(s.text.encode("utf-8")))
+    except OSError as e:
+        raise AkarmError(f"cannot write {out}: {e.strerror or e}", fix="choose a path you can write to") from None
     print(f"wrote {out}: {len(s.joints)} joints at {s.rate_hz:g} Hz" +
           (f", {len(s.locked)} held (locked)" if s.locked else "") + ":")
     width = max(len(j.urdf.name) for j in s.joints)

@@ -65,7 +65,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -75,13 +74,13 @@ from typing import Any
 import yaml
 
 from .busload import LOAD_LIMIT, load_of
+from .canconfig import RESERVED_BUS_KEYS, resolve_bus
 from .config import BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
 from .errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
 from .motors import Catalogue, MotorModel, default_catalogue, did_you_mean
-from .urdf import Urdf, UrdfJoint, read_urdf
+from .urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 
-__all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "python_can_settings", "read_urdf_joints",
-           "resolve_bus"]
+__all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joints"]
 
 TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
             "defaults", "joints", "locked")
@@ -113,46 +112,6 @@ def read_urdf_joints(path: Path) -> tuple[dict[str, UrdfJoint], set[str]]:
         raise ValueError("; ".join(f"URDF line {p.line}: {p.message}" if p.line else p.message for p in found))
     assert urdf is not None
     return dict(urdf.joints), set(urdf.links)
-
-
-def _check_pinocchio(path: Path) -> str | None:
-    """None when Pinocchio builds a model from the URDF, else why not.
-
-    Pinocchio's exception only says "does not contain a valid URDF model"; the reason is printed by
-    urdfdom on the C++ side to file descriptor 2, so that is captured for the duration of the call.
-    """
-    import tempfile
-
-    import pinocchio as pin
-
-    captured = ""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):
-        saved = -1
-    try:
-        with tempfile.TemporaryFile(mode="w+b") as tmp:
-            if saved >= 0:
-                os.dup2(tmp.fileno(), 2)
-            try:
-                pin.buildModelFromUrdf(str(path))
-                error = None
-            except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
-                error = str(e).strip() or type(e).__name__
-            finally:
-                if saved >= 0:
-                    os.dup2(saved, 2)
-            if error is not None:
-                tmp.seek(0)
-                captured = tmp.read().decode("utf-8", "replace")
-    finally:
-        if saved >= 0:
-            os.close(saved)
-    if error is None:
-        return None
-    reasons = [ln.split("Error:", 1)[1].strip() for ln in captured.splitlines() if "Error:" in ln]
-    return "; ".join(reasons) if reasons else error.splitlines()[0]
 
 
 # --------------------------------------------------------------------------- YAML with line numbers
@@ -334,97 +293,6 @@ def _motors(r: _Reader, node: yaml.Node, cat: Catalogue, failed: set[str]) -> Ca
         models[model.name.upper()] = model
         cat = Catalogue({m.name: m for m in models.values()})
     return cat
-
-
-def python_can_settings(context: str | None = None) -> dict[str, Any]:
-    """What python-can's own configuration says about a bus, as ``can.Bus()`` would read it: ``can.rc``,
-    then the environment (``CAN_INTERFACE_<context>`` ..., then ``CAN_INTERFACE``, ``CAN_CHANNEL``,
-    ``CAN_BITRATE``, ``CAN_CONFIG``), then the configuration files (``~/can.conf``, ``/etc/can.conf``,
-    ``~/.can``, ``~/.canrc``; ``can.ini`` on Windows), section ``[context]`` before ``[default]``.
-    Values are cast as python-can casts them.
-
-    Raises:
-        ValueError: ``CAN_CONFIG`` is not JSON, or a configuration file does not parse.
-    """
-    import configparser
-
-    import can
-    from can.util import cast_from_string, load_environment_config, load_file_config
-
-    sources: list[Any] = [lambda: dict(can.rc)]
-    if context:
-        sources.append(lambda: load_environment_config(context))
-    sources.append(load_environment_config)
-    if context:
-        sources.append(lambda: load_file_config(None, context))
-    sources.append(load_file_config)
-    out: dict[str, Any] = {}
-    for source in sources:
-        try:
-            found = dict(source())
-        except (ValueError, configparser.Error) as e:
-            raise ValueError(f"python-can's configuration cannot be read: {e}") from None
-        if "bustype" in found:  # python-can's legacy name
-            found.setdefault("interface", found["bustype"])
-            del found["bustype"]
-        for key, value in found.items():
-            out.setdefault(key, cast_from_string(value) if isinstance(value, str) else value)
-    return out
-
-
-#: bus keys akarm sets itself, never passed through
-RESERVED_BUS_KEYS = ("receive_own_messages", "bustype", "context")
-
-
-def resolve_bus(name: str, given: Mapping[str, Any], settings: Mapping[str, Any] | None = None
-                ) -> tuple[BusConfig | None, list[tuple[str, str, str]]]:
-    """A bus from what the robot file (or command line) gives, completed from python-can's configuration
-    (``settings``; default :func:`python_can_settings` for context ``name``), then akarm's defaults
-    (socketcan, can0, 1 Mbit/s). The file's values take precedence.
-
-    Returns:
-        the bus (``None`` when it has problems) and its problems as ``(key, message, fix)``; ``key`` is
-        where the problem is (``"interface"``, ``"bitrate"``, an option) or ``""``.
-    """
-    import can
-
-    found: list[tuple[str, str, str]] = []
-    if settings is None:
-        try:
-            settings = python_can_settings(name)
-        except ValueError as e:
-            return None, [("", str(e), "fix CAN_CONFIG or the can.conf/.canrc file, or give the bus fully in the YAML")]
-    taken: list[str] = []
-
-    def pick(key: str, default: Any) -> Any:
-        if given.get(key) is not None:
-            return given[key]
-        if settings.get(key) is not None:
-            taken.append(key)
-            return settings[key]
-        return default
-
-    interface = str(pick("interface", "socketcan"))
-    channel = pick("channel", "can0")
-    bitrate = pick("bitrate", 1_000_000)
-    where = " (from python-can's configuration: CAN_* variables or a can.conf/.canrc file)"
-    if interface not in can.VALID_INTERFACES:
-        found.append(("interface", f"bus {name!r}: {interface!r} is not a python-can interface"
-                      f"{did_you_mean(interface, sorted(can.VALID_INTERFACES))}"
-                      f"{where if 'interface' in taken else ''}",
-                      "python-can interfaces: " + ", ".join(sorted(can.VALID_INTERFACES))))
-    if isinstance(bitrate, bool) or not isinstance(bitrate, int) or not 10_000 <= bitrate <= 1_000_000:
-        found.append(("bitrate", f"bus {name!r}: bitrate must be a whole number within 10000..1000000, got "
-                      f"{bitrate!r}{where if 'bitrate' in taken else ''}", "AK drivers use 1000000 bit/s"))
-    options = {k: v for k, v in given.items() if k not in ("interface", "channel", "bitrate")}
-    if settings.get("interface") in (None, interface):  # python-can's extras are for its own interface
-        for k, v in settings.items():
-            if k not in ("interface", "channel", "bitrate", *RESERVED_BUS_KEYS) and k not in options:
-                options[k] = v
-                taken.append(k)
-    if found:
-        return None, found
-    return BusConfig(name, interface, str(channel), int(bitrate), options, tuple(taken)), []
 
 
 def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
@@ -647,7 +515,7 @@ class _Loader:
             r.add(p.line, f"URDF: {p.message}", p.fix, file=str(path))
         if urdf is None or found:
             return path, None
-        complaint = _check_pinocchio(path)
+        complaint = pinocchio_complaint(path)
         if complaint is not None:
             r.add(node, f"URDF {path.name} is not a valid robot model: {complaint}",
                   "fix the URDF (unique link names, every joint a known type, parent and child link)")

@@ -49,7 +49,7 @@ from .config import BusConfig, Gains, JointConfig, Limits, Payload, RobotConfig
 from .errors import ConfigError, ConfigProblem
 from .gravity import GravityPeak, gravity_peaks, sample_box
 from .motors import Catalogue, MotorModel, default_catalogue
-from .urdf import Urdf, UrdfJoint, read_urdf
+from .urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 
 __all__ = ["A_REF", "F_NATURAL", "JointSuggestion", "Suggestion", "suggest"]
 
@@ -199,8 +199,6 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     Raises:
         ConfigError: the URDF has problems (each at its line), or has no joint a motor can drive.
     """
-    from .config_loader import _check_pinocchio
-
     path = Path(urdf_path).resolve()
     cat = catalogue if catalogue is not None else default_catalogue()
     if not math.isfinite(payload) or payload < 0 or not math.isfinite(margin) or margin < 1:
@@ -211,7 +209,7 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     urdf, found = read_urdf(path)
     if urdf is None or found:
         raise _problems(path, [(p.line, p.message, p.fix) for p in found])
-    complaint = _check_pinocchio(path)
+    complaint = pinocchio_complaint(path)
     if complaint is not None:
         raise _problems(path, [(None, f"not a valid robot model: {complaint}", "fix the URDF")])
 

@@ -31,7 +31,7 @@ from xml.parsers import expat
 
 from .motors import did_you_mean
 
-__all__ = ["JOINT_TYPES", "Mimic", "Urdf", "UrdfJoint", "UrdfLink", "UrdfProblem", "read_urdf"]
+__all__ = ["JOINT_TYPES", "Mimic", "Urdf", "UrdfJoint", "UrdfLink", "UrdfProblem", "pinocchio_complaint", "read_urdf"]
 
 #: joint types of the URDF specification
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -453,3 +453,44 @@ def _root(urdf: Urdf) -> str:
     children = {j.child for j in urdf.joints.values()}
     roots = [n for n in urdf.links if n not in children]
     return roots[0] if len(roots) == 1 else ""
+
+
+def pinocchio_complaint(path: str | os.PathLike[str]) -> str | None:
+    """None when Pinocchio builds a model from the URDF, else why not.
+
+    Pinocchio's exception only says "does not contain a valid URDF model"; the reason is printed by
+    urdfdom on the C++ side to file descriptor 2, so that is captured for the duration of the call.
+    """
+    import sys
+    import tempfile
+
+    import pinocchio as pin
+
+    captured = ""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        saved = -1
+    try:
+        with tempfile.TemporaryFile(mode="w+b") as tmp:
+            if saved >= 0:
+                os.dup2(tmp.fileno(), 2)
+            try:
+                pin.buildModelFromUrdf(str(path))
+                error = None
+            except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
+                error = str(e).strip() or type(e).__name__
+            finally:
+                if saved >= 0:
+                    os.dup2(saved, 2)
+            if error is not None:
+                tmp.seek(0)
+                captured = tmp.read().decode("utf-8", "replace")
+    finally:
+        if saved >= 0:
+            os.close(saved)
+    if error is None:
+        return None
+    reasons = [ln.split("Error:", 1)[1].strip() for ln in captured.splitlines() if "Error:" in ln]
+    return "; ".join(reasons) if reasons else error.splitlines()[0]

@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _bus_from_args(args: argparse.Namespace) -> BusConfig:
     """Without a robot file: the bus of ``-i/-c/-b/--bus-kwargs``, completed from python-can's own
     configuration (CAN_INTERFACE, CAN_CHANNEL, can.conf, ...), as python-can's tools do."""
-    from ..config_loader import python_can_settings, resolve_bus
+    from ..canconfig import python_can_settings, resolve_bus
     from ..errors import AkarmError
 
     if args.channel and "=" in args.channel:

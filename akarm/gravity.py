@@ -85,8 +85,24 @@ def peak_abs(gravity: Callable[[np.ndarray], np.ndarray], lower: Sequence[float]
             t, q = _refine(gravity, i, pts[s].copy(), float(values[s, i]), lo, hi, sweeps)
             if t > best_t:
                 best_t, best_q = t, q
-        out.append((best_t, best_q))
+        out.append(_tidy(gravity, i, best_t, best_q, lo, hi))
     return out
+
+
+def _tidy(gravity: Callable[[np.ndarray], np.ndarray], i: int, torque: float, q: np.ndarray, lo: np.ndarray,
+          hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The same peak at a pose easier to read: each joint that does not matter to it put at 0 (within
+    its range), e.g. the base's yaw for a shoulder's gravity torque."""
+    for k in range(q.size):
+        x = min(max(0.0, lo[k]), hi[k])
+        if q[k] == x:
+            continue
+        trial = q.copy()
+        trial[k] = x
+        t = abs(float(gravity(trial)[i]))
+        if t >= torque * (1 - 1e-12):
+            q, torque = trial, t
+    return torque, q
 
 
 def sample_box(lower: Sequence[float] | np.ndarray, upper: Sequence[float] | np.ndarray, samples: int = 48,

@@ -113,8 +113,8 @@ class Arm:
         settle_speed: rad/s; ``enable()`` damps the arm until every joint is slower than this.
         settle_timeout: s; ``enable()`` gives up (:class:`~akarm.NotSettled`) if the arm is not at
             rest by then.
-        range_margin: rad; a move may start this far outside a joint's range (an arm resting on its
-            hard stop) and come back into it.
+        range_margin: rad; a move may start outside a joint's range (an arm resting on its hard stop),
+            up to this far past its mechanical range (the URDF's limits), and come back into it.
         implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
@@ -164,7 +164,7 @@ class Arm:
             self.names, np.array([x.lower for x in lim]), np.array([x.upper for x in lim]),
             np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
             np.array([x.jerk for x in lim]))
-        self.planner = Planner(self.limits, range_margin)
+        self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ctl = Controller(
             config, self.joints, self.model, self.clock, feedforward=feedforward,
             friction_feedforward=friction_feedforward, hold_integral=hold_integral,

@@ -24,8 +24,9 @@ Checks, per joint, in order (the first that fires is the stop):
    minus the measured position over the joint's limit for three cycles in a row; or a command
    saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
    ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
-   reading that repeats while the command has moved on by more than ``stuck_travel`` (a frozen
-   encoder or a blocked joint: a moving joint's reading changes every step of its 16-bit field). →
+   reading that repeats while the command has moved on by more than ``stuck_travel`` and the motor
+   is not saturated (a frozen encoder or a blocked joint: a moving joint's reading changes every
+   step of its 16-bit field, and one whose motor is at its limit is the saturation check's). →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -61,8 +62,9 @@ FOLLOWING_CYCLES = 3
 REPLY_WINDOW = 1.0
 #: Rejected replies of one joint within a REPLY_WINDOW that stop the arm, even between good ones.
 IMPLAUSIBLE_PER_WINDOW = 10
-#: s a joint's command may stay at the motor's torque range while the joint is off its target.
-SATURATION_TIME = 0.1
+#: s a joint's command may stay at the motor's torque range while the joint is off its target (a move
+#: that asks a little too much saturates for part of its acceleration; a motor that cannot hold, for good).
+SATURATION_TIME = 0.5
 
 _FIX_FOREIGN = ("stop the other program (akarm disable or akarm status from another terminal count too), or give "
                 "each motor its own CAN ID; then enable again")
@@ -272,7 +274,8 @@ class Supervisor:
                             "following_error in the YAML only if the arm is sound")
             else:
                 over[i] = 0
-            if saturated is not None and saturated[i] and (e > self._stuck[i] or e < -self._stuck[i]):
+            sat = saturated is not None and saturated[i]
+            if sat and (e > self._stuck[i] or e < -self._stuck[i]):
                 if sat_since[i] == math.inf:
                     sat_since[i] = now
                 elif now - sat_since[i] >= SATURATION_TIME:
@@ -287,7 +290,7 @@ class Supervisor:
                 sat_since[i] = math.inf
             if s.stamp != last_stamp[i]:  # a new reading
                 last_stamp[i] = s.stamp
-                if q != last_value[i]:
+                if q != last_value[i] or sat:
                     last_value[i], des_at[i] = q, qd
                 else:
                     travel = qd - des_at[i]

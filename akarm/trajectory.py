@@ -139,37 +139,45 @@ class Chain(Timed):
 class Planner:
     """Plans moves, waypoint paths and stops under one arm's joint limits.
 
-    A move may start up to ``range_margin`` rad outside a joint's range (an arm that sagged onto its
-    hard stop while limp): it is planned back toward the range, and refused only if it would go
-    further out. Targets are always inside.
+    A move may start outside a joint's range, anywhere up to ``range_margin`` rad past its
+    mechanical range (``outer``: the URDF's limits, which the YAML's may narrow): an arm that sagged
+    onto its hard stop while limp. It is planned back toward the range, and refused only if it would
+    go further out. Targets are always inside.
     """
 
-    def __init__(self, limits: JointLimits, range_margin: float = 0.05) -> None:
+    def __init__(self, limits: JointLimits, range_margin: float = 0.05,
+                 outer: tuple[Sequence[float], Sequence[float]] | None = None) -> None:
         if not range_margin >= 0:
             raise LimitError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
         self.limits = limits
         self.range_margin = float(range_margin)
+        lo, hi = outer if outer is not None else (limits.lower, limits.upper)
+        self._outer_lo = np.minimum(np.asarray(lo, dtype=float), limits.lower) - self.range_margin
+        self._outer_hi = np.maximum(np.asarray(hi, dtype=float), limits.upper) + self.range_margin
         self.dofs = len(limits.names)
         self._ruckig = ruckig.Ruckig(self.dofs)
 
     def bounds_from(self, q0: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """The position bounds of a path starting at ``q0``: the joint ranges, widened to take in a start
-        at most ``range_margin`` outside them (so the path may come back, not go further out).
+        outside them but within the mechanical range plus ``range_margin`` (so the path may come back,
+        not go further out).
 
         Raises:
-            LimitError: a joint starts further outside its range than the margin.
+            LimitError: a joint starts further out than that.
         """
         q = np.asarray(q0, dtype=float)
         lim = self.limits
         lo, hi = lim.lower.astype(float), lim.upper.astype(float)
         for i, name in enumerate(lim.names):
             v = float(q[i])
-            out = lo[i] - v if v < lo[i] else v - hi[i] if v > hi[i] else 0.0
-            if out > self.range_margin + 1e-9:
+            if not self._outer_lo[i] - 1e-9 <= v <= self._outer_hi[i] + 1e-9:
                 side = "below its lower" if v < lo[i] else "above its upper"
+                out = lo[i] - v if v < lo[i] else v - hi[i]
+                m = self.range_margin
                 raise LimitError(
-                    f"starts at {v:+.4f} rad, {out:.4f} rad {side} limit ({lo[i]:+.4f}..{hi[i]:+.4f} rad): further "
-                    f"out than the {self.range_margin:.3f} rad a move may start from", joint=name,
+                    f"starts at {v:+.4f} rad, {out:.4f} rad {side} limit ({lo[i]:+.4f}..{hi[i]:+.4f} rad): past its "
+                    f"mechanical range ({self._outer_lo[i] + m:+.4f}..{self._outer_hi[i] - m:+.4f} rad) by more "
+                    f"than the {m:.3f} rad a move may start from", joint=name,
                     fix="move the joint back into its range by hand (arm.teach() or disabled), or raise range_margin")
             if v < lo[i]:
                 lo[i] = v

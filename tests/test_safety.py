@@ -207,13 +207,20 @@ def test_a_saturated_command_off_target_for_a_while_is_a_motor_too_small(rig) ->
     t = 0.0
     while t < SATURATION_TIME + 3 * DT:
         t += DT
-        fresh(js, t, [-0.05 - t, 0.0])             # sagging under a load it cannot hold
+        fresh(js, t, [-0.1, 0.0])                  # sagged under a load it cannot hold
         e = sup.check(t, [0.0, 0.0], [True, True], [True, False])
         if e is not None:
             assert isinstance(e, TrackingError) and e.joint == "shoulder" and "torque range" in str(e)
             assert t >= SATURATION_TIME
             return
     pytest.fail("saturation was not found")
+
+
+def test_a_stalled_motor_at_its_limit_is_not_taken_for_a_frozen_encoder(rig) -> None:
+    js, sup = rig
+    for k in range(1, int(0.4 / DT)):              # stalled against its load: the reading repeats while
+        fresh(js, k * DT, [-0.1, 0.0])             # the command moves on 40 mrad (stuck_travel 30)
+        assert sup.check(k * DT, [0.0002 * k - 0.1, 0.0], [True, True], [True, False]) is None
 
 
 def test_saturated_but_on_target_is_not_a_stop(rig) -> None:

@@ -116,7 +116,8 @@ class Motion:
 
 class PathRecorder:
     """The samples of :meth:`Arm.start_recording`, taken by the loop on a grid of ``1 / rate`` s
-    from the first one; a stall skips the grid points it missed (no burst of samples after it)."""
+    from the first one; a stall skips the grid points it missed (no burst of samples after it), and
+    with a duration, no sample is taken more than half a grid step past its end."""
 
     __slots__ = ("_last", "_next", "duration", "positions", "rate", "times")
 
@@ -133,6 +134,9 @@ class PathRecorder:
 
     def sample(self, now: float, q: np.ndarray) -> None:
         if now < self._next - 1e-9 or self.finished:  # a nanosecond's slack: clocks sum periods
+            return
+        if now > self._last + 0.5 / self.rate:  # a stall across the end: that grid point is lost too
+            self._next = math.inf
             return
         if not self.times:
             self._next = now
@@ -216,7 +220,7 @@ class Controller:
         self.buses: dict[str, can.BusABC] = {}
         self._routers: dict[str, Router] = {}
         self._live: list[tuple[str, Any, Any]] = []  # (name, bus.recv, router.route) of the buses not lost
-        self._bus_of: list[Any] = [None] * n  # each joint's bus while it is not lost
+        self._bus_of: list[Any] = [None] * n  # each joint's bus (a lost one is still tried)
         self._send_failures: dict[str, int] = {}
         self.lost: dict[str, BaseException] = {}
         self._can_logger: Any = None

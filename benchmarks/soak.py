@@ -7,9 +7,12 @@
 The simulator runs in a process of its own (``akarm sim`` on ``akarm_local``), as a real arm's
 drivers are hardware of their own; the Arm is built with every default (20 ms feedback timeout,
 derived following-error limits, settle guard ...). It works as an arm at a cell does, until the time
-is up: moves to random targets in its workspace (a random blend of its named poses ready, reach,
-home and left, plus up to ±0.15 rad per joint; seeded) at random speeds from 0.5 to 1.0, with a
-full-speed move to a named pose every fourth move and a short pause at each target. A safety stop
+is up: moves to random targets in its workspace (a random blend of its named poses home, ready and
+left, home weighing most, plus up to ±0.15 rad per joint; seeded) at random speeds from 0.5 to 1.0,
+with a full-speed move to a named pose every fourth move (reach, its furthest, every sixteenth) and
+a short pause at each target. (arm6 holds ready and left at its shoulder's rated torque and reach at
+1.7 times it: a cycle that dwells out there heats that motor past 80 °C within minutes, in the
+simulator as in the motor, and the soak would measure the thermal model instead of the controller.) A safety stop
 is counted, reported and the arm enabled again: the goal is zero. Printed every minute and at the
 end: moves, stops, the loop's missed slots and late cycles, the largest following error per joint
 (and its limit), the largest feedback age, the hottest motor, and the process's resident memory.
@@ -62,7 +65,9 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     config = akarm.load_robot(ARM6).with_bus(interface="virtual" if args.lockstep else "akarm_local",
                                              channel=args.channel)
-    poses = [np.array(config.pose(p)) for p in ("ready", "reach", "home", "left")]
+    poses = [np.array(config.pose(p)) for p in ("home", "ready", "left")]
+    weights = np.array([3.0, 1.0, 1.0])
+    reach = np.array(config.pose("reach"))
     load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     how = "simulated (lock step)" if args.lockstep else "real time"
     print(f"akarm {akarm.__version__} soak: arm6, {args.seconds:.0f} s {how}, {os.cpu_count()} CPUs, load {load0:.2f}",
@@ -90,10 +95,12 @@ def main() -> int:
         last_report = t0
         since = arm.clock.now()
         while clock() - t0 < args.seconds:
-            if n_moves % 4 == 3:
+            if n_moves % 16 == 15:
+                target, speed = reach, 1.0
+            elif n_moves % 4 == 3:
                 target, speed = poses[rng.integers(len(poses))], 1.0
             else:
-                w = rng.dirichlet(np.ones(len(poses)))
+                w = rng.dirichlet(weights)
                 target = np.clip(sum(wk * p for wk, p in zip(w, poses, strict=True)) + rng.uniform(-0.15, 0.15, arm.n),
                                  lo, hi)
                 speed = float(rng.uniform(0.5, 1.0))

@@ -218,7 +218,8 @@ def test_enable_holds_for_its_seconds_then_disables(channel: str, relaxed: str,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     with simulated(relaxed, channel, q0=[-1.2, 0.3]) as sim:  # gravity pulls both links away from here
         th, result = in_thread(["enable", relaxed, *bus(channel), "--seconds", "1.5"])
-        assert wait_until(lambda: sim.joint("shoulder").enabled, 5.0)
+        # enabled, damped until at rest (it was falling), then held: stiffness in the stored command
+        assert wait_until(lambda: sim.joint("shoulder").stored_command.kp > 0, 5.0)
         held = sim.q
         time.sleep(0.5)
         assert np.allclose(sim.q, held, atol=0.01)               # held against gravity

@@ -516,6 +516,20 @@ def _wait_for_line(stream, word: str, timeout: float = 60.0) -> str:
 SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
 
 
+def _interrupt(proc: subprocess.Popen[str], ready: str, sig: int, wire: Wire, cfg: RobotConfig,
+               after: float) -> tuple[str, str, float]:
+    """Once ``ready`` is printed (stdout, or stderr when stdout is not the verb's), wait ``after`` s,
+    send ``sig``, wait for the process and for EXIT to every joint. Returns (stdout, stderr, s from
+    the signal to the last EXIT)."""
+    _wait_for_line(proc.stdout if ready != "recording at" else proc.stderr, ready)
+    time.sleep(after)
+    t = time.time()
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=30)
+    assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+    return out, err, max(s.t for j in cfg.joints for s in wire.sent_to(j) if s.kind == "exit") - t
+
+
 @pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: signal.Signals(s).name)
 def test_a_signal_during_a_move_damps_exits_and_ends_with_its_status(sig: int, local_robot: Path, channel: str,
                                                                       tmp_path: Path) -> None:
@@ -523,16 +537,10 @@ def test_a_signal_during_a_move_damps_exits_and_ends_with_its_status(sig: int, l
     with on_akarm_local(local_robot, channel) as (cfg, wire):
         proc = _start(["move", str(local_robot), "up", "-i", "akarm_local", "-c", channel, "--speed", "0.3",
                        "--log", str(log)])
-        _wait_for_line(proc.stdout, "moving to")
-        time.sleep(0.3)
-        t = time.time()
-        proc.send_signal(sig)
-        out, err = proc.communicate(timeout=30)
-        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
-        exit_at = max(s.t for j in cfg.joints for s in wire.sent_to(j) if s.kind == "exit")
+        _, err, to_exit = _interrupt(proc, "moving to", sig, wire, cfg, after=0.3)
     assert proc.returncode == 128 + sig, err
     assert "interrupted" in err and "Traceback" not in err
-    assert exit_at - t < 2.0                       # the stop: jerk-limited brake, 0.3 s damping, exit
+    assert to_exit < 2.0                           # the stop: jerk-limited brake, 0.3 s damping, exit
     damping_then_exit(wire, cfg)
     assert load_telemetry(log).t.size > 100  # the log is whole
     assert not list(tmp_path.glob(".*.tmp"))
@@ -545,16 +553,10 @@ def test_a_signal_while_teaching_keeps_the_recording_damps_and_exits(sig: int, l
     with on_akarm_local(local_robot, channel) as (cfg, wire):
         proc = _start(["teach", str(local_robot), str(out), "-i", "akarm_local", "-c", channel],
                       stdin=subprocess.PIPE)
-        _wait_for_line(proc.stderr, "recording at")
-        time.sleep(0.5)
-        t = time.time()
-        proc.send_signal(sig)
-        stdout, err = proc.communicate(timeout=30)
-        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
-        exit_at = max(s.t for j in cfg.joints for s in wire.sent_to(j) if s.kind == "exit")
+        stdout, err, to_exit = _interrupt(proc, "recording at", sig, wire, cfg, after=0.5)
     assert proc.returncode == 128 + sig, err
     assert "wrote" in stdout and "Traceback" not in err
-    assert exit_at - t < 2.0
+    assert to_exit < 2.0
     damping_then_exit(wire, cfg)
     rec = load_recording(out, cfg.joint_names)
     assert rec.duration > 0.3                      # what was recorded, whole
@@ -565,13 +567,9 @@ def test_a_signal_while_teaching_keeps_the_recording_damps_and_exits(sig: int, l
 def test_a_signal_to_enable_damps_and_exits(sig: int, local_robot: Path, channel: str) -> None:
     with on_akarm_local(local_robot, channel) as (cfg, wire):
         proc = _start(["enable", str(local_robot), "-i", "akarm_local", "-c", channel])
-        _wait_for_line(proc.stdout, "enabled planar2")
-        time.sleep(0.2)
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=30)
-        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+        _, err, to_exit = _interrupt(proc, "enabled planar2", sig, wire, cfg, after=0.2)
     assert proc.returncode in (0, 128 + sig), err  # 0 once Ctrl-C (and its kin) is enable's documented end
-    assert "Traceback" not in err
+    assert "Traceback" not in err and to_exit < 2.0
     damping_then_exit(wire, cfg)
 
 
@@ -618,9 +616,7 @@ def test_sigterm_to_a_script_unwinds_its_with_block(local_robot: Path, channel: 
     with on_akarm_local(local_robot, channel) as (cfg, wire):
         proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True)
-        _wait_for_line(proc.stdout, "enabled")
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+        _, err, to_exit = _interrupt(proc, "enabled", signal.SIGTERM, wire, cfg, after=0.0)
+    assert to_exit < 2.0
     assert proc.returncode == 1 and "Terminated: terminated by SIGTERM" in err  # Python's KeyboardInterrupt exit
     damping_then_exit(wire, cfg)

@@ -42,6 +42,7 @@ class Wire:
 
     def __init__(self, config: RobotConfig, background: bool = False) -> None:
         self.config = config
+        self.realtime = background
         self.frames: list[tuple[str, can.Message]] = []
         self._buses = {name: can.Bus(interface=b.interface, channel=b.channel) for name, b in config.buses.items()}
         self._stop = threading.Event()
@@ -109,7 +110,10 @@ def damping_then_exit(wire: Wire, config: RobotConfig, damping_time: float = 0.3
     """Assert that every joint's last frames were damping (MIT: kp = 0, kd > 0; servo: a braking
     current) for about ``damping_time`` s, then the exit frames (MIT: a zero-gain, zero-torque
     command, then EXIT; servo: zero current), and nothing after them. Returns the damping frames
-    per joint."""
+    per joint.
+
+    In lock step the damping is counted in frames (one per cycle); in real time it is timed from the
+    frames' stamps (a loaded machine makes the loop skip slots rather than send bursts)."""
     counts = {}
     want = int(damping_time * config.rate_hz) - 2
     for j in config.joints:
@@ -130,7 +134,12 @@ def damping_then_exit(wire: Wire, config: RobotConfig, damping_time: float = 0.3
             while k >= 0 and sent[k].kind == "SET_CURRENT_BRAKE":
                 k -= 1
             damped = len(sent) - 2 - k
-        assert damped >= want, f"{j.name}: {damped} damping frames before the exit, expected {want} or more"
+        if wire.realtime:
+            first, last = sent[k + 1].t, sent[k + damped].t
+            assert damped >= 2 and last - first >= damping_time - 3.0 / config.rate_hz - 0.005, \
+                f"{j.name}: damped for {last - first:.3f} s before the exit, expected {damping_time} s"
+        else:
+            assert damped >= want, f"{j.name}: {damped} damping frames before the exit, expected {want} or more"
         counts[j.name] = damped
     return counts
 

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import signals
-from .bus import close_buses, open_bus
+from .bus import close_buses, no_answer_hint, open_bus
 from .clock import Clock
 from .config import RobotConfig
 from .errors import (
@@ -787,7 +787,7 @@ class Controller:
             else:
                 what = f"no answer within {limit * 1e3:.0f} ms from: {names}"
             stop = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit, joint=late[0].name,
-                                   fix=_no_answer_fix(self.config.buses[late[0].bus]))
+                                   fix=no_answer_hint(self.config.buses[late[0].bus]))
             stop.at = now
             self._enable_failed(stop)
             return
@@ -824,15 +824,6 @@ class Controller:
         self.supervisor.disarm()
         self.recorder = None
         self.modes.go(Mode.FAULT if self.lost else Mode.DISABLED)
-
-
-def _no_answer_fix(bus: Any) -> str:
-    base = ("check power, CAN wiring and bit rate, the CAN ID, and that the motor is in the configured mode "
-            "(MIT or servo)")
-    if bus.interface in ("virtual", "akarm_local"):
-        return (f"nothing answers on the {bus.interface} channel {bus.channel!r}: is a simulator running on it "
-                f"(akarm sim ROBOT.yaml -i {bus.interface} -c {bus.channel})? Otherwise " + base)
-    return base
 
 
 # ----------------------------------------------------------------------------------------------

@@ -51,7 +51,7 @@ import can
 
 from .frames import message
 
-__all__ = ["INTERFACE", "LocalBus", "channel_path"]
+__all__ = ["INTERFACE", "LocalBus", "channel_path", "peers"]
 
 INTERFACE = "akarm_local"
 
@@ -96,6 +96,20 @@ def channel_path(channel: str) -> Path:
     user = os.getuid() if hasattr(os, "getuid") else 0
     folder = Path("/dev/shm") if Path("/dev/shm").is_dir() else Path(tempfile.gettempdir())
     return folder / f"akarm-can-{user}-{safe}"
+
+
+def peers(channel: str) -> list[int]:
+    """IDs of the other live processes with a bus open on ``channel`` (read-only; empty when the
+    channel's file does not exist or cannot be read)."""
+    try:
+        with open(channel_path(channel), "rb") as f:
+            data = f.read(_RINGS_AT)
+    except OSError:
+        return []
+    if len(data) < _OWNERS_AT + _RINGS * _OWNER.size or data[:8] != _MAGIC:
+        return []
+    pids = {_OWNER.unpack_from(data, _OWNERS_AT + r * _OWNER.size)[0] for r in range(_RINGS)}
+    return sorted(p for p in pids if p and p != os.getpid() and _alive(p))
 
 
 def _alive(pid: int) -> bool:

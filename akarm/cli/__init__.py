@@ -21,7 +21,8 @@ from ..errors import AkarmError
 #: verb → (module, one-line description). Verbs whose module is not there yet are not offered.
 VERBS: dict[str, tuple[str, str]] = {
     "demo": ("akarm.cli.demo", "run a scripted session on a simulated arm6 (no hardware needed)"),
-    "check": ("akarm.cli.check", "validate a robot YAML; print its joints, bus load and rate ceiling"),
+    "init": ("akarm.cli.init", "write a commented starting robot YAML for a URDF"),
+    "check": ("akarm.cli.check", "validate a robot YAML; print its joints, gravity, bus load and rate ceiling"),
     "sim": ("akarm.cli.sim", "simulate a robot's AK drivers on a CAN bus until Ctrl-C"),
     "scan": ("akarm.cli.scan", "list the CAN IDs that answer on a bus, and in which mode"),
     "status": ("akarm.cli.status", "print each joint's position, velocity, torque, temperature, fault"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
@@ -15,12 +16,15 @@ if TYPE_CHECKING:
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = True) -> None:
-    """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``."""
+    """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``, ``--bus-kwargs``."""
+    from .options import add_bus_kwargs
+
     parser.add_argument("robot", metavar="ROBOT.yaml", nargs=None if robot_required else "?",
                         help="the robot's YAML configuration")
     parser.add_argument("-i", "--interface", help="python-can interface for every bus (e.g. socketcan, virtual)")
     parser.add_argument("-c", "--channel", help="channel (one bus), or NAME=CHANNEL[,NAME=CHANNEL...] per bus")
     parser.add_argument("-b", "--bitrate", type=int, help="bit rate, bit/s")
+    add_bus_kwargs(parser)
 
 
 def parse_channel(text: str | None) -> str | dict[str, str] | None:
@@ -30,14 +34,27 @@ def parse_channel(text: str | None) -> str | dict[str, str] | None:
     return dict(part.split("=", 1) for part in text.split(","))
 
 
-def load_from_args(args: argparse.Namespace) -> RobotConfig:
-    """The robot config named on the command line, with its bus overrides applied."""
-    from ..config_loader import load_robot
+def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> RobotConfig:
+    """The robot config named on the command line, with its bus overrides applied (and the loop rate
+    ``rate_hz``, checked against the bus load like the file's own); the loader's ConfigWarnings are
+    printed as ``warning: ...`` lines on stderr."""
+    import warnings
 
-    config = load_robot(args.robot)
-    if args.interface or args.channel or args.bitrate:
+    from ..config_loader import load_robot
+    from ..errors import ConfigWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConfigWarning)
+        config = load_robot(args.robot, rate_hz=rate_hz)
+    for w in caught:
+        if issubclass(w.category, ConfigWarning):
+            print(f"warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    kwargs = getattr(args, "bus_kwargs", None) or None
+    if args.interface or args.channel or args.bitrate or kwargs:
         config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
-                                 bitrate=args.bitrate)
+                                 bitrate=args.bitrate, options=kwargs)
     return config
 
 

@@ -78,11 +78,13 @@ def _arm6_yaml() -> Path:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Fail before the session, not after it, on an output that cannot be written."""
-    if args.log is not None and Path(args.log).suffix not in (".csv", ".npz"):
-        raise RecordingError(f"cannot save telemetry as {args.log!r}", fix="use a .csv or .npz file name")
+    from .options import check_output
+
+    check_output(args.log, (".csv", ".npz"), "telemetry")
     if not args.no_plot:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
+        check_output(args.output, (".png",), "the plot")
         from ..plot import _figure_classes
 
         _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing

@@ -46,9 +46,11 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import AkarmError
     from ..recording import Keyframes, load
     from .common import controlled, deferred_signals, interrupted, stop_smoothly
+    from .options import check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config)

@@ -5,7 +5,7 @@ The arm is enabled, then made hand-guidable with its weight carried (no stiffnes
 - **Keyframes** (``OUT.yaml``): each Enter stores the current pose; text typed before Enter names
   it (``pick`` + Enter); ``q`` + Enter, end of input or Ctrl-C finishes. Replay passes through the
   poses in one smooth move.
-- **A continuous path** (``OUT.csv``): the pose is recorded ``--rate`` times a second until Enter,
+- **A continuous path** (``OUT.csv``): the pose is recorded ``--sample-rate`` times a second until Enter,
   end of input, Ctrl-C or ``--seconds``. Replay follows it at its recorded timing.
 
 Input is read line by line from stdin, so a script can drive it (``printf 'pick\\nplace\\nq\\n' | akarm teach ...``).
@@ -32,10 +32,13 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from .options import renamed
+
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ",
+    parser.add_argument("--sample-rate", type=float, default=50.0, metavar="HZ",
                         help="continuous path: samples per second (default 50, at most the loop rate)")
+    renamed(parser, "--rate", "--sample-rate")
     parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
@@ -152,23 +155,23 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix not in (".yaml", ".yml", ".csv"):
         raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
                          fix="name it .yaml (keyframes) or .csv (a continuous path)")
-    if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
-        raise AkarmError("--rate and --seconds must be positive")
+    if not args.sample_rate > 0 or (args.seconds is not None and not args.seconds > 0):
+        raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
     from .served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
         return served
     config = load_from_args(args)
-    if out.suffix == ".csv" and args.rate > config.rate_hz:
-        raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
-                         fix=f"use at most --rate {config.rate_hz:g}")
+    if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
+        raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
+                         fix=f"use at most --sample-rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
     with controlled(config) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, args.rate, args.seconds)
+            code = _teach_path(arm, out, lines, args.sample_rate, args.seconds)
         else:
             code = _teach_keyframes(arm, out, lines)
         with deferred_signals():

@@ -55,6 +55,11 @@ def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):
         assert "moving to up" in out.stdout and "arrived" in out.stdout and (tmp_path / "up.csv").is_file()
         assert np.abs(arm.state().q - [1.2, -1.2]).max() < 5e-3 and arm.enabled, "held after the move"
 
+        out = cli("move", *bus, "elbow=-0.9")  # some joints by name: the others stay
+        assert out.returncode == 0, out.stderr
+        assert "moving to elbow=-0.9 [+1.2000, -0.9000] rad" in out.stdout
+        assert np.abs(arm.state().q - [1.2, -0.9]).max() < 5e-3
+
         out = cli("move", *bus, "9,9")
         assert out.returncode == 1 and "LimitError" not in out.stderr and "outside" in out.stderr
         assert arm.enabled and not arm.moving
@@ -68,7 +73,8 @@ def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):
         assert np.abs(np.array(doc["keyframes"][1]["q"]) - arm.state().q).max() < 0.02
 
         teach = subprocess.Popen([sys.executable, "-m", "akarm", "teach", *bus, str(tmp_path / "p.csv"), "--seconds",
-                                  "0.4", "--rate", "50"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+                                  "0.4", "--sample-rate", "50"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                 text=True)
         try:  # stdin stays open: the recording ends by --seconds, not by the end of input
             assert teach.wait(60) == 0
             wrote = re.search(r"wrote (\d+) samples over 0.40 s", teach.stdout.read())

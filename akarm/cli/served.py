@@ -107,18 +107,23 @@ def _wait(arm: RemoteArm, motion: dict[str, Any]) -> dict[str, Any]:
 
 def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
     from ..errors import AkarmError
-    from .move import parse_target
+    from .move import LOG_SUFFIXES, parse_target
+    from .options import check_output
 
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if not args.hold >= 0:
         raise AkarmError(f"--hold {args.hold} must not be negative")
-    target = parse_target(args.target, arm.names)
-    q_target = np.array(arm.config.pose(target) if isinstance(target, str) else target)
+    check_output(args.log, LOG_SUFFIXES, "telemetry")
+    target = parse_target(args.target, arm.config)  # a pose name, a vector, or {joint: rad}
+    if isinstance(target, str):
+        target = list(arm.config.pose(target))
+    label = " ".join(args.target)
     try:
         arm.call("enable")
-        motion = arm.call("move", target=q_target.tolist(), speed=args.speed)
-        print(f"moving to {args.target} {format_q(q_target)} in {motion['duration']:.2f} s", flush=True)
+        motion = arm.call("move", target=target if isinstance(target, dict) else list(target), speed=args.speed)
+        q_target = np.array(motion["target"])
+        print(f"moving to {label} {format_q(q_target)} in {motion['duration']:.2f} s", flush=True)
         done = _wait(arm, motion)
         if args.hold > 0:
             arm.call("sleep", seconds=args.hold)
@@ -209,7 +214,7 @@ def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
     arm.call("teach", damping=args.damping)
     try:
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, args.rate, args.seconds)  # type: ignore[arg-type]
+            code = _teach_path(arm, out, lines, args.sample_rate, args.seconds)  # type: ignore[arg-type]
         else:
             code = _teach_keyframes(arm, out, lines)  # type: ignore[arg-type]
     finally:
@@ -220,9 +225,11 @@ def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 def _replay(arm: RemoteArm, args: argparse.Namespace) -> int:
     from ..errors import AkarmError
+    from .options import check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
     path = os.path.abspath(args.file)
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:

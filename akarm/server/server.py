@@ -344,7 +344,8 @@ class ArmServer:
                 m.wait()
 
     def _motion_doc(self, motion: Motion) -> dict[str, Any]:
-        return {"id": self._register(motion), "duration": motion.duration, "t0": motion.plan.t0}
+        return {"id": self._register(motion), "duration": motion.duration, "t0": motion.plan.t0,
+                "target": motion.plan.sample(motion.plan.t_end)[0].tolist()}
 
     def _op_move(self, target: str | list[float] | Mapping[str, float], speed: float = 1.0) -> dict[str, Any]:
         with self._cmd:

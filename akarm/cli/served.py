@@ -15,8 +15,6 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from .common import format_q, interrupted, load_from_args
 
 if TYPE_CHECKING:
@@ -67,6 +65,8 @@ class RemoteArm:
         self.call("start_recording", rate=rate_hz, seconds=duration)
 
     def stop_recording(self) -> PathRecording:
+        import numpy as np
+
         from ..recording import PathRecording
 
         doc = self.call("stop_recording")
@@ -106,6 +106,8 @@ def _wait(arm: RemoteArm, motion: dict[str, Any]) -> dict[str, Any]:
 
 
 def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
+    import numpy as np
+
     from ..errors import AkarmError
     from .move import LOG_SUFFIXES, parse_target
     from .options import check_output

@@ -271,7 +271,7 @@ class Arm:
                 q[self.names.index(name)] = self._number(value, name)
             return q
         try:
-            values = list(target)  # type: ignore[arg-type]
+            values = list(target)
         except TypeError:
             raise LimitError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
                              f"not {target!r}",

@@ -786,10 +786,10 @@ class Controller:
                 what = f"no {_CONTACT_REPLIES} consistent replies within {limit * 1e3:.0f} ms from: {names}"
             else:
                 what = f"no answer within {limit * 1e3:.0f} ms from: {names}"
-            stop = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit, joint=late[0].name,
-                                   fix=no_answer_hint(self.config.buses[late[0].bus]))
-            stop.at = now
-            self._enable_failed(stop)
+            silent = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit,
+                                     joint=late[0].name, fix=no_answer_hint(self.config.buses[late[0].bus]))
+            silent.at = now
+            self._enable_failed(silent)
             return
         if ready:
             en.settling_since = now

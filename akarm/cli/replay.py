@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
                     arm.sleep(0.1)
                     bar.n = round(min(arm.clock.now() - start, motion.duration), 2)
                     bar.refresh()
-                bar.n = bar.total
+                bar.n = motion.duration
             motion.wait()
         except KeyboardInterrupt as e:
             stop_smoothly(arm)

@@ -106,7 +106,7 @@ class SimulatedRobot:
         self.dt = self.plant.dt
         self._k = 0                  # steps taken: simulated time is k·dt
         self._t = 0.0
-        q_init = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
+        q_init: np.ndarray = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
         self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
         inertia = self.plant.joint_inertia()
         drivers: list[SimulatedDriver] = []
@@ -225,7 +225,7 @@ class SimulatedRobot:
         """Motor winding temperatures, °C, config order."""
         return np.array([d.temperature for d in self.drivers])
 
-    def set_state(self, q: Sequence[float], dq: Sequence[float] | None = None) -> None:
+    def set_state(self, q: Sequence[float] | np.ndarray, dq: Sequence[float] | np.ndarray | None = None) -> None:
         """Place the arm: joint positions ``q`` (rad) and velocities ``dq`` (rad/s, default 0), config order."""
         qa = np.asarray(q, dtype=float)
         va = np.zeros(self.plant.n) if dq is None else np.asarray(dq, dtype=float)

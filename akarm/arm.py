@@ -323,8 +323,8 @@ class Arm:
         qs = [self._target_vector(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
 
-    def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]],
-               velocities: Sequence[Sequence[float]] | None = None, wait: bool = True) -> Motion:
+    def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
+               velocities: Sequence[Sequence[float]] | np.ndarray | None = None, wait: bool = True) -> Motion:
         """Move through ``positions[k]`` (rad, config order; NaN: keep that joint where it is
         commanded), reaching each ``times[k]`` s from now, or as soon after as the limits allow.
 

@@ -17,6 +17,7 @@ moves.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -44,8 +45,8 @@ def _vias(times: np.ndarray, q: np.ndarray, q0: np.ndarray, vmax: np.ndarray) ->
 
 
 def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], Sequence[float]], t0: float,
-               times: Sequence[float], positions: Sequence[Sequence[float]],
-               velocities: Sequence[Sequence[float]] | None = None) -> Plan:
+               times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
+               velocities: Sequence[Sequence[float]] | np.ndarray | None = None) -> Plan:
     """A plan from ``start`` = (q, dq, ddq) at time ``t0`` through ``positions[k]`` at ``t0 + times[k]``.
 
     Args:
@@ -91,7 +92,7 @@ def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], 
         via[-1] = 0.0
         try:
             segs: list[Segment] = []
-            state = start
+            state: tuple[Any, Any, Any] = start
             t = t0
             for k in range(len(q)):
                 seg = planner.move(state, q[k], t, target_velocity=via[k], min_duration=(t0 + ts[k]) - t)

@@ -19,7 +19,7 @@ import itertools
 import re
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
 from cyclonedds.domain import DomainParticipant
@@ -82,6 +82,11 @@ def qos(depth: int = 10, user_data: bytes | None = None) -> Qos:
     return Qos(*policies)
 
 
+def _info(sample: object) -> Any:
+    """The DDS sample info cyclonedds attaches to a sample it delivers."""
+    return cast(Any, sample).sample_info
+
+
 def _user_data_key(q: Qos | None, key: str) -> str | None:
     """``value`` of ``key=value;`` in an endpoint's USER_DATA (as rmw_cyclonedds_cpp writes it)."""
     if q is None:
@@ -108,6 +113,7 @@ class Node:
         self.namespace = namespace.strip("/")
         ros_name(self.namespace, "x")  # validates the namespace
         self.participant = DomainParticipant(domain)
+        self._closed = False
         self._ids = itertools.count(1)
         self._prefix = self.participant.get_guid().bytes[:12]
 
@@ -129,9 +135,9 @@ class Node:
 
     def close(self) -> None:
         """Delete the participant and everything in it (other participants see it leave at once)."""
-        p, self.participant = self.participant, None
-        if p is not None:
-            p.__del__()  # explicit: leaving it to the garbage collector leaves a ghost for a lease
+        if not self._closed:
+            self._closed = True
+            self.participant.__del__()  # explicit: left to the garbage collector, a ghost stays for a lease
 
 
 class TriggerServer:
@@ -166,7 +172,7 @@ class TriggerServer:
 
     def take(self) -> list[msgs.TriggerRequest]:
         """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
-        return [r for r in self._reader.take(16) if r.sample_info.valid_data]
+        return [r for r in self._reader.take(16) if _info(r).valid_data]
 
     def answer(self, req: msgs.TriggerRequest) -> bool:
         """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
@@ -174,7 +180,7 @@ class TriggerServer:
             ok, text = self.handler()
         except AkarmError as e:
             ok, text = False, str(e)
-        handle = req.sample_info.publication_handle
+        handle = _info(req).publication_handle
         end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
         state = self._client_ready(handle)
         while state == "maybe" and time.monotonic() < end:
@@ -222,7 +228,7 @@ class TriggerClient:
         self._writer.write(msgs.TriggerRequest(self._guid, self._seq, 0))
         while time.monotonic() < end:
             for rep in self._reader.take(16):
-                if rep.sample_info.valid_data and rep.guid == self._guid and rep.seq == self._seq:
+                if _info(rep).valid_data and rep.guid == self._guid and rep.seq == self._seq:
                     return rep
             time.sleep(0.002)
         raise AkarmError(f"service {self.name!r} did not answer within {timeout:g} s")

@@ -11,10 +11,16 @@ the ``.srv`` part: ``guid`` (uint64) and ``seq`` (int64); see ``docs/ros2.md``.
 
 # no `from __future__ import annotations`: cyclonedds reads the field types at run time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cyclonedds.idl.annotations as annotate
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import byte, float64, int32, int64, sequence, uint8, uint32, uint64
+from cyclonedds.idl.types import byte, float64, int32, int64, uint8, uint32, uint64
+
+if TYPE_CHECKING:  # for a type checker a sequence is a list; cyclonedds reads its own at run time
+    sequence = list
+else:
+    from cyclonedds.idl.types import sequence
 
 __all__ = [
     "DiagnosticArray",

@@ -25,7 +25,7 @@ from cyclonedds.core import GuardCondition, ReadCondition, WaitSet
 
 from ..errors import AkarmError
 from . import msgs
-from .dds import ANY, Node, TriggerServer
+from .dds import ANY, Node, TriggerServer, _info
 
 if TYPE_CHECKING:
     from ..server.server import ArmServer
@@ -117,7 +117,7 @@ class RosNode:
             if not self._running.is_set():
                 break
             for msg in self._traj.take(16):
-                if msg.sample_info.valid_data:
+                if _info(msg).valid_data:
                     with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
                         times, positions, velocities = trajectory_arrays(msg)
                         if msg.points and not times:

@@ -41,6 +41,7 @@ from .registry import BusLock, runtime_dir
 
 if TYPE_CHECKING:
     from ..arm import Arm, Motion
+    from ..ros.node import RosNode
 
 __all__ = ["ArmServer", "serve"]
 
@@ -91,7 +92,7 @@ class ArmServer:
         self._opened_arm = False
         self._lock: BusLock | None = None
         self._control: ControlServer | None = None
-        self._node = None
+        self._node: RosNode | None = None
         self.socket_path = runtime_dir() / f"serve-{os.getpid()}-{id(self):x}.sock"
         self.last_refusal = ""
         self.counts = {"accepted": 0, "refused": 0}
@@ -108,9 +109,9 @@ class ArmServer:
                                                "namespace": self.namespace})
         try:
             if self.ros:  # first: a missing extra or a bad domain or namespace is said before anything is enabled
-                from ..ros.node import RosNode
+                from ..ros import node as ros_node
 
-                self._node = RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
+                self._node = ros_node.RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
             if self.arm.mode is Mode.CLOSED:
                 self.arm.open()
                 self._opened_arm = True
@@ -170,15 +171,15 @@ class ArmServer:
     def wait(self, timeout: float | None = None, signals: bool = True) -> bool:
         """Serve until :meth:`request_stop` (and, with ``signals`` in the main thread, SIGINT or
         SIGTERM). True when stopping was requested, False on ``timeout``."""
-        previous: dict[int, Any] = {}
+        previous: dict[signal.Signals, Any] = {}
         if signals and threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 previous[sig] = signal.signal(sig, lambda signum, frame: self._stop.set())
         try:
             return self._stop.wait(timeout)
         finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+            for s, handler in previous.items():
+                signal.signal(s, handler)
 
     # ------------------------------------------------------------------------------------------
     # what the arm is doing

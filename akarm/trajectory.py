@@ -247,8 +247,9 @@ class Planner:
                     fix="move more slowly (speed=), or through an intermediate point away from the limit")
 
     def move(self, start: State, target: Vector, t0: float, speed: float = 1.0,
-             target_velocity: Vector | None = None) -> Segment:
-        """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``.
+             target_velocity: Vector | None = None, min_duration: float = 0.0) -> Segment:
+        """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``,
+        taking at least ``min_duration`` s (ruckig's ``minimum_duration``; longer where the limits need it).
 
         Raises:
             LimitError: the target, or a position the path passes through, is outside a joint's range.
@@ -261,6 +262,8 @@ class Planner:
         inp.target_position = [float(x) for x in target]
         inp.target_velocity = [0.0] * self.dofs if target_velocity is None else [float(x) for x in target_velocity]
         inp.target_acceleration = [0.0] * self.dofs
+        if min_duration > 0.0:
+            inp.minimum_duration = float(min_duration)
         seg = self._calculate(inp, t0)
         self.check_extrema(seg, bounds)
         return seg

@@ -158,6 +158,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.sample_rate > 0 or (args.seconds is not None and not args.seconds > 0):
         raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
+        return served
     config = load_from_args(args)
     if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
         raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",

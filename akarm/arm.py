@@ -51,6 +51,7 @@ from .loop import ControlLoop, StatsSummary
 from .model import RobotModel
 from .protocol.servo import describe_error
 from .telemetry import Telemetry, TelemetryLog
+from .timing import TimingProfile, get_profile
 from .trajectory import Chain, JointLimits, Plan, Planner
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
@@ -59,7 +60,6 @@ FeedForward = Literal["full", "gravity", "none"]
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 
 _STAGES = ("receive", "safety", "trajectory", "feedforward", "send", "telemetry")
-_DEFAULT_FEEDBACK_TIMEOUT = 0.020
 _DRAIN_LIMIT = 1024  # frames read per bus per cycle at most (a flooded bus must not stall the loop)
 _INV_FRICTION_SMOOTHING = 1.0 / 0.02  # Coulomb feed-forward is c·tanh(v_des / 0.02 rad/s): smooth through zero
 
@@ -184,7 +184,12 @@ class Arm:
             catalogue's typical values) at the *desired* velocity: ``c·tanh(v/0.02) + b·v``. Off
             with ``feedforward="none"``.
         feedback_timeout: s; the watchdog stops the arm when a joint's feedback is older
-            (default 20 ms; servo joints at least 3 status periods; a joint's own setting wins).
+            (default: the timing profile's, 20 ms normally; servo joints at least 3 status periods;
+            a joint's own setting wins, but not below the profile's ``min_feedback_timeout``).
+        timing: a timing profile (:mod:`akarm.timing`): ``"normal"`` (default) or ``"slow"`` for
+            slow or shared machines, or a :class:`~akarm.timing.TimingProfile`. It caps the loop rate
+            (:attr:`config` then says the rate in force) and gives the watchdog's and
+            :meth:`enable`'s default timeouts. Kept as :attr:`timing`.
         enable_ramp: s over which MIT gains rise from zero at enable.
         stop_damping_time: s of damping (kp = 0) before exit when disabling or stopping for safety.
         telemetry_seconds: how much history the telemetry ring keeps, s.
@@ -206,13 +211,15 @@ class Arm:
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
-                 feedback_timeout: float = _DEFAULT_FEEDBACK_TIMEOUT, enable_ramp: float = 0.3,
+                 feedback_timeout: float | None = None, enable_ramp: float = 0.3,
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
-                 loop_cpu: int | None = None) -> None:
+                 loop_cpu: int | None = None, timing: str | TimingProfile | None = None) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
+        self.timing = get_profile(timing)
+        config = self.timing.apply(config)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
         self.feedforward: FeedForward = feedforward
@@ -245,7 +252,7 @@ class Arm:
         on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
         self._fric_c = [f.coulomb * on for f in fr]
         self._fric_b = [f.viscous * on for f in fr]
-        self._timeouts = [self._feedback_timeout(j.config, feedback_timeout) for j in self.joints]  # s
+        self._timeouts = [self.timing.watchdog(j.config, feedback_timeout) for j in self.joints]  # s
         self._max_temp = [j.config.max_temperature for j in self.joints]
         self.telemetry_ring = Telemetry(self.names, max(1, int(telemetry_seconds * config.rate_hz)))
         self._can_log_path = can_log
@@ -276,14 +283,6 @@ class Arm:
         self._entered = False
         self._teach_damping = np.zeros(self.n)
         self._recorder: _PathRecorder | None = None
-
-    @staticmethod
-    def _feedback_timeout(j, default: float) -> float:
-        if j.feedback_timeout is not None:
-            return j.feedback_timeout
-        if j.mode == "servo":
-            return max(default, 3.0 / j.status_rate_hz)
-        return default
 
     @classmethod
     def from_yaml(cls, path: str | PathLike[str], *, interface: str | None = None,
@@ -357,7 +356,7 @@ class Arm:
     # ------------------------------------------------------------------------------------------
     # enable / disable
     # ------------------------------------------------------------------------------------------
-    def enable(self, timeout: float = 0.5) -> None:
+    def enable(self, timeout: float | None = None) -> None:
         """Power the joints without a kick and hold them where they are.
 
         MIT joints: ENTER, at once followed by a zero-gain, zero-torque command (the driver would
@@ -366,7 +365,8 @@ class Arm:
         from the start. Servo joints: their status frames give the position to hold.
 
         Args:
-            timeout: s to wait for every joint's first feedback.
+            timeout: s to wait for every joint's first feedback (default: the timing profile's,
+                0.5 s normally).
 
         Raises:
             FeedbackTimeout: a joint did not answer (it names the joint; the arm is left disabled).
@@ -376,6 +376,8 @@ class Arm:
             return
         self._fault = None
         self._enable_error = None
+        if timeout is None:
+            timeout = self.timing.enable_timeout
         with self._lock:
             for j in self.joints:
                 j.state.stamp = -math.inf

@@ -16,7 +16,7 @@ import argparse
 import re
 import sys
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,6 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    add_profile_argument(parser)
 
 
 def parse_target(text: str, joint_names: tuple[str, ...]) -> str | list[float]:
@@ -78,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
             raise AkarmError(f"target {q:+.4f} rad is outside [{lo.lower:+.4f}, {lo.upper:+.4f}] rad", joint=j.name,
                              fix="choose a target within the joint's limits")
     code = 0
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()

@@ -23,7 +23,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
     from ..arm import Arm
@@ -39,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
+    add_profile_argument(parser)
 
 
 def _reader(stream: TextIO) -> queue.Queue[str | None]:
@@ -138,6 +139,7 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from ..errors import AkarmError
+    from ..timing import get_profile
     from .common import controlled, deferred_sigint
 
     out = Path(args.out)
@@ -146,12 +148,12 @@ def run(args: argparse.Namespace) -> int:
                          fix="name it .yaml (keyframes) or .csv (a continuous path)")
     if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
         raise AkarmError("--rate and --seconds must be positive")
-    config = load_from_args(args)
+    config = get_profile(args.profile).apply(load_from_args(args))
     if out.suffix == ".csv" and args.rate > config.rate_hz:
         raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":

@@ -33,6 +33,7 @@ import numpy as np
 from ..bus import close_buses, open_bus
 from ..clock import RealClock, SteppedClock
 from ..errors import ConfigError, ConfigProblem, StateError
+from ..timing import TimingProfile, get_profile
 from . import faults as _faults
 from .drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
 from .params import MotorSimParams, default_params
@@ -42,6 +43,7 @@ if TYPE_CHECKING:
     import can
 
     from ..config import RobotConfig
+    from .control import DriverState
 
 __all__ = ["SimulatedRobot"]
 
@@ -56,7 +58,9 @@ class SimulatedRobot:
         interface, channel: bus override (e.g. ``"virtual"`` and a channel name unique to a test).
         realtime: ``True`` (default): threads answer frames as they come and the plant follows the wall
             clock. ``False``: lock step through :meth:`advance_to` / :attr:`clock`.
-        dt: integration step, s (default 0.0005: 2 kHz).
+        dt: integration step, s (default: the timing profile's, 0.0005 s (2 kHz) normally).
+        timing: a timing profile (:mod:`akarm.timing`), ``"normal"`` (default) or ``"slow"``: the
+            integration rate when ``dt`` is not given. Kept as :attr:`timing`.
         params: per joint name, simulation constants replacing :func:`~akarm.sim.params.default_params`.
         q0: initial joint positions (rad, config order); default 0 (clipped into the URDF limits).
         zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
@@ -70,6 +74,7 @@ class SimulatedRobot:
         clock: a :class:`~akarm.clock.SteppedClock` driving :meth:`advance_to` (lock step), or a
             :class:`~akarm.clock.RealClock` (real time).
         send_errors: frames the bus refused to send (a full socketcan queue, ...).
+        timing: the :class:`~akarm.timing.TimingProfile` in force.
     """
 
     def __init__(
@@ -79,16 +84,20 @@ class SimulatedRobot:
         channel: str | Mapping[str, str] | None = None,
         *,
         realtime: bool = True,
-        dt: float = 0.0005,
+        dt: float | None = None,
         params: Mapping[str, MotorSimParams] | None = None,
         q0: Sequence[float] | None = None,
         zero_silence: float = 1.0,
         servo_release: float = 1.0,
         max_lag: float = 0.05,
+        timing: str | TimingProfile | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
         self.config = config
+        self.timing = get_profile(timing)
+        if dt is None:
+            dt = 1.0 / self.timing.sim_rate_hz
         self.realtime = realtime
         self._lock = threading.RLock()
         params = dict(params or {})
@@ -256,11 +265,31 @@ class SimulatedRobot:
         with self._lock:
             self.joint(joint).inject(fault)
 
-    def clear_faults(self) -> None:
-        """End every fault on every joint."""
+    def clear_faults(self, joint: str | None = None) -> None:
+        """End every fault of ``joint`` (default: of every joint)."""
         with self._lock:
-            for d in self.drivers:
+            for d in self.drivers if joint is None else [self.joint(joint)]:
                 d.clear_faults()
+
+    def driver_states(self) -> list[DriverState]:
+        """Every driver as it is now (enabled, position, torque, error, faults ...), config order."""
+        from .control import DriverState
+
+        with self._lock:
+            q, dq, tau = self.plant.q.tolist(), self.plant.dq.tolist(), self.plant.tau.tolist()
+            return [DriverState(d.name, bool(d.enabled), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
+                                tuple(repr(f) for f in d.faults))
+                    for i, d in enumerate(self.drivers)]
+
+    def disable_drivers(self) -> list[str]:
+        """Take every driver out of motor mode (MIT) or release it (servo) at once, as if it had received
+        EXIT or a zero-current frame, even one that cannot hear the bus (a fault): the outputs go limp.
+        Returns the joints that were enabled."""
+        with self._lock:
+            was = [d for d in self.drivers if d.enabled]
+            for d in was:
+                d._power_off()  # the output off; the driver stays powered and on the bus
+            return [d.name for d in was]
 
     def status_line(self) -> str:
         """One line: time and, per joint, position (rad), torque (N·m), temperature (°C), mode, fault."""

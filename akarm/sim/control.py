@@ -55,6 +55,7 @@ class DriverState:
         name: the joint. enabled: its output is driven (MIT: motor mode; servo: not released).
         position: rad. velocity: rad/s. torque: N·m the motor applies. temperature: °C.
         error: the error code it reports (0: none). faults: the faults in force, as text.
+        frames_in: frames addressed to it that it took in. frames_out: frames it sent.
     """
 
     name: str
@@ -65,6 +66,8 @@ class DriverState:
     temperature: float
     error: int
     faults: tuple[str, ...]
+    frames_in: int
+    frames_out: int
 
 
 def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:

@@ -278,7 +278,7 @@ class SimulatedRobot:
         with self._lock:
             q, dq, tau = self.plant.q.tolist(), self.plant.dq.tolist(), self.plant.tau.tolist()
             return [DriverState(d.name, bool(d.enabled), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
-                                tuple(repr(f) for f in d.faults))
+                                tuple(repr(f) for f in d.faults), d.frames_received, d.frames_sent)
                     for i, d in enumerate(self.drivers)]
 
     def disable_drivers(self) -> list[str]:

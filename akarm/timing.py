@@ -77,17 +77,19 @@ class TimingProfile:
 
 
 #: The named profiles. ``slow``: measured in vcan-vm (an emulated 2-CPU guest, about 15x slower than
-#: our 2-core development machines), six MIT joints over vcan0 against ``akarm sim`` in another
-#: process: a 2 kHz simulator needs a whole core there and its replies come seconds late; at 250 Hz
-#: and a 50 Hz loop the longest gap between a joint's replies was 26-124 ms in 40 s runs, a 100 Hz
-#: loop missed 3-7 % of its slots. The watchdog of 0.5 s is four times the worst gap seen.
+#: our 2-core development machines, which other test runs kept busy), six MIT joints over vcan0
+#: against ``akarm sim`` in another process (benchmarks/bench_profiles.py): a 2 kHz simulator needs a
+#: whole core there and its replies come seconds late. At 250 Hz and a 50 Hz loop the simulator
+#: needs 63-74 % of a CPU and falls behind when the host is busy (feedback up to 232 ms old, the
+#: plant 0.6 s behind in 30 s); with a 25 Hz loop 44 %, feedback at most 104 ms old, nothing behind.
+#: The watchdog of 0.5 s is five times the worst gap seen at 25 Hz.
 PROFILES: dict[str, TimingProfile] = {
     "normal": TimingProfile("normal", "the robot file's rate_hz, 20 ms watchdog, simulator at 2 kHz (default)",
                             max_rate_hz=None, feedback_timeout=0.020, min_feedback_timeout=0.0, enable_timeout=0.5,
                             sim_rate_hz=2000.0),
-    "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 50 Hz, 0.5 s "
+    "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 0.5 s "
                                   "watchdog, simulator at 250 Hz",
-                          max_rate_hz=50.0, feedback_timeout=0.5, min_feedback_timeout=0.5, enable_timeout=5.0,
+                          max_rate_hz=25.0, feedback_timeout=0.5, min_feedback_timeout=0.5, enable_timeout=5.0,
                           sim_rate_hz=250.0),
 }
 

@@ -34,8 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ",
-                        help="continuous path: samples per second (default 50, at most the loop rate)")
+    parser.add_argument("--rate", type=float, metavar="HZ",
+                        help="continuous path: samples per second (default 50, or half the loop rate if lower; "
+                             "at most the loop rate)")
     parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
@@ -146,18 +147,20 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix not in (".yaml", ".yml", ".csv"):
         raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
                          fix="name it .yaml (keyframes) or .csv (a continuous path)")
-    if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
+    if (args.rate is not None and not args.rate > 0) or (args.seconds is not None and not args.seconds > 0):
         raise AkarmError("--rate and --seconds must be positive")
     config = get_profile(args.profile).apply(load_from_args(args))
-    if out.suffix == ".csv" and args.rate > config.rate_hz:
-        raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
+    # half the loop rate at most by default: at the loop's own rate, a cycle a little early misses its sample
+    rate = min(50.0, config.rate_hz / 2) if args.rate is None else args.rate
+    if out.suffix == ".csv" and rate > config.rate_hz:
+        raise AkarmError(f"--rate {rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
     with controlled(config, timing=args.profile) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, args.rate, args.seconds)
+            code = _teach_path(arm, out, lines, rate, args.seconds)
         else:
             code = _teach_keyframes(arm, out, lines)
         with deferred_sigint():

@@ -10,6 +10,7 @@ for you with ``control=True``)::
     sim = SimulatorControl("/tmp/arm6-sim.sock")
     sim.inject("elbow", faults.Unplugged())      # or sim.inject("elbow", "drop:0.3"), as --fault spells it
     sim.state()                                  # per joint: enabled, position, error, faults, ...
+    frames, _ = sim.frames()                     # every frame the drivers took in and sent
     sim.clear_faults()
     sim.disable_drivers()                        # every output limp; returns the joints that were enabled
 
@@ -20,7 +21,12 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
   (the ``--fault`` form);
 - ``{"cmd": "clear"}`` or ``{"cmd": "clear", "joint": "elbow"}``;
 - ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
-- ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``.
+- ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
+- ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
+  data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
+
+``state``, ``disable`` and ``frames`` first take in every frame already sent to the simulator, so
+what a program sent before asking counts.
 
 Every answer has ``"ok"``; a refused request answers ``{"ok": false, "error": "..."}`` and changes nothing.
 """
@@ -36,7 +42,7 @@ import socketserver
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from ..errors import AkarmError, StateError
 from . import faults as _faults
@@ -44,7 +50,7 @@ from . import faults as _faults
 if TYPE_CHECKING:
     from .robot import SimulatedRobot
 
-__all__ = ["ControlServer", "DriverState", "SimulatorControl", "fault_from_json", "fault_to_json"]
+__all__ = ["ControlServer", "DriverState", "Frame", "SimulatorControl", "fault_from_json", "fault_to_json"]
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,25 @@ class DriverState:
     faults: tuple[str, ...]
     frames_in: int
     frames_out: int
+
+
+class Frame(NamedTuple):
+    """A CAN frame a simulated driver took in or sent.
+
+    Attributes:
+        t: simulated time, s. bus: the bus's name in the robot file.
+        arbitration_id, is_extended, data: the frame.
+        joint: the driver it was addressed to or sent by (``None``: nobody's).
+        to_motor: ``True`` taken in (a command to the motor), ``False`` sent (a reply or status frame).
+    """
+
+    t: float
+    bus: str
+    arbitration_id: int
+    is_extended: bool
+    data: bytes
+    joint: str | None
+    to_motor: bool
 
 
 def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:
@@ -131,11 +156,17 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
     if cmd == "clear":
         sim.clear_faults(req.get("joint"))
         return {}
-    if cmd == "state":
-        return {"t": sim.t, "slip": sim.slip, "joints": [dataclasses.asdict(s) for s in sim.driver_states()]}
-    if cmd == "disable":
-        return {"joints": sim.disable_drivers()}
-    raise AkarmError(f"unknown request {req!r}", fix='send {"cmd": "inject" | "clear" | "state" | "disable", ...}')
+    if cmd in ("state", "disable", "frames"):
+        sim.wait_received()  # what was sent to the drivers before the request counts
+        if cmd == "state":
+            return {"t": sim.t, "slip": sim.slip, "joints": [dataclasses.asdict(s) for s in sim.driver_states()]}
+        if cmd == "disable":
+            return {"joints": sim.disable_drivers()}
+        frames, next_index = sim.logged_frames(int(req.get("since", 0)))
+        return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
+                                                 f.to_motor] for f in frames]}
+    raise AkarmError(f"unknown request {req!r}",
+                     fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
 
 
 class ControlServer:
@@ -251,3 +282,10 @@ class SimulatorControl:
         """Every driver's output off now (see :meth:`~akarm.sim.SimulatedRobot.disable_drivers`); the
         joints that were enabled."""
         return list(self.request(cmd="disable")["joints"])
+
+    def frames(self, since: int = 0) -> tuple[list[Frame], int]:
+        """The frames the drivers took in and sent from the ``since``-th on, and the index to ask from next
+        (see :meth:`~akarm.sim.SimulatedRobot.logged_frames`)."""
+        answer = self.request(cmd="frames", since=since)
+        return [Frame(t, bus, aid, ext, bytes.fromhex(data), joint, to_motor)
+                for t, bus, aid, ext, data, joint, to_motor in answer["frames"]], int(answer["next"])

@@ -15,32 +15,26 @@
 Transports, by python-can interface name: ``virtual`` (a :class:`~akarm.sim.SimulatedRobot` in this
 process, in lock step with the arms made by :meth:`SimulatedArm.arm`), ``akarm_local`` and
 ``socketcan`` (``akarm sim`` in a process of its own, in real time, reached through its control
-channel, :mod:`akarm.sim.control`). The frames are seen through buses of the rig's own on the same
-channels, as ``candump`` would see them. Leaving a rig closes the arms it made (damped, disabled)
+channel, :mod:`akarm.sim.control`). The frames are those the simulated drivers took in and sent,
+stamped with simulated time. Leaving a rig closes the arms it made (damped, disabled)
 and switches off any simulated driver still enabled. The pytest plugin (:mod:`akarm.testing`) gives
 tests a rig per test.
 """
 
 from __future__ import annotations
 
-import collections
-import contextlib
 import itertools
-import math
 import os
 import sys
-import threading
-import time
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from ..errors import AkarmError, BusError, StateError
+from .control import Frame
 
 if TYPE_CHECKING:
-    import can
-
     from ..arm import Arm
     from ..config import RobotConfig
     from ..timing import TimingProfile
@@ -56,145 +50,6 @@ _channels = itertools.count()
 
 class LeftEnabledWarning(UserWarning):
     """A test ended with simulated drivers enabled that no injected fault explains."""
-
-
-class Frame(NamedTuple):
-    """A CAN frame seen on the simulated arm's bus.
-
-    Attributes:
-        t: when it was seen, s: simulated time in lock step, else since the simulator started.
-        bus: the bus's name in the robot file. arbitration_id, is_extended, data: the frame.
-        joint: the joint it was sent to or by (``None``: nobody's).
-        to_motor: ``True`` sent to the motor (a command), ``False`` sent by it (a reply or status).
-    """
-
-    t: float
-    bus: str
-    arbitration_id: int
-    is_extended: bool
-    data: bytes
-    joint: str | None
-    to_motor: bool
-
-
-class _Classifier:
-    """Whose frame is it, and which way does it go: from the robot's joints, as the firmware addresses them.
-
-    MIT (V1/V2) commands go to the motor's ID in a standard frame; its replies come on its reply ID
-    with its ID in byte 0. Extended frames carry the motor's ID in the low byte: ``0x29xx`` is a
-    status frame (servo, and V3 replies), any other packet a command.
-    """
-
-    def __init__(self, config: RobotConfig) -> None:
-        self._command: dict[tuple[str, int], str] = {}
-        self._reply: dict[tuple[str, int, int], str] = {}
-        self._extended: dict[tuple[str, int], str] = {}
-        for j in config.joints:
-            if j.mode == "mit" and j.firmware != "v3":
-                self._command[(j.bus, j.can_id)] = j.name
-                self._reply[(j.bus, j.reply_id, j.can_id)] = j.name
-            else:
-                self._extended[(j.bus, j.can_id)] = j.name
-
-    def __call__(self, bus: str, arbitration_id: int, is_extended: bool, data: bytes) -> tuple[str | None, bool]:
-        if is_extended:
-            return self._extended.get((bus, arbitration_id & 0xFF)), (arbitration_id >> 8) != 0x29
-        if data and (bus, arbitration_id, data[0]) in self._reply and len(data) in (6, 8):
-            return self._reply[(bus, arbitration_id, data[0])], False
-        return self._command.get((bus, arbitration_id)), True
-
-
-class _Recorder:
-    """Every frame on the robot's buses, seen through buses of its own on the same channels.
-
-    In lock step it takes them whenever the clock advances (no thread: the run stays repeatable);
-    in real time a thread per bus takes them as they come.
-    """
-
-    def __init__(self, config: RobotConfig, clock: Any = None, max_frames: int = 200_000) -> None:
-        from ..bus import open_bus
-
-        self._classify = _Classifier(config)
-        self._frames: collections.deque[Frame] = collections.deque(maxlen=max_frames)
-        self._buses: dict[str, can.BusABC] = {}
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
-        self._clock = clock
-        self._t0 = time.monotonic()
-        self._emptied = {name: -math.inf for name in config.buses}  # real time: when each listener last found
-        # its bus's queue empty
-        try:
-            for name, bus_cfg in config.buses.items():
-                self._buses[name] = open_bus(bus_cfg)
-        except BaseException:
-            self.close()
-            raise
-        if clock is not None:
-            clock.attach(self._take)
-        else:
-            for name, bus in self._buses.items():
-                th = threading.Thread(target=self._listen, args=(name, bus), name=f"akarm-test-frames-{name}",
-                                      daemon=True)
-                self._threads.append(th)
-                th.start()
-
-    def _add(self, name: str, msg: can.Message, t: float) -> None:
-        if msg.is_error_frame or msg.is_remote_frame:
-            return
-        data = bytes(msg.data)
-        joint, to_motor = self._classify(name, msg.arbitration_id, msg.is_extended_id, data)
-        self._frames.append(Frame(t, name, msg.arbitration_id, msg.is_extended_id, data, joint, to_motor))
-
-    def _take(self, _t: float | None = None) -> None:
-        """Lock step: every frame waiting, stamped with the clock's time (when they were sent)."""
-        if not self._buses:
-            return
-        now = self._clock.now()
-        with self._lock:
-            for name, bus in self._buses.items():
-                while (msg := bus.recv(timeout=0.0)) is not None:
-                    self._add(name, msg, now)
-
-    def _listen(self, name: str, bus: can.BusABC) -> None:
-        import can
-
-        while not self._stop.is_set():
-            try:
-                msg = bus.recv(timeout=0.02)
-                while msg is not None:  # everything queued, then note that the queue was empty
-                    with self._lock:
-                        self._add(name, msg, time.monotonic() - self._t0)
-                    msg = bus.recv(timeout=0.0)
-            except can.CanError:
-                if self._stop.wait(0.01):
-                    return
-                continue
-            self._emptied[name] = time.monotonic()
-
-    def frames(self) -> list[Frame]:
-        """Every frame so far: in real time, every frame sent before the call (each listener has found
-        its queue empty since), unless that takes over 2 s."""
-        if self._clock is not None:
-            self._take()
-        elif not self._stop.is_set():
-            asked, end = time.monotonic(), time.monotonic() + 2.0
-            while any(t < asked for t in self._emptied.values()) and time.monotonic() < end:
-                time.sleep(0.002)
-        with self._lock:
-            return list(self._frames)
-
-    def close(self) -> None:
-        from ..bus import close_buses
-
-        with contextlib.suppress(Exception):
-            self.frames()  # the last ones too
-        if self._clock is not None:
-            self._clock.detach(self._take)
-        self._stop.set()
-        for th in self._threads:
-            th.join(2.0)
-        close_buses(self._buses)
 
 
 class SimulatedArm:
@@ -216,11 +71,13 @@ class SimulatedArm:
     config: RobotConfig
     timing: TimingProfile
     clock: Any = None
+    _closed = False
 
     def __init__(self) -> None:
         self._arms: list[Arm] = []
         self._faulted: set[str] = set()
-        self._recorder: _Recorder | None = None
+        self._frames: list[Frame] = []
+        self._next_frame = 0
 
     # ------------------------------------------------------------------ starting
 
@@ -305,11 +162,17 @@ class SimulatedArm:
         raise NotImplementedError
 
     def frames(self, joint: str | None = None, to_motor: bool | None = None) -> list[Frame]:
-        """The CAN frames seen on the simulated arm's buses so far, oldest first (up to the last 200 000):
-        all, or those of ``joint``, or only commands (``to_motor=True``) or replies (``False``)."""
-        assert self._recorder is not None
-        return [f for f in self._recorder.frames()
+        """The CAN frames the simulated drivers took in (commands, ``to_motor=True``) and sent (replies,
+        status frames) so far, every one sent to them before the call included, oldest first: all, or
+        those of ``joint``, or of one direction. After :meth:`close` they are still there."""
+        if self._ended_by_itself() is None and not self._closed:
+            new, self._next_frame = self._new_frames(self._next_frame)
+            self._frames.extend(new)
+        return [f for f in self._frames
                 if (joint is None or f.joint == joint) and (to_motor is None or f.to_motor == to_motor)]
+
+    def _new_frames(self, since: int) -> tuple[list[Frame], int]:
+        raise NotImplementedError
 
     def _inject(self, joint: str, fault: Fault | str) -> None:
         raise NotImplementedError
@@ -320,6 +183,8 @@ class SimulatedArm:
         """Close the arms made by :meth:`arm`, switch off any driver still enabled (warning with
         :class:`LeftEnabledWarning` for joints no injected fault explains), stop the simulator. Safe
         to call twice."""
+        if self._closed:
+            return
         arms, self._arms = self._arms, []
         gone = None
         try:
@@ -336,8 +201,9 @@ class SimulatedArm:
                             "those motors would have stayed powered (disable the arm, e.g. leave `with arm:`); "
                             "the test's fixture switched them off"), stacklevel=2)
             finally:
-                if self._recorder is not None:
-                    self._recorder.close()  # its frames stay readable
+                if gone is None:
+                    self.frames()  # the last ones, kept for after
+                self._closed = True
                 self._stop()
         if gone is not None:
             raise StateError(f"the simulator stopped before the test ended: {gone}",
@@ -364,11 +230,6 @@ class _InProcess(SimulatedArm):
         self.sim = SimulatedRobot(config, realtime=False, q0=q0, timing=timing)
         self.config, self.timing, self.clock = self.sim.config, timing, self.sim.clock
         self.sim.start()
-        try:
-            self._recorder = _Recorder(self.config, clock=self.clock)
-        except BaseException:
-            self.sim.close()
-            raise
 
     def _inject(self, joint: str, fault: Fault | str) -> None:
         from . import faults
@@ -380,10 +241,16 @@ class _InProcess(SimulatedArm):
     def clear_faults(self, joint: str | None = None) -> None:
         self.sim.clear_faults(joint)
 
+    def _new_frames(self, since: int) -> tuple[list[Frame], int]:
+        self.sim.wait_received()
+        return self.sim.logged_frames(since)
+
     def state(self) -> list[DriverState]:
+        self.sim.wait_received()
         return self.sim.driver_states()
 
     def disable_drivers(self) -> list[str]:
+        self.sim.wait_received()
         return self.sim.disable_drivers()
 
     def _ended_by_itself(self) -> str | None:
@@ -407,13 +274,7 @@ class _OwnProcess(SimulatedArm):
         text = channel if isinstance(channel, str) else ",".join(f"{k}={v}" for k, v in channel.items())
         self.process = SimulatorProcess(robot, interface=self.transport, channel=text, pose=pose, timing=timing,
                                         control=True, start_timeout=300.0)
-        # listening before the simulator starts: its first frames are recorded too
-        self._recorder = _Recorder(config)
-        try:
-            self.process.__enter__()
-        except BaseException:
-            self._recorder.close()
-            raise
+        self.process.__enter__()
         assert self.process.control is not None
         self.control = self.process.control
 
@@ -422,6 +283,9 @@ class _OwnProcess(SimulatedArm):
 
     def clear_faults(self, joint: str | None = None) -> None:
         self.control.clear_faults(joint)
+
+    def _new_frames(self, since: int) -> tuple[list[Frame], int]:
+        return self.control.frames(since)
 
     def state(self) -> list[DriverState]:
         return self.control.state()

@@ -79,17 +79,17 @@ class TimingProfile:
 #: The named profiles. ``slow``: measured in vcan-vm (an emulated 2-CPU guest, about 15x slower than
 #: our 2-core development machines, which other test runs kept busy), six MIT joints over vcan0
 #: against ``akarm sim`` in another process (benchmarks/bench_profiles.py): a 2 kHz simulator needs a
-#: whole core there and its replies come seconds late. At 250 Hz and a 50 Hz loop the simulator
-#: needs 63-74 % of a CPU and falls behind when the host is busy (feedback up to 232 ms old, the
-#: plant 0.6 s behind in 30 s); with a 25 Hz loop 44 %, feedback at most 104 ms old, nothing behind.
-#: The watchdog of 0.5 s is five times the worst gap seen at 25 Hz.
+#: whole CPU there and its replies come seconds late. At 250 Hz and a 50 Hz loop the simulator
+#: needs 74-93 % of a CPU and falls behind when the host is busy (feedback up to 758 ms old, the
+#: plant 2 s behind in 30 s); with a 25 Hz loop 44-54 %, feedback at most 177 ms old, the plant
+#: 0.07 s behind at most. The watchdog of 1 s is more than five times the worst gap seen at 25 Hz.
 PROFILES: dict[str, TimingProfile] = {
     "normal": TimingProfile("normal", "the robot file's rate_hz, 20 ms watchdog, simulator at 2 kHz (default)",
                             max_rate_hz=None, feedback_timeout=0.020, min_feedback_timeout=0.0, enable_timeout=0.5,
                             sim_rate_hz=2000.0),
-    "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 0.5 s "
+    "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 1 s "
                                   "watchdog, simulator at 250 Hz",
-                          max_rate_hz=25.0, feedback_timeout=0.5, min_feedback_timeout=0.5, enable_timeout=5.0,
+                          max_rate_hz=25.0, feedback_timeout=1.0, min_feedback_timeout=1.0, enable_timeout=5.0,
                           sim_rate_hz=250.0),
 }
 

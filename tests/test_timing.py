@@ -48,12 +48,12 @@ def test_slow_caps_the_rate_and_floors_every_watchdog() -> None:
     planar2, servo3 = load_robot(PLANAR2), load_robot(SERVO3)
     assert slow.apply(planar2).rate_hz == 25.0 and slow.apply(servo3).rate_hz == 25.0
     assert slow.apply(replace(planar2, rate_hz=20.0)).rate_hz == 20.0        # a slower file keeps its rate
-    assert [slow.watchdog(j) for j in servo3.joints] == [0.5] * 3             # 15 ms of its own: not here
-    assert slow.watchdog(planar2.joints[0], default=0.1) == 0.5
+    assert [slow.watchdog(j) for j in servo3.joints] == [1.0] * 3             # 15 ms of its own: not here
+    assert slow.watchdog(planar2.joints[0], default=0.1) == 1.0
     assert slow.watchdog(replace(planar2.joints[0], feedback_timeout=2.0)) == 2.0
 
 
-@pytest.mark.parametrize(("profile", "limit_ms"), [("normal", 20), ("slow", 500)])
+@pytest.mark.parametrize(("profile", "limit_ms"), [("normal", 20), ("slow", 1000)])
 def test_the_watchdog_of_each_profile_stops_the_arm_at_its_limit(channel: str, profile: str, limit_ms: int) -> None:
     config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(config, realtime=False, q0=HANGING, timing=profile) as sim, \

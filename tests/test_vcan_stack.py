@@ -2,7 +2,7 @@
 SocketCAN (vcan0, vcan1), in real time; and the README's SocketCAN recipe, word for word.
 
 CI runs these inside ``../shared/tools/vcan-vm``, an emulated guest about 15x slower than our machines,
-so everything runs with the slow timing profile (25 Hz loop, 0.5 s watchdog, simulator at 250 Hz)
+so everything runs with the slow timing profile (25 Hz loop, 1 s watchdog, simulator at 250 Hz)
 and the bounds are on what the arm did (where it went, how it stopped), not on how fast: a busy
 host can make the simulated plant fall behind the wall clock, so a test waits (up to 10 s) for the
 arm to arrive rather than expecting it there when the motion's time is up. The fault
@@ -121,7 +121,7 @@ def test_a_fault_on_the_simulator_gives_its_named_stop(transport: str, joint: st
         arm.enable()
         arm.move_to("ready")
         rig.inject(joint, fault)
-        with pytest.raises(FeedbackTimeout, match=f"joint '{joint}': no feedback for .* ms \\(limit 500 ms\\)"):
+        with pytest.raises(FeedbackTimeout, match=f"joint '{joint}': no feedback for .* ms \\(limit 1000 ms\\)"):
             arm.sleep(5.0)
         assert not arm.enabled
         assert rig.enabled_joints() == left_on
@@ -134,6 +134,14 @@ def readme_recipe() -> list[str]:
     blocks = re.findall(r"```sh\n(.*?)```", step, re.S)
     assert len(blocks) == 2 and blocks[0].startswith("sudo modprobe vcan"), blocks
     return [line for line in blocks[1].splitlines() if line.strip()]
+
+
+def ctrl_c(shell: subprocess.Popen[str]) -> None:
+    """Ctrl-C in a terminal: SIGINT to the command the shell runs (the interactive shell ignores it)."""
+    children = Path(f"/proc/{shell.pid}/task/{shell.pid}/children")
+    pids = [int(p) for p in children.read_text().split()] if children.exists() else []
+    for pid in pids or [shell.pid]:  # a shell that exec'ed the command is the command
+        os.kill(pid, signal.SIGINT)
 
 
 def test_the_readme_recipe_uses_the_slow_profile_for_the_simulator_and_the_arm() -> None:
@@ -149,9 +157,9 @@ def test_the_readme_recipe_uses_the_slow_profile_for_the_simulator_and_the_arm()
                     "README's commands run .venv/bin/akarm)")
 def test_the_readme_socketcan_recipe_word_for_word() -> None:
     terminal1, *terminal2 = readme_recipe()
-    # terminal 1, as a shell runs it; Ctrl-C at the end goes to its whole process group
+    # terminal 1, as a shell runs it
     sim = subprocess.Popen(terminal1, shell=True, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                           text=True, start_new_session=True)
+                           text=True)
     try:
         seen = []
         assert sim.stdout is not None
@@ -176,7 +184,7 @@ def test_the_readme_socketcan_recipe_word_for_word() -> None:
             assert "no answer" not in row and math.isfinite(float(row.split()[3])), row
     finally:
         if sim.poll() is None:
-            os.killpg(sim.pid, signal.SIGINT)                       # Ctrl-C
+            ctrl_c(sim)
         out, _ = sim.communicate(timeout=120)
     assert sim.returncode == 0, out
     assert "akarm sim: stopped at" in out

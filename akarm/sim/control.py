@@ -157,7 +157,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         sim.clear_faults(req.get("joint"))
         return {}
     if cmd in ("state", "disable", "frames"):
-        sim.wait_received()  # what was sent to the drivers before the request counts
+        sim.wait_received(10.0)  # what was sent to the drivers before the request counts
         if cmd == "state":
             return {"t": sim.t, "slip": sim.slip, "joints": [dataclasses.asdict(s) for s in sim.driver_states()]}
         if cmd == "disable":

@@ -4,64 +4,45 @@
 
     import akarm
     arm = akarm.Arm.from_yaml("robots/arm6.yaml")
-    with arm:                       # any exit, exception or Ctrl-C: damped, then disabled
-        arm.enable()                # no kick: starts at the measured position, gains ramp up
+    with arm:                       # any exit, exception, Ctrl-C or SIGTERM: damped, then disabled
+        arm.enable()                # no kick: waits for the arm to be at rest, holds it, gains ramp up
         arm.move_to("home")         # jerk-limited, time-synchronised, blocks
         arm.move_to([0.3, -0.5, 1.0, 0.0, 0.4, 0.0], speed=0.5)
 
-Every cycle of the control loop (``config.rate_hz``): take the joints' latest feedback, check the
-watchdog, sample the trajectory at the current clock time, compute feed-forward torque with
-Pinocchio (full inverse dynamics by default), encode and send one frame per joint, record telemetry.
+The Arm checks what it is asked (targets, paths, recordings: before anything moves) and asks its
+:class:`~akarm.control.Controller` to do it; the controller runs the fixed-rate loop, the mode
+machine (:mod:`akarm.modes`) and the safety supervisor (:mod:`akarm.safety`).
 
 All positions are rad, velocities rad/s, torques N·m, times s, in config joint order.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import threading
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
-from typing import Literal
 
 import numpy as np
 
 from . import recording as rec_mod
-from . import units
-from .bus import close_buses, open_bus
 from .clock import Clock, RealClock
 from .config import RobotConfig
-from .errors import (
-    AkarmError,
-    BusError,
-    ConfigError,
-    ConfigProblem,
-    FeedbackTimeout,
-    LimitError,
-    MotorFault,
-    OverTemperature,
-    SafetyStop,
-    StateError,
-)
-from .joints import Joint, MitJoint, Router, ServoJoint, make_joint
-from .loop import ControlLoop, StatsSummary
+from .control import Controller, Motion, PathRecorder, track_arm
+from .errors import ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
+from .feedforward import FeedForwardKind
+from .joints import Joint, make_joint
+from .loop import StatsSummary
 from .model import RobotModel
-from .protocol.servo import describe_error
-from .telemetry import Telemetry, TelemetryLog
+from .modes import Mode
+from .telemetry import TelemetryLog
 from .timing import TimingProfile, get_profile
 from .trajectory import Chain, JointLimits, Plan, Planner
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
 
-FeedForward = Literal["full", "gravity", "none"]
+FeedForward = FeedForwardKind
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
-
-_STAGES = ("receive", "safety", "trajectory", "feedforward", "send", "telemetry")
-_DRAIN_LIMIT = 1024  # frames read per bus per cycle at most (a flooded bus must not stall the loop)
-_INV_FRICTION_SMOOTHING = 1.0 / 0.02  # Coulomb feed-forward is c·tanh(v_des / 0.02 rad/s): smooth through zero
 
 
 @dataclass(frozen=True)
@@ -88,6 +69,7 @@ class ArmState:
         q, dq, tau: measured positions (rad), velocities (rad/s), torques (N·m) as arrays.
         q_des: the commanded position (rad) this cycle.
         enabled: True while the arm is powered and tracking. moving: True while a motion runs.
+        mode: the arm's :class:`~akarm.modes.Mode`.
     """
 
     time: float
@@ -98,6 +80,7 @@ class ArmState:
     q_des: np.ndarray
     enabled: bool
     moving: bool
+    mode: Mode = Mode.DISABLED
 
     def __str__(self) -> str:
         head = f"{'joint':<16}{'pos rad':>10}{'vel rad/s':>11}{'torque Nm':>11}{'temp C':>8}{'fault':>7}{'age ms':>9}"
@@ -107,68 +90,6 @@ class ArmState:
             rows.append(f"{j.name:<16}{j.position:10.4f}{j.velocity:11.4f}{j.torque:11.3f}{temp}{j.fault:7d}"
                         f"{j.age * 1e3:9.1f}")
         return "\n".join(rows)
-
-
-class Motion:
-    """A motion the arm is executing (returned by :meth:`Arm.move_to` and friends).
-
-    Attributes:
-        plan: the planned trajectory. duration: its length, s.
-    """
-
-    def __init__(self, arm: Arm, plan: Plan) -> None:
-        self._arm = arm
-        self.plan = plan
-        self.duration = plan.duration
-        self.superseded = False
-        self._finished = threading.Event()
-
-    @property
-    def done(self) -> bool:
-        """True once the motion has ended (or was replaced by another, or the arm stopped)."""
-        return self._finished.is_set()
-
-    def wait(self, timeout: float | None = None) -> Motion:
-        """Block until the motion has ended; raise the arm's :class:`~akarm.SafetyStop` if it stopped.
-
-        ``timeout`` is in s of the arm's clock; ``None`` waits for the motion's duration plus a margin.
-        """
-        limit = self.duration + 5.0 if timeout is None else timeout
-        self._arm._wait_for(lambda: self._finished.is_set(), limit, f"the motion ({self.duration:.2f} s) to end")
-        return self
-
-    def _finish(self, superseded: bool = False) -> None:
-        self.superseded = superseded
-        self._finished.set()
-
-
-class _PathRecorder:
-    """The samples of :meth:`Arm.start_recording`, taken by the loop on a grid of ``1 / rate`` s
-    from the first one; a stall skips the grid points it missed (no burst of samples after it)."""
-
-    __slots__ = ("_last", "_next", "duration", "positions", "rate", "times")
-
-    def __init__(self, rate: float, duration: float | None) -> None:
-        self.rate, self.duration = rate, duration
-        self.times: list[float] = []
-        self.positions: list[np.ndarray] = []
-        self._next = -math.inf
-        self._last = math.inf
-
-    @property
-    def finished(self) -> bool:
-        return self._next > self._last
-
-    def sample(self, now: float, q: np.ndarray) -> None:
-        if now < self._next - 1e-9 or self.finished:  # a nanosecond's slack: clocks sum periods
-            return
-        if not self.times:
-            self._next = now
-            if self.duration is not None:  # the last grid point within the duration (slack for rounding)
-                self._last = now + math.floor(self.duration * self.rate + 1e-9) / self.rate + 1e-9
-        self.times.append(now)
-        self.positions.append(q)
-        self._next += (max(0, math.floor((now - self._next) * self.rate)) + 1) / self.rate
 
 
 class Arm:
@@ -183,15 +104,22 @@ class Arm:
         friction_feedforward: add each joint's friction (its ``friction:`` in the YAML, else the
             catalogue's typical values) at the *desired* velocity: ``c·tanh(v/0.02) + b·v``. Off
             with ``feedforward="none"``.
-        feedback_timeout: s; the watchdog stops the arm when a joint's feedback is older
-            (default: the timing profile's, 20 ms normally; servo joints at least 3 status periods;
-            a joint's own setting wins, but not below the profile's ``min_feedback_timeout``).
+        feedback_timeout: s; the supervisor stops the arm when a joint's feedback is older, and
+            refuses an enable whose first reply comes later (default: the timing profile's, 20 ms
+            normally; servo joints at least 3 status periods; a joint's own setting wins; none below
+            the profile's ``min_feedback_timeout``).
         timing: a timing profile (:mod:`akarm.timing`): ``"normal"`` (default) or ``"slow"`` for
             slow or shared machines, or a :class:`~akarm.timing.TimingProfile`. It caps the loop rate
             (:attr:`config` then says the rate in force) and gives the watchdog's and
-            :meth:`enable`'s default timeouts. Kept as :attr:`timing`.
-        enable_ramp: s over which MIT gains rise from zero at enable.
+            :meth:`enable`'s defaults. Kept as :attr:`timing`.
+        enable_ramp: s over which MIT stiffness (kp) rises from zero once the arm is held.
         stop_damping_time: s of damping (kp = 0) before exit when disabling or stopping for safety.
+        settle_speed: rad/s; ``enable()`` damps the arm until every joint is slower than this.
+        settle_timeout: s; ``enable()`` gives up (:class:`~akarm.NotSettled`) if the arm is not at
+            rest by then.
+        range_margin: rad; a move may start outside a joint's range (an arm resting on its hard stop),
+            up to this far past its mechanical range (the URDF's limits), and come back into it.
+        implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread, freeze the
@@ -208,6 +136,11 @@ class Arm:
             friction leaves with a pure PD (kp = 40 N·m/rad against 0.3 N·m of friction: 7.5 mrad).
             Reset whenever a motion starts; its torque is clamped to 10 % of the joint's torque
             limit. 0 turns it off.
+
+    While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
+    :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
+    and disables the arm; an Arm still enabled when the program ends, or when it is dropped, is
+    damped and disabled with an :class:`~akarm.control.UnsafeExitWarning`.
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
@@ -215,16 +148,23 @@ class Arm:
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
-                 loop_cpu: int | None = None, timing: str | TimingProfile | None = None) -> None:
+                 loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
+                 range_margin: float = 0.05, implausible_limit: int = 3,
+                 timing: str | TimingProfile | None = None) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         self.timing = get_profile(timing)
         config = self.timing.apply(config)
+        if feedback_timeout is None:
+            feedback_timeout = self.timing.feedback_timeout
+        for name, value in (("feedback_timeout", feedback_timeout), ("settle_speed", settle_speed),
+                            ("settle_timeout", settle_timeout)):
+            if not (isinstance(value, int | float) and value > 0):
+                raise StateError(f"{name} must be a positive number, got {value!r}")
+        feedback_timeout = max(feedback_timeout, self.timing.min_feedback_timeout)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
         self.feedforward: FeedForward = feedforward
-        self.enable_ramp = enable_ramp
-        self.stop_damping_time = stop_damping_time
         self.joints: list[Joint] = [make_joint(i, j) for i, j in enumerate(config.joints)]
         self.names = config.joint_names
         self.n = len(self.joints)
@@ -234,55 +174,16 @@ class Arm:
             self.names, np.array([x.lower for x in lim]), np.array([x.upper for x in lim]),
             np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
             np.array([x.jerk for x in lim]))
-        self._torque_limit = np.array([x.torque for x in lim])
-        self.planner = Planner(self.limits)
-        self._kp = np.array([j.gains.kp for j in config.joints])
-        self._kd = np.array([j.gains.kd for j in config.joints])
-        is_mit = np.array([j.mode == "mit" for j in config.joints])
-        self._hold_integral = hold_integral
-        self._is_mit = is_mit
-        # per-joint constants of the hot path as plain lists (see the feed-forward stage)
-        self._gains_changed()
-        self._tlim = self._torque_limit.tolist()
-        self._imax = (0.1 * self._torque_limit).tolist()
-        self._extra = [0.0] * self.n  # user torque added to MIT commands, N·m
-        self._integral = [0.0] * self.n  # ∫(q_des - q) dt while holding, rad·s
-        self._t_last = 0.0
-        fr = [j.friction_model() for j in config.joints]
-        on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
-        self._fric_c = [f.coulomb * on for f in fr]
-        self._fric_b = [f.viscous * on for f in fr]
-        self._timeouts = [self.timing.watchdog(j.config, feedback_timeout) for j in self.joints]  # s
-        self._max_temp = [j.config.max_temperature for j in self.joints]
-        self.telemetry_ring = Telemetry(self.names, max(1, int(telemetry_seconds * config.rate_hz)))
-        self._can_log_path = can_log
-        self._can_logger = None
-        self._realtime_priority = realtime_priority
-        self._loop_cpu = loop_cpu
-
-        self._lock = threading.RLock()
-        self._buses: dict[str, object] = {}
-        self._routers: dict[str, Router] = {}
-        self._bus_of = [j.bus for j in self.joints]
-        self._loop: ControlLoop | None = None
-        self._mode = "closed"  # closed | disabled | enabling | active | stopping
-        self._plan: Plan | None = None
-        self._motion: Motion | None = None
-        self._hold = np.zeros(self.n)
-        self._des = (np.zeros(self.n), np.zeros(self.n), np.zeros(self.n))
-        self._ff = np.zeros(self.n)
-        self._gain_scale = 0.0
-        self._t_enable = 0.0
-        self._enable_timeout = 0.5
-        self._t_active = 0.0
-        self._t_stop = 0.0
-        self._stop_from = np.zeros(self.n)
-        self._fault: SafetyStop | None = None
-        self._enable_error: AkarmError | None = None
-        self._send_errors = 0
-        self._entered = False
-        self._teach_damping = np.zeros(self.n)
-        self._recorder: _PathRecorder | None = None
+        self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
+        self._ctl = Controller(
+            config, self.joints, self.model, self.clock, feedforward=feedforward,
+            friction_feedforward=friction_feedforward, hold_integral=hold_integral,
+            feedback_timeout=feedback_timeout, enable_ramp=enable_ramp, stop_damping_time=stop_damping_time,
+            telemetry_seconds=telemetry_seconds, can_log=can_log, realtime_priority=realtime_priority,
+            loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
+            implausible_limit=implausible_limit)
+        self.telemetry_ring = self._ctl.telemetry
+        self._finalizer = track_arm(self, self._ctl)
 
     @classmethod
     def from_yaml(cls, path: str | PathLike[str], *, interface: str | None = None,
@@ -304,48 +205,13 @@ class Arm:
         Raises:
             BusError: a bus cannot be opened (the message says which, and how to create it).
         """
-        if self._mode != "closed":
-            return self
-        try:
-            for name, bus_cfg in self.config.buses.items():
-                if any(b == name for b in self._bus_of):
-                    self._buses[name] = open_bus(bus_cfg)
-        except BusError:
-            self._close_buses()
-            raise
-        for name in self._buses:
-            self._routers[name] = Router([j for j in self.joints if j.bus == name])
-        if self._can_log_path is not None:
-            import can
-
-            self._can_logger = can.Logger(str(self._can_log_path))
-        self._mode = "disabled"
-        self._loop = ControlLoop(self.config.rate_hz, self.clock, self._cycle, stages=_STAGES,
-                                 realtime_priority=self._realtime_priority, cpu=self._loop_cpu,
-                                 on_crash=self._crashed)
-        self._loop.start()
+        self._ctl.open()
         return self
 
     def close(self) -> None:
-        """Disable the arm if it is enabled (damping, then exit), stop the loop, close the buses."""
-        if self._mode == "closed":
-            return
-        try:
-            if self._mode in ("enabling", "active", "stopping"):
-                with contextlib.suppress(SafetyStop):
-                    self.disable()
-        finally:
-            if self._loop is not None:
-                self._loop.stop()
-            self._mode = "closed"
-            self._close_buses()
-            if self._can_logger is not None:
-                self._can_logger.stop()
-                self._can_logger = None
-
-    def _close_buses(self) -> None:
-        close_buses(self._buses)  # type: ignore[arg-type]
-        self._routers.clear()
+        """Disable the arm if it may be powered (damping, then exit; from any mode, teach included),
+        stop the loop, close the buses. Never raises; Ctrl-C and SIGTERM wait until it is done."""
+        self._ctl.close()
 
     def __enter__(self) -> Arm:
         return self.open()
@@ -357,60 +223,41 @@ class Arm:
     # enable / disable
     # ------------------------------------------------------------------------------------------
     def enable(self, timeout: float | None = None) -> None:
-        """Power the joints without a kick and hold them where they are.
+        """Power the joints without a kick, wait for the arm to be at rest, and hold it where it is.
 
-        MIT joints: ENTER, at once followed by a zero-gain, zero-torque command (the driver would
-        otherwise apply the last command it remembers), then the measured positions become the
-        commanded ones and the gains ramp up from zero over ``enable_ramp`` s, with feed-forward
-        from the start. Servo joints: their status frames give the position to hold.
+        1. Listen to the buses briefly: another controller driving these motors refuses the enable
+           (:class:`~akarm.ForeignTraffic`).
+        2. MIT joints: ENTER, at once followed by a zero-gain, zero-torque command (the driver would
+           otherwise apply the last command it remembers), repeated until every joint gave two
+           consistent replies, the first within its feedback timeout (else
+           :class:`~akarm.StaleFeedback`). Servo joints: two status frames.
+        3. Damping (kp = 0, the joint's kd, gravity feed-forward at the measured pose; servo: a
+           braking current) until every joint is slower than ``settle_speed`` for five cycles
+           (else :class:`~akarm.NotSettled` after ``settle_timeout``).
+        4. The measured pose becomes the commanded one; kp ramps up from zero over ``enable_ramp`` s.
 
         Args:
-            timeout: s to wait for every joint's first feedback (default: the timing profile's,
-                0.5 s normally).
+            timeout: s to wait for every joint's replies (default: the timing profile's, 0.5 s normally).
 
         Raises:
-            FeedbackTimeout: a joint did not answer (it names the joint; the arm is left disabled).
+            FeedbackTimeout: a joint did not answer (it names the joint; nothing is left enabled).
+            SafetyStop: what else refused it (the arm is left disabled).
         """
-        self._require_open()
-        if self._mode in ("active", "enabling"):
-            return
-        self._fault = None
-        self._enable_error = None
-        if timeout is None:
-            timeout = self.timing.enable_timeout
-        with self._lock:
-            for j in self.joints:
-                j.state.stamp = -math.inf
-            self._t_enable = self.clock.now()
-            self._enable_timeout = timeout
-            self._mode = "enabling"
-        self._wait_for(lambda: self._mode != "enabling", timeout + 1.0, "the joints to answer")
-        if self._enable_error is not None:
-            self._loop.wait_cycle(0.1)  # type: ignore[union-attr]  # deliver the exit frames
-            raise self._enable_error
-        self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
+        self._ctl.enable(self.timing.enable_timeout if timeout is None else timeout)
 
     def disable(self) -> None:
         """Damp every joint (kp = 0) for ``stop_damping_time`` s, then exit motor mode. Blocks."""
-        self._require_open()
-        if self._mode in ("disabled",):
-            return
-        with self._lock:
-            if self._mode != "stopping":
-                self._begin_stop()
-        self._wait_disabled()
-
-    def _wait_disabled(self) -> None:
-        """Wait for the stop sequence to end, then one more cycle so its exit frames are delivered."""
-        self._wait_for(lambda: self._mode == "disabled", self.stop_damping_time + 2.0, "the arm to disable",
-                       raise_fault=False)
-        if self._loop is not None:
-            self._loop.wait_cycle(0.1)
+        self._ctl.disable()
 
     @property
     def enabled(self) -> bool:
         """True while the arm is enabled and tracking."""
-        return self._mode == "active"
+        return self._ctl.mode is Mode.ACTIVE
+
+    @property
+    def mode(self) -> Mode:
+        """What the arm is doing now (:class:`~akarm.modes.Mode`)."""
+        return self._ctl.mode
 
     # ------------------------------------------------------------------------------------------
     # motion
@@ -419,37 +266,39 @@ class Arm:
         if isinstance(target, str):
             return np.array(self.config.pose(target), dtype=float)
         if isinstance(target, Mapping):
-            q = self._desired_now()[0].copy()
+            q = self._ctl.desired_now()[0].copy()
             for name, value in target.items():
                 if name not in self.names:
-                    raise LimitError(f"no joint named {name!r}", fix="joints are: " + ", ".join(self.names))
-                q[self.names.index(name)] = float(value)
-            return q
-        q = np.asarray(target, dtype=float).reshape(-1)
-        if q.shape != (self.n,):
-            raise LimitError(f"target has {q.size} values, the arm has {self.n} joints",
-                             fix="give one angle (rad) per joint in config order: " + ", ".join(self.names))
-        return q
+                    from .motors import did_you_mean
 
-    def _desired_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The commanded (q, dq, ddq) at the current clock time."""
-        with self._lock:
-            if self._plan is not None:
-                return self._plan.sample(self.clock.now())
-            return self._hold.copy(), np.zeros(self.n), np.zeros(self.n)
+                    raise LimitError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
+                                     fix="joints are: " + ", ".join(self.names))
+                q[self.names.index(name)] = self._number(value, name)
+            return q
+        try:
+            values = list(target)  # type: ignore[arg-type]
+        except TypeError:
+            raise LimitError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
+                             f"not {target!r}",
+                             fix="give one angle (rad) per joint: " + ", ".join(self.names)) from None
+        if len(values) != self.n:
+            raise LimitError(f"target has {len(values)} values, the arm has {self.n} joints",
+                             fix="give one angle (rad) per joint in config order: " + ", ".join(self.names))
+        return np.array([self._number(v, name) for v, name in zip(values, self.names, strict=True)])
+
+    @staticmethod
+    def _number(value: object, joint: str) -> float:
+        """``value`` as a finite float, or :class:`LimitError` naming ``joint``."""
+        try:
+            x = float(value)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            raise LimitError(f"target {value!r} is not a number", joint=joint, fix="give an angle in rad") from None
+        if not math.isfinite(x):
+            raise LimitError(f"target {x} is not a finite angle", joint=joint, fix="give an angle in rad")
+        return x
 
     def _start(self, make_plan) -> Motion:
-        self._require_enabled()
-        with self._lock:
-            now = self.clock.now()
-            start = self._plan.sample(now) if self._plan is not None else (self._hold, np.zeros(self.n),
-                                                                           np.zeros(self.n))
-            plan = make_plan(start, now)
-            motion = Motion(self, plan)
-            if self._motion is not None:
-                self._motion._finish(superseded=True)
-            self._plan, self._motion = plan, motion
-        return motion
+        return self._ctl.start(make_plan)
 
     def move_to(self, target: Target, speed: float = 1.0, wait: bool = True) -> Motion:
         """Move to ``target``: jerk-limited, every joint arriving together.
@@ -462,7 +311,8 @@ class Arm:
 
         Raises:
             LimitError: the target or any point of the planned path is outside a joint's range
-                (checked before anything moves; names the joint).
+                (checked before anything moves; names the joint). A move may start up to
+                ``range_margin`` outside a range, and come back into it.
         """
         q = self._target_vector(target)
         return self._run(self._start(lambda start, now: Plan([self.planner.move(start, q, now, speed)])), wait)
@@ -490,9 +340,10 @@ class Arm:
 
     def hold(self) -> None:
         """Hold the current commanded position (stopping, jerk-limited, first if moving)."""
-        self._require_enabled()
-        with self._lock:
-            moving = self._plan is not None and not self._plan.done(self.clock.now())
+        self._ctl.require_enabled()
+        with self._ctl.lock:
+            plan = self._ctl.plan
+            moving = plan is not None and not plan.done(self.clock.now())
         if moving:
             self.stop(wait=True)
 
@@ -502,43 +353,23 @@ class Arm:
     @property
     def moving(self) -> bool:
         """True while a motion is being executed."""
-        return self._plan is not None
+        return self._ctl.plan is not None
 
     def set_gains(self, kp: Sequence[float] | float | None = None, kd: Sequence[float] | float | None = None) -> None:
-        """Change MIT gains while running: kp in N·m/rad (0-500), kd in N·m·s/rad (0-5), per joint or one for all.
+        """Change MIT gains while running: kp in N·m/rad, kd in N·m·s/rad, per joint or one for all,
+        each within its motor's range (``kp_max``, ``kd_max``: 500 and 5 on most models).
 
         ``set_gains(kp=0, kd=0.5)`` with :meth:`set_extra_torque` gives pure torque control with
         the arm's weight carried: joints with kp = 0 get their gravity torque at the *measured* pose
-        (they are not held at the commanded one). Servo joints ignore gains.
+        (they are not held at the commanded one, and the following-error check leaves them alone).
+        Servo joints ignore gains. The default following-error limits follow the new kp.
         """
-        with self._lock:
-            for arr, new, hi, what in ((self._kp, kp, 500.0, "kp"), (self._kd, kd, 5.0, "kd")):
-                if new is None:
-                    continue
-                v = np.broadcast_to(np.asarray(new, dtype=float), (self.n,))
-                if not np.all(np.isfinite(v)) or np.any(v < 0) or np.any(v > hi):
-                    raise LimitError(f"{what} must be within 0-{hi:g}, got {list(v)}",
-                                     fix=f"pass {what} in the MIT range 0-{hi:g}")
-                arr[:] = v
-            self._gains_changed()
-
-    def _gains_changed(self) -> None:
-        """Refresh the hot path's per-joint gain constants (plain floats: numpy scalars are slow there)."""
-        self._kp_list, self._kd_list = self._kp.tolist(), self._kd.tolist()
-        self._ki = [self._hold_integral * kp if m else 0.0 for kp, m in zip(self._kp_list, self._is_mit, strict=True)]
-        self._limp = [i for i in range(self.n) if self._is_mit[i] and self._kp_list[i] == 0.0]  # MIT, kp = 0
+        self._ctl.set_gains(kp, kd)
 
     def set_extra_torque(self, tau: Sequence[float] | None) -> None:
         """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
         on top of the feed-forward, clamped to each joint's torque limit."""
-        with self._lock:
-            if tau is None:
-                self._extra = [0.0] * self.n
-                return
-            v = np.asarray(tau, dtype=float).reshape(-1)
-            if v.shape != (self.n,) or not np.all(np.isfinite(v)):
-                raise LimitError(f"extra torque needs {self.n} finite values (N·m)", fix="one per joint, config order")
-            self._extra = v.tolist()
+        self._ctl.set_extra_torque(tau)
 
     # ------------------------------------------------------------------------------------------
     # teach and replay
@@ -548,23 +379,20 @@ class Arm:
 
         MIT joints: kp = 0, kd = ``damping`` (N·m·s/rad, at most the joint's own kd), gravity
         feed-forward at the measured pose. Servo joints: current mode with the gravity current
-        (``g(q) / (kt · gear_ratio)``). The watchdog stays on.
+        (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all but the following error).
         """
-        self._require_enabled()
+        self._ctl.require_enabled()
         for j in self.joints:
-            if isinstance(j, ServoJoint) and j.motor.kt is None:
+            if not j.answers_commands and j.motor.kt is None:
                 raise ConfigError([ConfigProblem(str(self.config.source or self.config.name), None,
                                                  f"joint {j.name!r}: motor {j.motor.name} has no kt",
                                                  "set kt (N·m/A at the rotor) under `motors:` to teach servo joints")])
         self.hold()
-        with self._lock:
-            self._teach_damping = np.minimum(damping, self._kd)
-            self._plan, self._motion = None, None
-            self._mode = "teach"
+        self._ctl.enter_teach(damping)
 
     def keyframe(self, name: str | None = None) -> rec_mod.Keyframe:
         """The measured pose now, as a keyframe (rad, config order) with an optional name."""
-        with self._lock:
+        with self._ctl.lock:
             return rec_mod.Keyframe(tuple(float(j.state.position) for j in self.joints), name)
 
     def start_recording(self, rate_hz: float = 50.0, duration: float | None = None) -> None:
@@ -574,25 +402,25 @@ class Arm:
         path is ``duration`` long and holds ``floor(duration * rate_hz) + 1`` samples however late
         the caller gets round to :meth:`stop_recording`; :attr:`recording_finished` tells when.
         """
-        if self._mode != "teach":
+        if self._ctl.mode is not Mode.TEACH:
             raise StateError("recording a path needs teach mode", fix="call arm.teach() first")
         if not 0 < rate_hz <= self.config.rate_hz:
             raise StateError(f"rate_hz must be in (0, {self.config.rate_hz:g}] (the loop rate)")
         if duration is not None and not 0 < duration < math.inf:
             raise StateError(f"duration must be a positive number of seconds, not {duration}")
-        with self._lock:
-            self._recorder = _PathRecorder(rate_hz, duration)
+        with self._ctl.lock:
+            self._ctl.recorder = PathRecorder(rate_hz, duration)
 
     @property
     def recording_finished(self) -> bool:
         """True once a recording started with a ``duration`` has all its samples (False with none)."""
-        rec = self._recorder
+        rec = self._ctl.recorder
         return rec is not None and rec.finished
 
     def stop_recording(self) -> rec_mod.PathRecording:
         """Stop the continuous recording and return it (times from 0, s; positions rad)."""
-        with self._lock:
-            rec, self._recorder = self._recorder, None
+        with self._ctl.lock:
+            rec, self._ctl.recorder = self._ctl.recorder, None
         if rec is None or len(rec.times) < 2:
             raise StateError("no path was recorded", fix="call start_recording() and move the arm for a while")
         t = np.array(rec.times) - rec.times[0]
@@ -600,18 +428,9 @@ class Arm:
 
     def end_teach(self) -> None:
         """Leave teach mode: hold the pose the arm was left in, gains ramping up from zero."""
-        with self._lock:
-            if self._mode != "teach":
-                return
-            self._recorder = None
-            q = np.array([j.state.position for j in self.joints])
-            self._hold = q
-            self._des = (q.copy(), np.zeros(self.n), np.zeros(self.n))
-            self._t_active = self.clock.now()
-            self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
-            self._integral = [0.0] * self.n
-            self._mode = "active"
-        self._wait_for(lambda: self._gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
+        if self._ctl.leave_teach():
+            self._ctl.wait_for(lambda: self._ctl.gain_scale >= 1.0, self._ctl.enable_ramp + 1.0,
+                               "the gains to ramp up")
 
     def check_replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
                      speed: float = 1.0) -> rec_mod.Keyframes | rec_mod.PathRecording:
@@ -671,21 +490,24 @@ class Arm:
     def state(self) -> ArmState:
         """The latest feedback of every joint and the commanded position (see :class:`ArmState`)."""
         now = self.clock.now()
-        with self._lock:
+        ctl = self._ctl
+        with ctl.lock:
             reps = tuple(JointReport(j.name, j.state.position, j.state.velocity, j.state.torque,
                                      j.state.temperature, j.state.error, j.state.age(now)) for j in self.joints)
-            q_des = self._des[0].copy()
+            q_des = ctl.des[0].copy()
+            mode = ctl.mode
+            moving = ctl.plan is not None
         return ArmState(now, reps, np.array([r.position for r in reps]), np.array([r.velocity for r in reps]),
-                        np.array([r.torque for r in reps]), q_des, self._mode == "active", self._plan is not None)
+                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode)
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Tell the feed-forward about a payload at the tool frame: kg, centre of mass in the tool frame (m)."""
-        with self._lock:
+        with self._ctl.lock:
             self.model.set_payload(mass, com)
 
     def clear_payload(self) -> None:
         """Remove the payload from the feed-forward model."""
-        with self._lock:
+        with self._ctl.lock:
             self.model.clear_payload()
 
     def sleep(self, seconds: float) -> None:
@@ -695,309 +517,30 @@ class Arm:
         :class:`~akarm.SafetyStop` if it stopped meanwhile.
         """
         end = self.clock.now() + seconds
-        self._wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass")
+        self._ctl.wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass")
 
     def telemetry(self, since: float | None = None) -> TelemetryLog:
         """The recorded cycles (desired and measured q, dq, τ, feed-forward), oldest first."""
-        with self._lock:
-            return self.telemetry_ring.snapshot(since)
+        with self._ctl.lock:
+            return self._ctl.telemetry.snapshot(since)
 
     def reset_stats(self) -> None:
         """Forget the loop timings measured so far (e.g. to leave start-up out of a benchmark)."""
-        self._require_open()
-        self._loop.stats.reset()  # type: ignore[union-attr]
+        self._ctl.require_open()
+        self._ctl.loop.stats.reset()  # type: ignore[union-attr]
 
     @property
     def realtime_report(self) -> str:
         """What the loop thread was granted of real-time priority, memory locking and CPU pinning (if it asked)."""
-        return self._loop.realtime_report if self._loop is not None else "not open"
+        loop = self._ctl.loop
+        return loop.realtime_report if loop is not None else "not open"
 
     @property
     def fault(self) -> SafetyStop | None:
         """The safety stop that disabled the arm (it is raised by the next call), or ``None``."""
-        return self._fault
+        return self._ctl.fault
 
     def stats(self) -> StatsSummary:
         """Loop timing: achieved rate, lateness and period percentiles, missed slots, time per stage."""
-        self._require_open()
-        return self._loop.stats.summary()  # type: ignore[union-attr]
-
-    # ------------------------------------------------------------------------------------------
-    # waiting
-    # ------------------------------------------------------------------------------------------
-    def _require_open(self) -> None:
-        if self._mode == "closed":
-            raise StateError("the arm is not open", fix="use `with arm:` or call arm.open() first")
-
-    def _require_enabled(self) -> None:
-        self._raise_fault()
-        if self._mode != "active":
-            raise StateError(f"the arm is {self._mode}, not enabled", fix="call arm.enable() first")
-
-    def _raise_fault(self) -> None:
-        if self._fault is not None:
-            if self._mode != "disabled":
-                self._wait_disabled()
-            raise self._fault
-
-    def _wait_for(self, done, timeout: float, what: str, raise_fault: bool = True) -> None:
-        loop = self._loop
-        assert loop is not None
-        end = self.clock.now() + timeout
-        while True:
-            if raise_fault and self._fault is not None:  # before `done`: a motion ended by a stop must raise
-                self._raise_fault()
-            if done():
-                return
-            if loop.crashed is not None:
-                raise StateError(f"the control loop crashed: {loop.crashed!r}",
-                                 fix="this is a bug in akarm; please report it with the traceback in the log")
-            if self.clock.now() > end:
-                raise StateError(f"timed out after {timeout:.2f} s waiting for {what}")
-            loop.wait_cycle(0.1)
-
-    # ------------------------------------------------------------------------------------------
-    # the cycle (runs in the loop thread, or inline with a stepped clock)
-    # ------------------------------------------------------------------------------------------
-    def _crashed(self, exc: BaseException) -> None:
-        """The loop died of a bug: tell every motor to go limp, as a last resort."""
-        for j in self.joints:
-            frames = j.exit_frames() if isinstance(j, MitJoint) else [j.release()]  # type: ignore[union-attr]
-            for f in frames:
-                self._send(j, f)
-
-    def _send(self, j: Joint, msg) -> None:
-        bus = self._buses.get(j.bus)
-        if bus is None:
-            return
-        try:
-            bus.send(msg)  # type: ignore[attr-defined]
-            self._send_errors = 0
-        except Exception:  # a full TX queue or unplugged adapter: counted; 20 in a row stop the arm
-            self._send_errors += 1
-        if self._can_logger is not None:
-            msg.timestamp = time.time()
-            self._can_logger.on_message_received(msg)
-
-    def _begin_stop(self, fault: SafetyStop | None = None) -> None:
-        if fault is not None and self._fault is None:
-            self._fault = fault
-        if self._mode == "stopping":
-            return
-        self._mode = "stopping"
-        self._t_stop = self.clock.now()
-        self._stop_from = np.array([self._ff[i] for i in range(self.n)])
-        if self._motion is not None:
-            self._motion._finish(superseded=True)
-        self._plan, self._motion = None, None
-
-    def _check_safety(self, now: float) -> None:
-        for j, limit, max_temp in zip(self.joints, self._timeouts, self._max_temp, strict=True):
-            s = j.state
-            age = now - s.stamp
-            if age > limit:
-                self._begin_stop(FeedbackTimeout(
-                    f"no feedback for {age * 1e3:.0f} ms (limit {limit * 1e3:.0f} ms); the arm was "
-                    f"damped and disabled", age=age, joint=j.name,
-                    fix="check the motor's power and CAN wiring, its CAN ID, the bit rate, and the bus load"))
-                return
-            if s.error:
-                desc, remedy = describe_error(s.error)
-                self._begin_stop(MotorFault(f"motor reports error {s.error} ({desc}); the arm was damped and "
-                                            f"disabled", code=s.error, joint=j.name, fix=remedy))
-                return
-            if s.temperature is not None and s.temperature > max_temp:
-                self._begin_stop(OverTemperature(
-                    f"temperature {s.temperature:.0f} °C is above the limit {max_temp:.0f} °C; "
-                    f"the arm was damped and disabled", temperature=s.temperature, joint=j.name,
-                    fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML"))
-                return
-        if self._send_errors > 20:
-            self._begin_stop(SafetyStop("more than 20 consecutive frames could not be sent; the arm was damped "
-                                        "and disabled", fix="check the CAN adapter, the cabling and termination"))
-
-    def _cycle(self, now: float, slot: int) -> None:
-        pc = time.perf_counter
-        stage = self._loop.stats.stage[slot]  # type: ignore[union-attr]
-        t0 = pc()
-        logger = self._can_logger
-        for name, bus in self._buses.items():
-            route = self._routers[name].route
-            recv = bus.recv  # type: ignore[attr-defined]
-            for _ in range(_DRAIN_LIMIT):  # everything already received, never waiting
-                msg = recv(0.0)
-                if msg is None:
-                    break
-                route(msg, now)
-                if logger is not None:
-                    logger.on_message_received(msg)
-        t1 = pc()
-        stage[0] = t1 - t0
-        mode = self._mode
-        if mode == "disabled" or mode == "closed":
-            return
-        with self._lock:
-            if mode == "enabling":
-                self._cycle_enabling(now)
-                return
-            if mode == "active" or mode == "teach":
-                self._check_safety(now)
-            t2 = pc()
-            stage[1] = t2 - t1
-            if self._mode == "stopping":
-                self._cycle_stopping(now)
-                return
-            if self._mode == "teach":
-                self._cycle_teach(now)
-                return
-            # trajectory
-            plan = self._plan
-            if plan is not None:
-                q_d, dq_d, ddq_d = plan.sample(now)
-                if plan.done(now):
-                    self._hold = q_d.copy()
-                    self._plan = None
-                    if self._motion is not None:
-                        self._motion._finish()
-                        self._motion = None
-            else:
-                q_d, dq_d, ddq_d = self._hold, np.zeros(self.n), np.zeros(self.n)
-            self._des = (q_d, dq_d, ddq_d)
-            t3 = pc()
-            stage[2] = t3 - t2
-            # feed-forward: the rigid-body model (Pinocchio), then friction, hold integral, user torque
-            # and clamping per joint in plain floats (for six values numpy's per-call overhead costs
-            # more than the arithmetic)
-            if self.feedforward == "full":
-                model_tau = self.model.inverse_dynamics(q_d, dq_d, ddq_d).tolist()
-            elif self.feedforward == "gravity":
-                model_tau = self.model.gravity(q_d).tolist()
-            else:
-                model_tau = [0.0] * self.n
-            if self._limp and self.feedforward != "none":
-                # joints without stiffness are not at the commanded pose: carry their weight where they are
-                g_meas = self.model.gravity([j.state.position for j in self.joints]).tolist()
-                for i in self._limp:
-                    model_tau[i] = g_meas[i]
-            qd, vd = q_d.tolist(), dq_d.tolist()
-            holding = plan is None and self._gain_scale >= 1.0
-            dt = now - self._t_last
-            self._t_last = now
-            c, b, ex, lim, ki, imax = self._fric_c, self._fric_b, self._extra, self._tlim, self._ki, self._imax
-            integ, js = self._integral, self.joints
-            ff = [0.0] * self.n
-            for i in range(self.n):
-                v = vd[i]
-                t = model_tau[i] + c[i] * math.tanh(v * _INV_FRICTION_SMOOTHING) + b[i] * v + ex[i]
-                if holding:
-                    if ki[i] > 0.0:
-                        ti = ki[i] * (integ[i] + (qd[i] - js[i].state.position) * dt)
-                        ti = imax[i] if ti > imax[i] else -imax[i] if ti < -imax[i] else ti
-                        integ[i] = ti / ki[i]
-                        t += ti
-                else:
-                    integ[i] = 0.0
-                ff[i] = lim[i] if t > lim[i] else -lim[i] if t < -lim[i] else t
-            self._ff = ff
-            t4 = pc()
-            stage[3] = t4 - t3
-            # send
-            if self._gain_scale < 1.0:
-                self._gain_scale = min(1.0, (now - self._t_active) / self.enable_ramp) if self.enable_ramp > 0 else 1.0
-            g = self._gain_scale
-            kp, kd = self._kp_list, self._kd_list
-            for i, j in enumerate(js):
-                if isinstance(j, MitJoint):
-                    msg = j.command(qd[i], vd[i], kp[i] * g, kd[i] * g, ff[i])
-                else:
-                    msg = j.command(qd[i])  # type: ignore[attr-defined]
-                self._send(j, msg)
-            t5 = pc()
-            stage[4] = t5 - t4
-            self._record(now, qd, vd, ff)
-            stage[5] = pc() - t5
-
-    def _record(self, now: float, q_d, dq_d, ff) -> None:
-        states = [j.state for j in self.joints]
-        self.telemetry_ring.record(now, q_d, dq_d, [s.position for s in states], [s.velocity for s in states],
-                                   [s.torque for s in states], ff)
-
-    def _cycle_teach(self, now: float) -> None:
-        """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose)."""
-        q = np.array([j.state.position for j in self.joints])
-        g = np.clip(self.model.gravity(q), -self._torque_limit, self._torque_limit)
-        for i, j in enumerate(self.joints):
-            if isinstance(j, MitJoint):
-                self._send(j, j.command(math.nan, 0.0, 0.0, self._teach_damping[i], g[i]))
-            else:
-                amps = units.torque_to_amps(j.motor, g[i] * j.direction)
-                self._send(j, j.current(amps))  # type: ignore[attr-defined]
-        self._des = (q, np.zeros(self.n), np.zeros(self.n))
-        self._ff = g
-        rec = self._recorder
-        if rec is not None:
-            rec.sample(now, q)
-        self._record(now, q, np.zeros(self.n), g)
-
-    def _cycle_enabling(self, now: float) -> None:
-        first = not self._entered
-        for j in self.joints:
-            if isinstance(j, MitJoint):
-                if first:
-                    for f in j.enter_frames():
-                        self._send(j, f)
-                # zero gains, zero torque: overrides the remembered command and asks for a reply
-                self._send(j, j.command(math.nan, 0.0, 0.0, 0.0, 0.0))
-        self._entered = True
-        missing = [j for j in self.joints if j.state.stamp < self._t_enable]
-        if not missing:
-            q = np.array([j.state.position for j in self.joints])
-            self._hold = q
-            self._des = (q.copy(), np.zeros(self.n), np.zeros(self.n))
-            self._plan = None
-            self._t_active = now
-            self._gain_scale = 0.0 if self.enable_ramp > 0 else 1.0
-            self._integral = [0.0] * self.n
-            self._entered = False
-            self._mode = "active"
-            return
-        if now - self._t_enable > self._enable_timeout:
-            names = ", ".join(j.name for j in missing)
-            for j in self.joints:
-                if isinstance(j, MitJoint):
-                    for f in j.exit_frames():
-                        self._send(j, f)
-            self._entered = False
-            self._enable_error = FeedbackTimeout(
-                f"no answer within {self._enable_timeout * 1e3:.0f} ms from: {names}; nothing was enabled",
-                age=now - self._t_enable, joint=missing[0].name,
-                fix="check power, CAN wiring and bit rate, the CAN ID, and that the motor is in the configured "
-                    "mode (MIT or servo)")
-            self._mode = "disabled"
-
-    def _cycle_stopping(self, now: float) -> None:
-        """Damping (kp = 0, feed-forward fading out) for stop_damping_time, then exit."""
-        T = self.stop_damping_time
-        s = (now - self._t_stop) / T if T > 0 else 1.0
-        js = self.joints
-        if s < 1.0:
-            fade = 1.0 - s
-            for i, j in enumerate(js):
-                if isinstance(j, MitJoint):
-                    kd = max(self._kd[i], 0.5)
-                    self._send(j, j.command(math.nan, 0.0, 0.0, min(kd, j.motor.kd_max),
-                                            self._stop_from[i] * fade))
-                else:
-                    rated = j.motor.rated_current or 2.0
-                    self._send(j, j.brake(0.5 * rated))  # type: ignore[attr-defined]
-            self._record(now, self._des[0], np.zeros(self.n), self._stop_from * fade)
-            return
-        for j in js:
-            if isinstance(j, MitJoint):
-                self._send(j, j.command(math.nan, 0.0, 0.0, 0.0, 0.0))
-                for f in j.exit_frames():
-                    self._send(j, f)
-            elif isinstance(j, ServoJoint):
-                self._send(j, j.release())
-        self._gain_scale = 0.0
-        self._mode = "disabled"
+        self._ctl.require_open()
+        return self._ctl.loop.stats.summary()  # type: ignore[union-attr]

@@ -20,7 +20,13 @@ raises on purpose; anything else escaping akarm is a bug.
     └── SafetyStop             the arm was stopped (damped, then disabled) for safety
         ├── MotorFault         a motor reported an error code
         ├── FeedbackTimeout    a joint's feedback became too old
-        └── OverTemperature    a joint passed its temperature limit
+        │   └── StaleFeedback  replies come regularly, but each one too long after its command
+        ├── OverTemperature    a joint passed its temperature limit
+        ├── TrackingError      a joint is too far from where it is commanded, or does not move
+        ├── ImplausibleFeedback  replies no physical joint could send (several in a row)
+        ├── ForeignTraffic     another program commands, disables or answers for our motors
+        ├── NotSettled         the arm kept moving while enable() waited for it to come to rest
+        └── BusLost            a bus died under the arm (also a BusError)
 """
 
 from __future__ import annotations
@@ -30,18 +36,25 @@ from dataclasses import dataclass
 __all__ = [
     "AkarmError",
     "BusError",
+    "BusLost",
     "ConfigError",
     "ConfigProblem",
+    "ConfigWarning",
     "FeedbackTimeout",
+    "ForeignTraffic",
     "FrameError",
+    "ImplausibleFeedback",
     "LimitError",
     "ModelError",
     "MotorFault",
+    "NotSettled",
     "OverTemperature",
     "ProtocolError",
     "RecordingError",
     "SafetyStop",
+    "StaleFeedback",
     "StateError",
+    "TrackingError",
     "TrajectoryError",
     "UnknownMotorError",
 ]
@@ -142,6 +155,12 @@ class ConfigError(AkarmError):
         return self.what
 
 
+class ConfigWarning(UserWarning):
+    """A robot file that loads but says less than it should: a URDF joint held at a default position
+    because the file does not say where (issued by :func:`~akarm.load_robot`; ``akarm check`` lists
+    every warning, the gravity ones included)."""
+
+
 class ModelError(AkarmError):
     """The URDF cannot be turned into a dynamics model, or a frame/joint is not in it."""
 
@@ -167,7 +186,14 @@ class RecordingError(AkarmError):
 
 
 class SafetyStop(AkarmError):
-    """The arm was brought to a safe stop (damping, then exit) and is disabled."""
+    """The arm was brought to a safe stop (damping, then exit) and is disabled.
+
+    Attributes:
+        at: the arm's clock time (s) at which the stop was decided, or ``None`` (set by the
+            supervisor; the time from a fault to ``at`` is the detection time).
+    """
+
+    at: float | None = None
 
 
 class MotorFault(SafetyStop):
@@ -187,11 +213,23 @@ class FeedbackTimeout(SafetyStop):
 
     Attributes:
         age: the feedback age in s when the stop was triggered.
+        limit: the joint's feedback timeout, s (``None`` where it does not apply).
     """
 
-    def __init__(self, what: str, *, age: float, joint: str | None = None, fix: str = "") -> None:
+    def __init__(self, what: str, *, age: float, limit: float | None = None, joint: str | None = None,
+                 fix: str = "") -> None:
         self.age = age
+        self.limit = limit
         super().__init__(what, joint=joint, fix=fix)
+
+
+class StaleFeedback(FeedbackTimeout):
+    """A joint answers, but each reply arrives longer after its command than the feedback timeout:
+    a constant delay (a backed-up adapter or bus), which feedback age alone cannot see.
+
+    Attributes:
+        age: the measured delay between a command and its reply, s. limit: the feedback timeout, s.
+    """
 
 
 class OverTemperature(SafetyStop):
@@ -199,8 +237,85 @@ class OverTemperature(SafetyStop):
 
     Attributes:
         temperature: the reported temperature in °C.
+        limit: the joint's ``max_temperature``, °C (``None`` where not given).
     """
 
-    def __init__(self, what: str, *, temperature: float, joint: str | None = None, fix: str = "") -> None:
+    def __init__(self, what: str, *, temperature: float, limit: float | None = None, joint: str | None = None,
+                 fix: str = "") -> None:
         self.temperature = temperature
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class TrackingError(SafetyStop):
+    """A joint's measured position is further from the commanded one than its following-error
+    limit, or its reading stays constant while it is commanded to move: a frozen encoder, a blocked
+    joint, an undersized motor, or a motor another program disabled.
+
+    Attributes:
+        error: the following error (commanded minus measured), rad; for a reading that stays
+            constant, how far the command moved meanwhile, rad.
+        limit: the limit it passed, rad.
+    """
+
+    def __init__(self, what: str, *, error: float, limit: float, joint: str | None = None, fix: str = "") -> None:
+        self.error = error
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class ImplausibleFeedback(SafetyStop):
+    """Several replies in a row claimed positions the joint cannot have reached since the last good
+    one (faster than its motor can turn): a corrupt or forged reply stream.
+
+    Attributes:
+        value: the last rejected position, rad (joint side).
+        limit: the largest step the joint could have made, rad.
+        count: rejected replies in a row.
+    """
+
+    def __init__(self, what: str, *, value: float, limit: float, count: int, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.value = value
+        self.limit = limit
+        self.count = count
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class ForeignTraffic(SafetyStop):
+    """Another program (or a second motor with the same CAN ID) is on the bus with our motors: it
+    sent a command, ENTER, EXIT or ZERO to one of them, or replies that no command of ours asked for.
+
+    Attributes:
+        kind: ``"exit"``, ``"enter"``, ``"zero"``, ``"command"`` or ``"replies"``.
+    """
+
+    def __init__(self, what: str, *, kind: str, joint: str | None = None, fix: str = "") -> None:
+        self.kind = kind
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class NotSettled(SafetyStop):
+    """``enable()`` damped the arm but it did not come to rest in time; nothing was held.
+
+    Attributes:
+        speed: the joint's speed when enable gave up, rad/s. limit: the settle speed, rad/s.
+    """
+
+    def __init__(self, what: str, *, speed: float, limit: float, joint: str | None = None, fix: str = "") -> None:
+        self.speed = speed
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class BusLost(SafetyStop, BusError):
+    """A CAN bus failed under a running arm (shut down, unplugged, or every frame refused). The joints
+    on other buses were damped and disabled; those on the lost bus could not be told anything.
+
+    Attributes:
+        bus: the bus's name.
+    """
+
+    def __init__(self, what: str, *, bus: str, joint: str | None = None, fix: str = "") -> None:
+        self.bus = bus
         super().__init__(what, joint=joint, fix=fix)

@@ -58,22 +58,19 @@ class TimingProfile:
         return rate_hz if self.max_rate_hz is None else min(rate_hz, self.max_rate_hz)
 
     def apply(self, config: RobotConfig) -> RobotConfig:
-        """``config`` with its loop rate capped by this profile (the same object when nothing changes)."""
+        """``config`` as this profile runs it: the loop rate capped, and each joint's own
+        ``feedback_timeout`` at least :attr:`min_feedback_timeout` (the same object when nothing changes)."""
         rate = self.loop_rate(config.rate_hz)
-        return config if rate == config.rate_hz else replace(config, rate_hz=rate)
+        joints = tuple(self._floored(j) for j in config.joints)
+        if rate == config.rate_hz and all(a is b for a, b in zip(joints, config.joints, strict=True)):
+            return config
+        return replace(config, rate_hz=rate, joints=joints)
 
-    def watchdog(self, joint: JointConfig, default: float | None = None) -> float:
-        """The feedback watchdog's limit for ``joint``, s: the joint's own ``feedback_timeout``, else
-        ``default`` (the profile's when ``None``; servo joints: at least three status periods), and
-        never below :attr:`min_feedback_timeout`."""
-        base = self.feedback_timeout if default is None else default
-        if joint.feedback_timeout is not None:
-            limit = joint.feedback_timeout
-        elif joint.mode == "servo":
-            limit = max(base, 3.0 / joint.status_rate_hz)
-        else:
-            limit = base
-        return max(limit, self.min_feedback_timeout)
+    def _floored(self, joint: JointConfig) -> JointConfig:
+        own = joint.feedback_timeout
+        if own is None or own >= self.min_feedback_timeout:
+            return joint
+        return replace(joint, feedback_timeout=self.min_feedback_timeout)
 
 
 #: The named profiles. ``slow``: measured in vcan-vm (an emulated 2-CPU guest, about 15x slower than

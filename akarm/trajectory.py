@@ -137,12 +137,53 @@ class Chain(Timed):
 
 
 class Planner:
-    """Plans moves, waypoint paths and stops under one arm's joint limits."""
+    """Plans moves, waypoint paths and stops under one arm's joint limits.
 
-    def __init__(self, limits: JointLimits) -> None:
+    A move may start outside a joint's range, anywhere up to ``range_margin`` rad past its
+    mechanical range (``outer``: the URDF's limits, which the YAML's may narrow): an arm that sagged
+    onto its hard stop while limp. It is planned back toward the range, and refused only if it would
+    go further out. Targets are always inside.
+    """
+
+    def __init__(self, limits: JointLimits, range_margin: float = 0.05,
+                 outer: tuple[Sequence[float], Sequence[float]] | None = None) -> None:
+        if not range_margin >= 0:
+            raise LimitError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
         self.limits = limits
+        self.range_margin = float(range_margin)
+        lo, hi = outer if outer is not None else (limits.lower, limits.upper)
+        self._outer_lo = np.minimum(np.asarray(lo, dtype=float), limits.lower) - self.range_margin
+        self._outer_hi = np.maximum(np.asarray(hi, dtype=float), limits.upper) + self.range_margin
         self.dofs = len(limits.names)
         self._ruckig = ruckig.Ruckig(self.dofs)
+
+    def bounds_from(self, q0: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """The position bounds of a path starting at ``q0``: the joint ranges, widened to take in a start
+        outside them but within the mechanical range plus ``range_margin`` (so the path may come back,
+        not go further out).
+
+        Raises:
+            LimitError: a joint starts further out than that.
+        """
+        q = np.asarray(q0, dtype=float)
+        lim = self.limits
+        lo, hi = lim.lower.astype(float), lim.upper.astype(float)
+        for i, name in enumerate(lim.names):
+            v = float(q[i])
+            if not self._outer_lo[i] - 1e-9 <= v <= self._outer_hi[i] + 1e-9:
+                side = "below its lower" if v < lo[i] else "above its upper"
+                out = lo[i] - v if v < lo[i] else v - hi[i]
+                m = self.range_margin
+                raise LimitError(
+                    f"starts at {v:+.4f} rad, {out:.4f} rad {side} limit ({lo[i]:+.4f}..{hi[i]:+.4f} rad): past its "
+                    f"mechanical range ({self._outer_lo[i] + m:+.4f}..{self._outer_hi[i] - m:+.4f} rad) by more "
+                    f"than the {m:.3f} rad a move may start from", joint=name,
+                    fix="move the joint back into its range by hand (arm.teach() or disabled), or raise range_margin")
+            if v < lo[i]:
+                lo[i] = v
+            elif v > hi[i]:
+                hi[i] = v
+        return lo, hi
 
     # -- single segments ----------------------------------------------------------------------
     def _input(self, limits: JointLimits, p0, v0, a0) -> ruckig.InputParameter:
@@ -160,6 +201,11 @@ class Planner:
         traj = ruckig.Trajectory(self.dofs)
         try:
             result = self._ruckig.calculate(inp, traj)
+        except ValueError as e:  # a result code the binding's enum lacks: -101, a duration past its numerical limit
+            code = str(e).split(" ", 1)[0]
+            raise TrajectoryError(f"ruckig could not plan the motion: it would last too long (ruckig result {code})",
+                                  fix="use a larger speed factor (a speed near 0 makes a motion endless), or check "
+                                      "the joint limits in the robot YAML") from None
         except ruckig.RuckigError as e:
             if "error in step" not in str(e):
                 raise TrajectoryError(f"ruckig could not plan the motion: {str(e).strip()}",
@@ -178,10 +224,12 @@ class Planner:
                                   fix="check the joint limits in the robot YAML")
         return Segment(traj, t0)
 
-    def check_extrema(self, seg: Segment) -> None:
-        """Raise :class:`LimitError` if ``seg`` passes outside any joint's position range."""
+    def check_extrema(self, seg: Segment, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Raise :class:`LimitError` if ``seg`` passes outside any joint's position range (or ``bounds``,
+        from :meth:`bounds_from`)."""
+        lower, upper = bounds if bounds is not None else (self.limits.lower, self.limits.upper)
         for i, b in enumerate(seg.traj.position_extrema):
-            lo, hi = self.limits.lower[i], self.limits.upper[i]
+            lo, hi = lower[i], upper[i]
             if b.min < lo - 1e-9 or b.max > hi + 1e-9:
                 worst, t = (b.min, b.t_min) if b.min < lo - 1e-9 else (b.max, b.t_max)
                 raise LimitError(
@@ -198,13 +246,14 @@ class Planner:
             TrajectoryError: ruckig failed.
         """
         self.limits.check_position(target)
+        bounds = self.bounds_from(start[0])
         limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
         inp = self._input(limits, *start)
         inp.target_position = [float(x) for x in target]
         inp.target_velocity = [0.0] * self.dofs if target_velocity is None else [float(x) for x in target_velocity]
         inp.target_acceleration = [0.0] * self.dofs
         seg = self._calculate(inp, t0)
-        self.check_extrema(seg)
+        self.check_extrema(seg, bounds)
         return seg
 
     def stop(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]], t0: float) -> Segment:

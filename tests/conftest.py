@@ -14,6 +14,19 @@ import pytest
 from akarm.bus import drain as _drain
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(autouse=True)
+def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Robot files are read as python-can users configure their buses (CAN_* variables, can.conf,
+    .canrc): a developer's own configuration must not change what the tests see."""
+    import can.util
+
+    for name in list(os.environ):
+        if name.startswith(("CAN_INTERFACE", "CAN_CHANNEL", "CAN_BITRATE", "CAN_CONFIG")):
+            monkeypatch.delenv(name)
+    monkeypatch.setattr(can.util, "CONFIG_FILES", [])
+    monkeypatch.setattr(can, "rc", {})
 ROBOTS = ROOT / "robots"
 _counter = itertools.count()
 
@@ -27,6 +40,27 @@ def channel(request: pytest.FixtureRequest) -> str:
 def has_vcan(name: str = "vcan0") -> bool:
     """True when a SocketCAN interface ``name`` exists on this machine."""
     return Path(f"/sys/class/net/{name}").exists()
+
+
+def has_can_sockets() -> bool:
+    """True when this kernel supports CAN sockets (AF_CAN); without, SocketCAN buses fail with errno 97."""
+    import socket
+
+    try:
+        socket.socket(socket.PF_CAN, socket.SOCK_RAW, socket.CAN_RAW).close()
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
+def missing_socketcan_fix(channel: str) -> str:
+    """What the error for a missing SocketCAN ``channel`` must say here: how to create the interface
+    where the kernel has CAN support, that it has none (not "bring the link up") where it has not."""
+    if not has_can_sockets():
+        return "this kernel has no CAN support"
+    if channel.startswith("vcan"):
+        return f"sudo ip link add dev {channel} type vcan && sudo ip link set up {channel}"
+    return f"sudo ip link set {channel} up type can"
 
 
 def wait_until(cond: Callable[[], bool], timeout: float) -> bool:

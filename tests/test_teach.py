@@ -209,7 +209,7 @@ def test_a_recording_with_a_duration_stops_itself(channel) -> None:
 
 
 def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
-    from akarm.arm import _PathRecorder
+    from akarm.control import PathRecorder as _PathRecorder
 
     rec = _PathRecorder(100.0, duration=0.1)
     cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms
@@ -219,6 +219,15 @@ def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
     # not sent in a burst), then the first cycle at or after each grid point, the last at 100 ms
     assert np.allclose(rec.times, [0.0, 0.01, 0.02, 0.03, 0.0615, 0.0715, 0.0815, 0.0915, 0.1015])
     assert rec.finished
+
+
+def test_a_stall_across_the_end_of_a_timed_recording_does_not_stretch_it() -> None:
+    from akarm.control import PathRecorder
+
+    rec = PathRecorder(100.0, duration=0.1)
+    for now in [k * 0.002 for k in range(49)] + [0.1768]:  # a 79 ms stall across the last grid point
+        rec.sample(now, np.zeros(2))
+    assert rec.finished and rec.times[-1] == pytest.approx(0.09) and len(rec.times) == 10
 
 
 def test_check_replay_needs_no_enabled_arm(channel, tmp_path) -> None:

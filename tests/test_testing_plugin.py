@@ -154,8 +154,11 @@ def test_a_program_that_leaves_the_arm_enabled_is_warned_about_and_the_drivers_e
     test = '''
 import akarm
 
+PROGRAM = []  # the program keeps its Arm (one dropped while enabled is disabled by akarm itself, and warned about)
+
 def test_leaves_it_on(akarm_sim):
     arm = akarm.Arm(akarm_sim.config, clock=akarm_sim.clock)   # an Arm of the program's own, never closed
+    PROGRAM.append(arm)
     arm.open()
     arm.enable()
     assert akarm_sim.enabled_joints() == ["shoulder", "elbow"]

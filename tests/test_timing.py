@@ -36,34 +36,39 @@ def test_normal_changes_nothing() -> None:
     assert (normal.max_rate_hz, normal.feedback_timeout, normal.min_feedback_timeout, normal.enable_timeout,
             normal.sim_rate_hz) == (None, 0.020, 0.0, 0.5, 2000.0)
     planar2, servo3 = load_robot(PLANAR2), load_robot(SERVO3)
-    assert normal.apply(planar2) is planar2
-    assert [normal.watchdog(j) for j in planar2.joints] == [0.020, 0.020]
-    assert [normal.watchdog(j) for j in servo3.joints] == [0.015] * 3          # the file's own
-    assert normal.watchdog(replace(servo3.joints[0], feedback_timeout=None, status_rate_hz=50.0)) == 0.06
-    assert normal.watchdog(planar2.joints[0], default=0.25) == 0.25            # Arm(feedback_timeout=...)
+    assert normal.apply(planar2) is planar2 and normal.apply(servo3) is servo3   # servo3's own 15 ms kept
 
 
-def test_slow_caps_the_rate_and_floors_every_watchdog() -> None:
+def test_slow_caps_the_rate_and_floors_the_joints_own_watchdogs() -> None:
     slow = PROFILES["slow"]
     planar2, servo3 = load_robot(PLANAR2), load_robot(SERVO3)
     assert slow.apply(planar2).rate_hz == 25.0 and slow.apply(servo3).rate_hz == 25.0
     assert slow.apply(replace(planar2, rate_hz=20.0)).rate_hz == 20.0        # a slower file keeps its rate
-    assert [slow.watchdog(j) for j in servo3.joints] == [1.0] * 3             # 15 ms of its own: not here
-    assert slow.watchdog(planar2.joints[0], default=0.1) == 1.0
-    assert slow.watchdog(replace(planar2.joints[0], feedback_timeout=2.0)) == 2.0
+    assert [j.feedback_timeout for j in slow.apply(servo3).joints] == [1.0] * 3   # 15 ms of its own: not here
+    assert [j.feedback_timeout for j in slow.apply(planar2).joints] == [None, None]  # the Arm's default: 1 s
+    longer = replace(planar2, joints=(replace(planar2.joints[0], feedback_timeout=2.0), planar2.joints[1]))
+    assert slow.apply(longer).joints[0].feedback_timeout == 2.0
 
 
-@pytest.mark.parametrize(("profile", "limit_ms"), [("normal", 20), ("slow", 1000)])
-def test_the_watchdog_of_each_profile_stops_the_arm_at_its_limit(channel: str, profile: str, limit_ms: int) -> None:
-    config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(config, realtime=False, q0=HANGING, timing=profile) as sim, \
-            Arm(config, clock=sim.clock, timing=profile) as arm:
-        assert arm.timing is PROFILES[profile] and arm.config.rate_hz == (500.0 if profile == "normal" else 25.0)
+@pytest.mark.parametrize(("robot", "joint", "profile", "options", "limit_ms"), [
+    (PLANAR2, "elbow", "normal", {}, 20), (PLANAR2, "elbow", "slow", {}, 1000),
+    (SERVO3, "pan", "normal", {}, 15), (SERVO3, "pan", "slow", {}, 1000),         # the file's own 15 ms
+    (PLANAR2, "elbow", "normal", {"feedback_timeout": 0.1}, 100),
+    (PLANAR2, "elbow", "slow", {"feedback_timeout": 0.1}, 1000),                  # not below the profile's
+], ids=["planar2-normal", "planar2-slow", "servo3-normal", "servo3-slow", "arg-normal", "arg-slow"])
+def test_the_watchdog_of_each_profile_stops_the_arm_at_its_limit(channel: str, robot: Path, joint: str, profile: str,
+                                                                  options: dict, limit_ms: int) -> None:
+    config = load_robot(robot).with_bus(interface="virtual", channel=channel)
+    q0 = HANGING if robot == PLANAR2 else None
+    with SimulatedRobot(config, realtime=False, q0=q0, timing=profile) as sim, \
+            Arm(config, clock=sim.clock, timing=profile, **options) as arm:
+        assert arm.timing is PROFILES[profile]
+        assert arm.config.rate_hz == (config.rate_hz if profile == "normal" else 25.0)
         arm.enable()
-        sim.inject("elbow", faults.Unplugged())
+        sim.inject(joint, faults.Unplugged())
         t0 = arm.clock.now()
-        with pytest.raises(FeedbackTimeout, match=f"elbow.*limit {limit_ms} ms") as stop:
-            arm.sleep(2.0)
+        with pytest.raises(FeedbackTimeout, match=f"{joint}.*limit {limit_ms} ms") as stop:
+            arm.sleep(3.0)
         assert limit_ms / 1e3 < stop.value.age <= limit_ms / 1e3 + 2.0 / arm.config.rate_hz
         assert arm.clock.now() - t0 < limit_ms / 1e3 + 0.3 + 0.1               # then the 0.3 s stop
 
@@ -100,11 +105,11 @@ def test_the_simulator_integrates_at_the_profiles_rate_unless_told(channel: str)
 
 
 def test_akarm_sim_takes_the_profile(channel: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["sim", str(PLANAR2), "-i", "virtual", "-c", channel, "--duration", "0.2", "-q",
+    assert main(["sim", str(PLANAR2), "-i", "virtual", "-c", channel, "--seconds", "0.2", "-q",
                  "--profile", "slow"]) == 0
     assert "integrating at 250 Hz (timing profile slow)" in capsys.readouterr().out
-    assert main(["sim", str(PLANAR2), "-i", "virtual", "-c", channel, "--duration", "0.2", "-q",
-                 "--profile", "slow", "--rate", "1000"]) == 0
+    assert main(["sim", str(PLANAR2), "-i", "virtual", "-c", channel, "--seconds", "0.2", "-q",
+                 "--profile", "slow", "--plant-rate", "1000"]) == 0
     assert "integrating at 1000 Hz (timing profile slow)" in capsys.readouterr().out
     with pytest.raises(SystemExit) as e:
         main(["sim", str(PLANAR2), "--profile", "fast"])

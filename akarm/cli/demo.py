@@ -80,11 +80,13 @@ def _arm6_yaml() -> Path:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Fail before the session, not after it, on an output that cannot be written."""
-    if args.log is not None and Path(args.log).suffix not in (".csv", ".npz"):
-        raise RecordingError(f"cannot save telemetry as {args.log!r}", fix="use a .csv or .npz file name")
+    from .options import check_output
+
+    check_output(args.log, (".csv", ".npz"), "telemetry")
     if not args.no_plot:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
+        check_output(args.output, (".png",), "the plot")
         from ..plot import _figure_classes
 
         _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
@@ -150,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
                       timing=args.profile)
-            watchdog = max(arm.timing.watchdog(j, REALTIME_FEEDBACK_TIMEOUT) for j in config.joints)
+            watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none
             print(f"  (watchdog: {watchdog * 1e3:.0f} ms, as the simulator shares this process; "
                   "on hardware the default is 20 ms)", flush=True)
         with arm:

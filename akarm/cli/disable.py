@@ -45,7 +45,11 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(rows, [False, False, False, False, False, True]))
     missing = [s.name for s in states if s.missing]
     if missing:
-        print(f"akarm disable: no answer from {', '.join(missing)} (its frames were sent; check power and "
-              "wiring before trusting it is off)", file=sys.stderr)
+        from ..bus import no_answer_hint
+
+        print(f"akarm disable: no answer from {', '.join(missing)} (its frames were sent; do not trust that it is "
+              "off before it answers)", file=sys.stderr)
+        for bus in dict.fromkeys(config.joint(name).bus for name in missing):
+            print(f"  bus {bus!r}: {no_answer_hint(config.buses[bus])}", file=sys.stderr)
         return 1
     return 0

@@ -42,10 +42,12 @@ def run(args: argparse.Namespace) -> int:
     from ..arm import Arm
     from ..errors import AkarmError
     from ..recording import Keyframes, load
-    from .common import controlled, deferred_sigint, stop_smoothly
+    from .common import controlled, deferred_signals, interrupted, stop_smoothly
+    from .options import check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config, timing=args.profile)
@@ -68,13 +70,13 @@ def run(args: argparse.Namespace) -> int:
                     bar.refresh()
                 bar.n = bar.total
             motion.wait()
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: stopped and disabled", file=sys.stderr)
-            code = 130
+            code = interrupted(e)
         else:
             rms = arm.telemetry(since=t0).rms_error()
-            with deferred_sigint():
+            with deferred_signals():
                 arm.disable()
             print("done; RMS tracking error " + ", ".join(f"{n} {e * 1e3:.2f} mrad"
                                                           for n, e in zip(arm.names, rms, strict=True)))

@@ -80,7 +80,7 @@ class SimulatorProcess:
         self.channel = channel
         self.timing = get_profile(timing)
         registered = PROFILES.get(self.timing.name) == self.timing
-        timing_args = ["--profile", self.timing.name] if registered else ["--rate", str(self.timing.sim_rate_hz)]
+        timing_args = ["--profile", self.timing.name] if registered else ["--plant-rate", str(self.timing.sim_rate_hz)]
         self.control: SimulatorControl | None = None
         control_args: list[str] = []
         if control:

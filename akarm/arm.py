@@ -181,7 +181,7 @@ class Arm:
             feedback_timeout=feedback_timeout, enable_ramp=enable_ramp, stop_damping_time=stop_damping_time,
             telemetry_seconds=telemetry_seconds, can_log=can_log, realtime_priority=realtime_priority,
             loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
-            implausible_limit=implausible_limit)
+            implausible_limit=implausible_limit, lag=self.timing.lag)
         self.telemetry_ring = self._ctl.telemetry
         self._finalizer = track_arm(self, self._ctl)
 

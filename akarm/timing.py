@@ -42,7 +42,10 @@ class TimingProfile:
         min_feedback_timeout: no joint's watchdog limit is shorter, its own setting included
             (0: a joint's own setting wins).
         enable_timeout: how long :meth:`~akarm.Arm.enable` waits for every joint's first answer.
-        sim_rate_hz: the simulator's integration rate (``akarm sim --rate``).
+        sim_rate_hz: the simulator's integration rate (``akarm sim --plant-rate``).
+        lag: s a joint's reading may trail the commands on such a machine (a simulator that falls
+            behind answers late, then several frames with one state): the supervisor's following-error
+            and stuck-travel limits grow by the joint's velocity limit times this.
     """
 
     name: str
@@ -52,6 +55,7 @@ class TimingProfile:
     min_feedback_timeout: float
     enable_timeout: float
     sim_rate_hz: float
+    lag: float = 0.0
 
     def loop_rate(self, rate_hz: float) -> float:
         """The loop rate for a robot file's ``rate_hz``, Hz."""
@@ -79,7 +83,8 @@ class TimingProfile:
 #: whole CPU there and its replies come seconds late. At 250 Hz and a 50 Hz loop the simulator
 #: needs 74-93 % of a CPU and falls behind when the host is busy (feedback up to 758 ms old, the
 #: plant 2 s behind in 30 s); with a 25 Hz loop 44-54 %, feedback at most 177 ms old, the plant
-#: 0.07 s behind at most. The watchdog of 1 s is more than five times the worst gap seen at 25 Hz.
+#: 0.07 s behind at most. The watchdog of 1 s is more than five times the worst gap seen at 25 Hz;
+#: a reading may trail by 0.25 s (more than the worst gap): the tracking checks allow for that.
 PROFILES: dict[str, TimingProfile] = {
     "normal": TimingProfile("normal", "the robot file's rate_hz, 20 ms watchdog, simulator at 2 kHz (default)",
                             max_rate_hz=None, feedback_timeout=0.020, min_feedback_timeout=0.0, enable_timeout=0.5,
@@ -87,7 +92,7 @@ PROFILES: dict[str, TimingProfile] = {
     "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 1 s "
                                   "watchdog, simulator at 250 Hz",
                           max_rate_hz=25.0, feedback_timeout=1.0, min_feedback_timeout=1.0, enable_timeout=5.0,
-                          sim_rate_hz=250.0),
+                          sim_rate_hz=250.0, lag=0.25),
 }
 
 

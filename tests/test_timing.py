@@ -154,3 +154,25 @@ def test_akarm_teach_with_the_slow_profile_samples_at_the_loop_rate(channel: str
                          "--profile", "slow"]) == 0
     # 50 samples a second by default, but at most half the loop's 25
     assert np.diff(load_path(out, ("shoulder", "elbow")).t).mean() == pytest.approx(0.08, rel=0.05)
+
+
+@pytest.mark.parametrize(("lag", "stops"), [(0.25, False), (0.0, True)])
+def test_the_slow_profiles_lag_lets_a_late_simulator_run_a_fast_move(channel: str, lag: float, stops: bool) -> None:
+    """Replies 0.15 s late read as a joint still at rest while its command is under way (planar2's shoulder:
+    stuck travel 27 mrad), then as one up to 0.6 rad behind at 4 rad/s (following-error limit 18 N·m /
+    40 N·m/rad = 0.45 rad); the profile's lag (0.25 s × 4 rad/s) widens both."""
+    from akarm import TrackingError
+
+    profile = replace(PROFILES["slow"], lag=lag)
+    config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
+    late = {name: faults.DelayReplies(0.15) for name in config.joint_names}
+    with SimulatedRobot(config, realtime=False, q0=HANGING, timing=profile, faults=late) as sim, \
+            Arm(config, clock=sim.clock, timing=profile) as arm:
+        arm.enable()
+        if stops:
+            with pytest.raises(TrackingError, match="shoulder"):
+                arm.move_to("up")
+        else:
+            arm.move_to("up")
+            arm.sleep(1.0)
+            assert np.allclose(sim.q, config.pose("up"), atol=0.01)

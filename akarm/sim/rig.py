@@ -163,8 +163,9 @@ class SimulatedArm:
 
     def frames(self, joint: str | None = None, to_motor: bool | None = None) -> list[Frame]:
         """The CAN frames the simulated drivers took in (commands, ``to_motor=True``) and sent (replies,
-        status frames) so far, every one sent to them before the call included, oldest first: all, or
-        those of ``joint``, or of one direction. After :meth:`close` they are still there."""
+        status frames) so far, every one sent to them before the call included, oldest first (the
+        simulator keeps the last 200 000): all, or those of ``joint``, or of one direction. After
+        :meth:`close` they are still there."""
         if self._ended_by_itself() is None and not self._closed:
             new, self._next_frame = self._new_frames(self._next_frame)
             self._frames.extend(new)

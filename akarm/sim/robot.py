@@ -46,7 +46,10 @@ if TYPE_CHECKING:
 
     from ..config import RobotConfig
 
-__all__ = ["SimulatedRobot"]
+__all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
+
+#: How many of the frames its drivers took in and sent a simulator keeps (:meth:`SimulatedRobot.logged_frames`).
+FRAME_LOG_SIZE = 200_000
 
 
 class SimulatedRobot:
@@ -78,7 +81,6 @@ class SimulatedRobot:
             :class:`~akarm.clock.RealClock` (real time).
         send_errors: frames the bus refused to send (a full socketcan queue, ...).
         timing: the :class:`~akarm.timing.TimingProfile` in force.
-        frame_log_size: how many of the frames the drivers took in and sent :meth:`logged_frames` keeps.
     """
 
     def __init__(
@@ -146,8 +148,7 @@ class SimulatedRobot:
                 self._senders[(d.bus, d.joint.reply_id, d.can_id)] = d.name
             else:
                 self._senders[(d.bus, (0x29 << 8) | d.can_id, -1)] = d.name
-        self.frame_log_size = 200_000
-        self._frame_log: collections.deque[Frame] = collections.deque(maxlen=self.frame_log_size)
+        self._frame_log: collections.deque[Frame] = collections.deque(maxlen=FRAME_LOG_SIZE)
         self._frames_logged = 0
         self._rx_empty: dict[str, float] = {}
         self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
@@ -379,7 +380,7 @@ class SimulatedRobot:
     def logged_frames(self, since: int = 0) -> tuple[list[Frame], int]:
         """The frames the simulated drivers took in from the bus (commands, ``to_motor``; also those a
         fault kept from the driver) and sent (replies, status frames), oldest first, from the
-        ``since``-th one on (of the last :attr:`frame_log_size`), and the number to ask from next time.
+        ``since``-th one on (of the last :data:`FRAME_LOG_SIZE`), and the number to ask from next time.
 
         In real time, call :meth:`wait_received` first to have every frame sent to the drivers so far.
         """

@@ -47,10 +47,12 @@ if TYPE_CHECKING:
     from .arm import Arm
     from .config import RobotConfig
     from .config_loader import load_robot
+    from .server import ArmServer, serve
 
 __all__ = [
     "AkarmError",
     "Arm",
+    "ArmServer",
     "BusError",
     "BusLost",
     "ConfigError",
@@ -76,11 +78,14 @@ __all__ = [
     "UnknownMotorError",
     "__version__",
     "load_robot",
+    "serve",
 ]
 
 # Heavy parts (Pinocchio, ruckig, python-can) load on first use, so `import akarm` and the codecs stay light.
 _LAZY = {
     "Arm": ("akarm.arm", "Arm"),
+    "ArmServer": ("akarm.server", "ArmServer"),
+    "serve": ("akarm.server", "serve"),
     "RobotConfig": ("akarm.config", "RobotConfig"),
     "load_robot": ("akarm.config_loader", "load_robot"),
 }

@@ -204,7 +204,12 @@ class Arm:
 
         Raises:
             BusError: a bus cannot be opened (the message says which, and how to create it).
+            StateError: an ``akarm serve`` of another process drives one of the buses.
         """
+        if self.mode is Mode.CLOSED:
+            from .server.registry import refuse_if_served
+
+            refuse_if_served(self.config, "opening this Arm")  # akarm serve drives these buses: one controller only
         self._ctl.open()
         return self
 
@@ -276,7 +281,7 @@ class Arm:
                 q[self.names.index(name)] = self._number(value, name)
             return q
         try:
-            values = list(target)  # type: ignore[arg-type]
+            values = list(target)
         except TypeError:
             raise LimitError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
                              f"not {target!r}",
@@ -327,6 +332,20 @@ class Arm:
         """
         qs = [self._target_vector(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
+
+    def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
+               velocities: Sequence[Sequence[float]] | np.ndarray | None = None, wait: bool = True) -> Motion:
+        """Move through ``positions[k]`` (rad, config order; NaN: keep that joint where it is
+        commanded), reaching each ``times[k]`` s from now, or as soon after as the limits allow.
+
+        Jerk-limited through every point (:func:`akarm.timed.timed_plan`); replaces a running motion
+        smoothly. Raises :class:`~akarm.LimitError` before anything moves if a point or the path
+        leaves a joint's range.
+        """
+        from .timed import timed_plan
+
+        return self._run(self._start(lambda start, now: timed_plan(self.planner, start, now, times, positions,
+                                                                   velocities)), wait)
 
     def stream_to(self, target: Target, speed: float = 1.0) -> Motion:
         """Retarget online: from the current commanded state (position, velocity, acceleration) to

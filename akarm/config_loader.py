@@ -198,7 +198,7 @@ class _Reader:
         if not _is_number(v) or (isinstance(v, float) and not math.isfinite(v)):
             self.add(node, f"{what} must be a number, got {self._kind(node)}", fix or "write a number")
             return None
-        v = float(v)
+        v = float(v)  # type: ignore[arg-type]  # a number, checked above
         if positive and not v > 0:
             self.add(node, f"{what} must be positive, got {v:g}", fix or "give a value above 0")
             return None
@@ -303,10 +303,10 @@ def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
         items = r.free_mapping(node, "buses")
         if isinstance(node, yaml.MappingNode) and not node.value:
             r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
-        for name, (knode, vnode) in items.items():
+        for name, (key_node, vnode) in items.items():
             given, nodes = _bus_entry(r, name, vnode)
             if given is not None:
-                specs[name] = (given, nodes, knode)
+                specs[name] = (given, nodes, key_node)
     buses: dict[str, BusConfig] = {}
     for name, (given, nodes, knode) in specs.items():
         bus, found = resolve_bus(name, given)
@@ -636,7 +636,7 @@ class _Loader:
         mode = "mit"
         if (node := get("mode")) is not None:
             mode = r.choice(node, f"{label}: mode", ("mit", "servo")) or "mit"
-        firmware = motor.firmware if motor is not None else "v2"
+        firmware: str = motor.firmware if motor is not None else "v2"
         if (node := get("firmware")) is not None:
             firmware = r.choice(node, f"{label}: firmware", ("v2", "v3")) or firmware
         direction = 1

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import signals
-from .bus import close_buses, open_bus
+from .bus import close_buses, no_answer_hint, open_bus
 from .clock import Clock
 from .config import RobotConfig
 from .errors import (
@@ -789,10 +789,10 @@ class Controller:
                 what = f"no {_CONTACT_REPLIES} consistent replies within {limit * 1e3:.0f} ms from: {names}"
             else:
                 what = f"no answer within {limit * 1e3:.0f} ms from: {names}"
-            stop = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit, joint=late[0].name,
-                                   fix=_no_answer_fix(self.config.buses[late[0].bus]))
-            stop.at = now
-            self._enable_failed(stop)
+            silent = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit,
+                                     joint=late[0].name, fix=no_answer_hint(self.config.buses[late[0].bus]))
+            silent.at = now
+            self._enable_failed(silent)
             return
         if ready:
             en.settling_since = now
@@ -827,15 +827,6 @@ class Controller:
         self.supervisor.disarm()
         self.recorder = None
         self.modes.go(Mode.FAULT if self.lost else Mode.DISABLED)
-
-
-def _no_answer_fix(bus: Any) -> str:
-    base = ("check power, CAN wiring and bit rate, the CAN ID, and that the motor is in the configured mode "
-            "(MIT or servo)")
-    if bus.interface in ("virtual", "akarm_local"):
-        return (f"nothing answers on the {bus.interface} channel {bus.channel!r}: is a simulator running on it "
-                f"(akarm sim ROBOT.yaml -i {bus.interface} -c {bus.channel})? Otherwise " + base)
-    return base
 
 
 # ----------------------------------------------------------------------------------------------

@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import can
+from can.typechecking import AutoDetectedConfig
 
 from .frames import message
 
@@ -385,6 +386,6 @@ class LocalBus(can.BusABC):
         super().shutdown()
 
     @staticmethod
-    def _detect_available_configs() -> list[dict[str, Any]]:
+    def _detect_available_configs() -> list[AutoDetectedConfig]:
         return [{"interface": INTERFACE, "channel": "can0"}]
 

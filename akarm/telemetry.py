@@ -49,7 +49,7 @@ def check_writable(path: str | os.PathLike[str]) -> Path:
     return target
 
 
-def atomic_write(path: str | os.PathLike[str], write: Callable[[io.BufferedWriter], None]) -> Path:
+def atomic_write(path: str | os.PathLike[str], write: Callable[[io.BufferedWriter], object]) -> Path:
     """Write a file through ``write(fileobj)`` to a temporary name beside it, then rename it into place.
 
     Raises:

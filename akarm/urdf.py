@@ -337,10 +337,10 @@ def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJo
         first.setdefault(c.tag, c)
     ends = {}
     for key in ("parent", "child"):
-        c = first.get(key)
-        ends[key] = c.attrs.get("link", "") if c is not None else ""
+        end = first.get(key)
+        ends[key] = end.attrs.get("link", "") if end is not None else ""
         if not ends[key]:
-            problems.append(UrdfProblem(c.line if c is not None else el.line, f"{label} has no {key} link",
+            problems.append(UrdfProblem(end.line if end is not None else el.line, f"{label} has no {key} link",
                                         f'add <{key} link="LINK"/> inside the <joint>'))
     if (origin := first.get("origin")) is not None:
         for key in ("xyz", "rpy"):

@@ -620,3 +620,12 @@ def test_sigterm_to_a_script_unwinds_its_with_block(local_robot: Path, channel: 
     assert to_exit < 2.0
     assert proc.returncode == 1 and "Terminated: terminated by SIGTERM" in err  # Python's KeyboardInterrupt exit
     damping_then_exit(wire, cfg)
+
+
+def test_enable_with_nothing_on_the_channel_says_no_simulator_is_there(channel: str) -> None:
+    cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="akarm_local", channel=channel)
+    with akarm.Arm(cfg) as arm:
+        with pytest.raises(FeedbackTimeout, match="no answer within 500 ms") as info:
+            arm.enable()
+        assert arm.mode is Mode.DISABLED
+    assert "no simulator or motor is on akarm_local channel" in info.value.fix

@@ -32,6 +32,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "move": ("akarm.cli.move", "move to a named pose or to joint values"),
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
+    "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
 }

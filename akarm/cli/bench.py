@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"bench: {config.name}, {len(config.joints)} joints at {config.rate_hz:g} Hz for {args.seconds:g} s "
           f"against the simulator {where} (moving between {len(targets)} poses)", flush=True)
     with contextlib.ExitStack() as stack:
+        sim: SimulatedRobot | SimulatorProcess
         if args.in_process:
             sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start, timing=args.profile))
         else:

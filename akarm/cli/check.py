@@ -109,8 +109,8 @@ def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0
                             f"(nominal {load.percent_nominal:.0f} %); below {math.floor(load.max_rate_hz)} Hz "
                             "the bus stays under the limit even with maximal bit stuffing")
     _table(rows, out)
-    for w in config.warnings:
-        warnings.append(f"{w.message} (fix: {w.fix})" if w.fix else w.message)
+    for cw in config.warnings:
+        warnings.append(f"{cw.message} (fix: {cw.fix})" if cw.fix else cw.message)
     for w in warnings:
         print(f"warning: {w}", file=out)
     return warnings

@@ -11,6 +11,8 @@ from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ..arm import Arm
     from ..config import RobotConfig
 
@@ -129,6 +131,6 @@ def interrupted(e: KeyboardInterrupt) -> int:
     return signals.exit_code(e)
 
 
-def format_q(q: Sequence[float]) -> str:
+def format_q(q: Sequence[float] | np.ndarray) -> str:
     """Joint positions as ``[+0.1000, -0.2000] rad``."""
     return "[" + ", ".join(f"{x:+.4f}" for x in q) + "] rad"

@@ -22,6 +22,7 @@ rate, missed slots and lateness are then exact by construction and say nothing a
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import os
 from collections.abc import Callable
@@ -107,7 +108,7 @@ def _session(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
     steps: list[tuple[str, str, Callable[[], object]]] = [
         ("enable (no kick: gains ramp up from zero)", "enable", arm.enable)]
     for pose in ("home", "ready", "left", "reach", "home"):
-        steps.append((f"move_to({pose!r})", pose, lambda pose=pose: arm.move_to(pose)))
+        steps.append((f"move_to({pose!r})", pose, functools.partial(arm.move_to, pose)))
     steps.append((f"move_through({len(WAYPOINTS)} waypoints, no stops)", "waypoints",
                   lambda: arm.move_through(list(WAYPOINTS))))
     steps.append((f"replay({DEMO_PATH.name!r}): a figure eight", "replay", lambda: arm.replay(DEMO_PATH)))

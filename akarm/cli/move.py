@@ -105,6 +105,10 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     import numpy as np
 
     from ..errors import AkarmError

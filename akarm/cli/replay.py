@@ -37,6 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load and check the recording, then enable, replay with progress, disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from tqdm import tqdm
 
     from ..arm import Arm
@@ -68,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
                     arm.sleep(0.1)
                     bar.n = round(min(arm.clock.now() - start, motion.duration), 2)
                     bar.refresh()
-                bar.n = bar.total
+                bar.n = motion.duration
             motion.wait()
         except KeyboardInterrupt as e:
             stop_smoothly(arm)

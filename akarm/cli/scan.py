@@ -99,6 +99,9 @@ def run(args: argparse.Namespace) -> int:
         buses = [config.buses[name] for name in config.buses if any(j.bus == name for j in config.joints)]
         joints = list(config.joints)
 
+    from ..server.registry import refuse_if_served
+
+    refuse_if_served(buses, "akarm scan")  # its EXIT frames would disable the arm a running server holds
     rows = [["bus", "CAN ID", "mode", "reply ID", "position (rad)", "temperature (°C)", "fault", "joint"]]
     answered: set[tuple[str, int]] = set()
     for bus in buses:

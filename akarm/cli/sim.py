@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
                          zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile)
 
     stop = threading.Event()
-    previous: dict[int, object] = {}
+    previous: dict[int, signal._HANDLER] = {}
 
     def on_signal(signum: int, frame: object) -> None:
         stop.set()
@@ -155,6 +155,6 @@ def run(args: argparse.Namespace) -> int:
                   f"out {sum(d.frames_sent for d in sim.drivers)}"
                   f"{f', send errors {sim.send_errors}' if sim.send_errors else ''})", flush=True)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)  # type: ignore[arg-type]
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     return 0

@@ -72,6 +72,10 @@ def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO,
 
 def run(args: argparse.Namespace) -> int:
     """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from ..errors import AkarmError
     from ..probe import Probe
 

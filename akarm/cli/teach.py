@@ -163,17 +163,21 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
     config = get_profile(args.profile).apply(load_from_args(args))
-    # half the loop rate at most by default: at the loop's own rate, a cycle a little early misses its sample
-    rate = min(50.0, config.rate_hz / 2) if args.sample_rate is None else args.sample_rate
-    if out.suffix == ".csv" and rate > config.rate_hz:
-        raise AkarmError(f"--sample-rate {rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
+    if args.sample_rate is None:  # half the loop rate at most: at the loop's own rate, an early cycle misses its sample
+        args.sample_rate = min(50.0, config.rate_hz / 2)
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
+        return served
+    if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
+        raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --sample-rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
     with controlled(config, timing=args.profile) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, rate, args.seconds)
+            code = _teach_path(arm, out, lines, args.sample_rate, args.seconds)
         else:
             code = _teach_keyframes(arm, out, lines)
         with deferred_signals():

@@ -52,6 +52,11 @@ __all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
 FRAME_LOG_SIZE = 200_000
 
 
+def _driving(d: SimulatedDriver) -> bool:
+    """Whether a driver drives its output now (MIT: motor mode; servo: a control mode, not released)."""
+    return bool(d.enabled) if isinstance(d, MitDriver | ServoDriver) else False
+
+
 class SimulatedRobot:
     """The AK drivers of ``config``'s joints on its CAN buses, moving a simulated arm.
 
@@ -119,7 +124,7 @@ class SimulatedRobot:
         self.dt = self.plant.dt
         self._k = 0                  # steps taken: simulated time is k·dt
         self._t = 0.0
-        q_init = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
+        q_init: np.ndarray = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
         self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
         inertia = self.plant.joint_inertia()
         drivers: list[SimulatedDriver] = []
@@ -250,7 +255,7 @@ class SimulatedRobot:
         """Motor winding temperatures, °C, config order."""
         return np.array([d.temperature for d in self.drivers])
 
-    def set_state(self, q: Sequence[float], dq: Sequence[float] | None = None) -> None:
+    def set_state(self, q: Sequence[float] | np.ndarray, dq: Sequence[float] | np.ndarray | None = None) -> None:
         """Place the arm: joint positions ``q`` (rad) and velocities ``dq`` (rad/s, default 0), config order."""
         qa = np.asarray(q, dtype=float)
         va = np.zeros(self.plant.n) if dq is None else np.asarray(dq, dtype=float)
@@ -311,7 +316,7 @@ class SimulatedRobot:
         """Every driver as it is now (enabled, position, torque, error, faults ...), config order."""
         with self._lock:
             q, dq, tau = self.plant.q.tolist(), self.plant.dq.tolist(), self.plant.tau.tolist()
-            return [DriverState(d.name, bool(d.enabled), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
+            return [DriverState(d.name, _driving(d), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
                                 tuple(repr(f) for f in d.faults), d.frames_received, d.frames_sent)
                     for i, d in enumerate(self.drivers)]
 
@@ -320,7 +325,7 @@ class SimulatedRobot:
         EXIT or a zero-current frame, even one that cannot hear the bus (a fault): the outputs go limp.
         Returns the joints that were enabled."""
         with self._lock:
-            was = [d for d in self.drivers if d.enabled]
+            was = [d for d in self.drivers if _driving(d)]
             for d in was:
                 d._power_off()  # the output off; the driver stays powered and on the bus
             return [d.name for d in was]

@@ -117,7 +117,7 @@ def test_akarm_sim_takes_the_profile(channel: str, capsys: pytest.CaptureFixture
     assert "invalid choice: 'fast'" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("verb", ["sim", "enable", "move", "replay", "teach", "demo", "bench"])
+@pytest.mark.parametrize("verb", ["sim", "enable", "move", "replay", "teach", "demo", "bench", "serve"])
 def test_every_verb_that_runs_a_loop_or_a_simulator_takes_the_profile(verb: str,
                                                                       capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import AkarmError, RecordingError
+from .common import add_profile_argument
 
 if TYPE_CHECKING:
     from ..arm import Arm
@@ -65,6 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv or .npz)")
     parser.add_argument("--fast", action="store_true",
                         help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
+    add_profile_argument(parser)
 
 
 def _arm6_yaml() -> Path:
@@ -133,23 +135,26 @@ def run(args: argparse.Namespace) -> int:
     from ..arm import Arm
     from ..config_loader import load_robot
     from ..sim import SimulatedRobot
+    from ..timing import get_profile
 
     _check_outputs(args)
     if not DEMO_PATH.is_file():
         raise RecordingError(f"the demo recording {DEMO_PATH} is missing",
                              fix="reinstall akarm, or regenerate it with docs/make_demo_path.py")
     channel = f"akarm-demo-{os.getpid()}-{next(_channels)}"
-    config = load_robot(_arm6_yaml()).with_bus(interface="virtual", channel=channel)
+    config = get_profile(args.profile).apply(load_robot(_arm6_yaml()).with_bus(interface="virtual", channel=channel))
     mode = "lock step (--fast)" if args.fast else "real time"
     print(f"akarm demo: simulated {config.name} ({len(config.joints)} MIT joints, {config.rate_hz:g} Hz loop) "
           f"on a virtual CAN bus, {mode}", flush=True)
     wall0 = time.perf_counter()
-    with SimulatedRobot(config, realtime=not args.fast) as sim:
+    with SimulatedRobot(config, realtime=not args.fast, timing=args.profile) as sim:
         if args.fast:
-            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0)
+            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, timing=args.profile)
         else:
-            arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0)
-            print(f"  (watchdog: {REALTIME_FEEDBACK_TIMEOUT * 1e3:.0f} ms, as the simulator shares this process; "
+            arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
+                      timing=args.profile)
+            watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none
+            print(f"  (watchdog: {watchdog * 1e3:.0f} ms, as the simulator shares this process; "
                   "on hardware the default is 20 ms)", flush=True)
         with arm:
             t_session = arm.clock.now()

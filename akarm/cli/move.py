@@ -21,7 +21,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 #: telemetry files akarm writes
 LOG_SUFFIXES = (".csv", ".npz")
@@ -42,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    add_profile_argument(parser)
 
 
 def _number(text: str) -> float | None:
@@ -131,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
                              fix="choose a target within the joint's limits")
     label = " ".join(args.target)
     code = 0
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()

@@ -167,3 +167,13 @@ def test_a_simulator_that_dies_is_reported_when_leaving() -> None:
     with pytest.raises(StateError, match="the simulator stopped before the test ended: exit status -9"):
         rig.close()
     assert math.isnan(float("nan"))
+
+
+def test_a_simulator_keeps_no_frame_log_unless_asked(planar2) -> None:
+    """The log holds 200 000 frames: kept only where someone reads it (the rig, akarm sim --control)."""
+    from akarm.errors import StateError
+    from akarm.sim import SimulatedRobot
+
+    sim = SimulatedRobot(planar2.with_bus(interface="virtual", channel="no-log"), realtime=False)
+    with pytest.raises(StateError, match="keeps no frame log"):
+        sim.logged_frames()

@@ -96,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None and not args.seconds >= 0:
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
     sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate if args.plant_rate else None, q0=q0,
-                         zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile)
+                         zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile,
+                         log_frames=bool(args.control))
 
     stop = threading.Event()
     previous: dict[int, signal._HANDLER] = {}

@@ -228,7 +228,7 @@ class _InProcess(SimulatedArm):
         from .robot import SimulatedRobot
 
         super().__init__()
-        self.sim = SimulatedRobot(config, realtime=False, q0=q0, timing=timing)
+        self.sim = SimulatedRobot(config, realtime=False, q0=q0, timing=timing, log_frames=True)
         self.config, self.timing, self.clock = self.sim.config, timing, self.sim.clock
         self.sim.start()
 

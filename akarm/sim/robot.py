@@ -70,6 +70,8 @@ class SimulatedRobot:
         dt: integration step, s (default: the timing profile's, 0.0005 s (2 kHz) normally).
         timing: a timing profile (:mod:`akarm.timing`), ``"normal"`` (default) or ``"slow"``: the
             integration rate when ``dt`` is not given. Kept as :attr:`timing`.
+        log_frames: keep the last :data:`FRAME_LOG_SIZE` frames the drivers took in and sent
+            (:meth:`logged_frames`; the test rig and ``akarm sim --control`` turn it on).
         params: per joint name, simulation constants replacing :func:`~akarm.sim.params.default_params`.
         q0: initial joint positions (rad, config order); default 0 (clipped into the URDF limits).
         zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
@@ -103,6 +105,7 @@ class SimulatedRobot:
         max_lag: float = 0.05,
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
         timing: str | TimingProfile | None = None,
+        log_frames: bool = False,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
@@ -153,7 +156,11 @@ class SimulatedRobot:
                 self._senders[(d.bus, d.joint.reply_id, d.can_id)] = d.name
             else:
                 self._senders[(d.bus, (0x29 << 8) | d.can_id, -1)] = d.name
-        self._frame_log: collections.deque[Frame] = collections.deque(maxlen=FRAME_LOG_SIZE)
+        # plain tuples of numbers, strings and bytes: the garbage collector stops looking at them, where
+        # 200 000 NamedTuples cost every full collection 20-40 ms, a stall a driver must not have
+        self.log_frames = log_frames
+        self._frame_log: collections.deque[tuple[float, str, int, bool, bytes, str | None, bool]] = \
+            collections.deque(maxlen=FRAME_LOG_SIZE)
         self._frames_logged = 0
         self._rx_empty: dict[str, float] = {}
         self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
@@ -374,12 +381,13 @@ class SimulatedRobot:
         except can.CanError:
             self.send_errors += 1
             return
-        key = (bus_name, arbitration_id, -1) if is_extended else (bus_name, arbitration_id, data[0] if data else -2)
-        self._log(bus_name, arbitration_id, is_extended, bytes(data), self._senders.get(key), False)
+        if self.log_frames:
+            key = (bus_name, arbitration_id, -1) if is_extended else (bus_name, arbitration_id, data[0] if data else -2)
+            self._log(bus_name, arbitration_id, is_extended, bytes(data), self._senders.get(key), False)
 
     def _log(self, bus: str, arbitration_id: int, is_extended: bool, data: bytes, joint: str | None,
              to_motor: bool) -> None:
-        self._frame_log.append(Frame(self._t, bus, arbitration_id, is_extended, data, joint, to_motor))
+        self._frame_log.append((self._t, bus, arbitration_id, is_extended, data, joint, to_motor))
         self._frames_logged += 1
 
     def logged_frames(self, since: int = 0) -> tuple[list[Frame], int]:
@@ -388,10 +396,16 @@ class SimulatedRobot:
         ``since``-th one on (of the last :data:`FRAME_LOG_SIZE`), and the number to ask from next time.
 
         In real time, call :meth:`wait_received` first to have every frame sent to the drivers so far.
+
+        Raises:
+            StateError: the simulator was built without ``log_frames=True``.
         """
+        if not self.log_frames:
+            raise StateError("this simulator keeps no frame log",
+                             fix="build it with SimulatedRobot(..., log_frames=True) (akarm sim: --control)")
         with self._lock:
             first = self._frames_logged - len(self._frame_log)
-            frames = list(itertools.islice(self._frame_log, max(0, since - first), None))
+            frames = [Frame(*f) for f in itertools.islice(self._frame_log, max(0, since - first), None)]
             return frames, self._frames_logged
 
     def wait_received(self, timeout: float = 2.0) -> bool:
@@ -452,7 +466,8 @@ class SimulatedRobot:
             return
         drv = routes.get((msg.arbitration_id, msg.is_extended_id))
         data = bytes(msg.data)
-        self._log(name, msg.arbitration_id, msg.is_extended_id, data, drv.name if drv is not None else None, True)
+        if self.log_frames:
+            self._log(name, msg.arbitration_id, msg.is_extended_id, data, drv.name if drv is not None else None, True)
         if drv is not None:
             drv.receive(msg.arbitration_id, msg.is_extended_id, data, self._t)
 

@@ -20,6 +20,7 @@ from ._version import __version__
 from .errors import (
     AkarmError,
     BusError,
+    CollisionError,
     ConfigError,
     ConfigProblem,
     FeedbackTimeout,
@@ -31,9 +32,11 @@ from .errors import (
     ProtocolError,
     RecordingError,
     SafetyStop,
+    SingularityError,
     StateError,
     TrajectoryError,
     UnknownMotorError,
+    UnreachableError,
 )
 
 if TYPE_CHECKING:
@@ -45,6 +48,7 @@ __all__ = [
     "AkarmError",
     "Arm",
     "BusError",
+    "CollisionError",
     "ConfigError",
     "ConfigProblem",
     "FeedbackTimeout",
@@ -57,9 +61,11 @@ __all__ = [
     "RecordingError",
     "RobotConfig",
     "SafetyStop",
+    "SingularityError",
     "StateError",
     "TrajectoryError",
     "UnknownMotorError",
+    "UnreachableError",
     "__version__",
     "load_robot",
 ]

@@ -31,6 +31,8 @@ from .config import RobotConfig
 from .control import Controller, Motion, PathRecorder, track_arm
 from .errors import ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
 from .feedforward import FeedForwardKind
+from .cartesian import plan_linear
+from .ik import IKSolver, as_pose
 from .joints import Joint, make_joint
 from .loop import StatsSummary
 from .model import RobotModel
@@ -165,6 +167,7 @@ class Arm:
             np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin)
+        self._ik_solver: IKSolver | None = None
         self._ctl = Controller(
             config, self.joints, self.model, self.clock, feedforward=feedforward,
             friction_feedforward=friction_feedforward, hold_integral=hold_integral,
@@ -339,6 +342,78 @@ class Arm:
 
     def _run(self, motion: Motion, wait: bool) -> Motion:
         return motion.wait() if wait else motion
+
+    # ------------------------------------------------------------------------------------------
+    # Cartesian: the tool frame's pose (akarm.ik, akarm.cartesian)
+    # ------------------------------------------------------------------------------------------
+    def _ik(self) -> IKSolver:
+        """The IK solver, on a model of its own (the loop thread's is not shared)."""
+        if self._ik_solver is None:
+            self._ik_solver = IKSolver(RobotModel(self.config), self.limits.lower, self.limits.upper)
+        return self._ik_solver
+
+    def tool_pose(self, q: Sequence[float] | None = None) -> np.ndarray:
+        """The 4×4 pose of the YAML's ``tool_frame`` in the base frame (translation in m), at the
+        measured joint positions (or at ``q``, rad)."""
+        if q is None:
+            with self._ctl.lock:
+                q = [j.state.position for j in self.joints]
+        return self._ik().model.tool_pose(q)
+
+    def _pose_target(self, pose: object) -> tuple[np.ndarray, np.ndarray, bool]:
+        """(start q: the commanded position, the target 4×4, position only?) for a Cartesian move."""
+        self._ctl.require_enabled()
+        q0 = self._ctl.desired_now()[0]
+        target, oriented = as_pose(pose, self._ik().model.tool_pose(q0))
+        return q0, target, self._ik().position_only(oriented)
+
+    def move_to_pose(self, pose: object, speed: float = 1.0, wait: bool = True) -> Motion:
+        """Move the tool to ``pose`` by a joint-space move (jerk-limited, joints arriving together).
+
+        ``pose``: a 4×4 transform of the tool frame in the base frame (m), ``(xyz, quaternion xyzw)``,
+        or a position ``(x, y, z)`` alone: the tool keeps its orientation (arms with fewer than six
+        joints cannot, and go to the position whatever their orientation). The joint positions are
+        solved (:class:`akarm.ik.IKSolver`) nearest the commanded ones; ``speed`` as in :meth:`move_to`.
+
+        Raises:
+            UnreachableError: out of reach (says how close the tool gets).
+            LimitError: the pose needs a joint past its range (names it), or the path does.
+            SingularityError: the pose is reached only at a singularity.
+        """
+        q0, target, position_only = self._pose_target(pose)
+        q = self._ik().solve(target, q0, position_only)
+        return self.move_to(q, speed=speed, wait=wait)
+
+    def move_linear(self, pose: object, speed: float = 1.0, wait: bool = True, *, max_velocity: float | None = None,
+                    max_acceleration: float | None = None) -> Motion:
+        """Move the tool in a straight line to ``pose`` (``pose`` as in :meth:`move_to_pose`), its
+        orientation turning about one axis on the way (slerp), from rest to rest.
+
+        The timing is jerk-limited along the line; every joint's velocity, acceleration and jerk stay
+        within its limits times ``speed``, ``speed²``, ``speed³``, and ``max_velocity`` (m/s) /
+        ``max_acceleration`` (m/s²) cap the tool's. The whole joint path is solved and checked
+        before anything moves (:mod:`akarm.cartesian`).
+
+        Raises:
+            StateError: the arm is moving (a line starts from rest: wait for the motion, or stop()).
+            UnreachableError, LimitError, SingularityError: a point of the line the tool cannot
+                reach, one past a joint's range (names the joint), a singularity on the way; each
+                says where on the line. Nothing moved.
+        """
+        q0, target, position_only = self._pose_target(pose)
+        if self._ctl.plan is not None:
+            raise StateError("move_linear starts from rest and the arm is moving",
+                             fix="wait for the motion to end (motion.wait()), or call arm.stop() first")
+        plan = plan_linear(self._ik(), self.limits, q0, target, speed=speed, position_only=position_only,
+                           max_velocity=max_velocity, max_acceleration=max_acceleration)
+
+        def make(start, now):
+            if self._ctl.plan is not None or not np.array_equal(start[0], q0):
+                raise StateError("the arm moved while the line was planned",
+                                 fix="start one motion at a time (wait for each)")
+            return plan.at(now)
+
+        return self._run(self._start(make), wait)
 
     @property
     def moving(self) -> bool:

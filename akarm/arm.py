@@ -26,12 +26,12 @@ from os import PathLike
 import numpy as np
 
 from . import recording as rec_mod
+from .cartesian import plan_linear
 from .clock import Clock, RealClock
 from .config import RobotConfig
 from .control import Controller, Motion, PathRecorder, track_arm
 from .errors import ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
 from .feedforward import FeedForwardKind
-from .cartesian import plan_linear
 from .ik import IKSolver, as_pose
 from .joints import Joint, make_joint
 from .loop import StatsSummary

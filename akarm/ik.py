@@ -217,11 +217,11 @@ class IKSolver:
             SingularityError: the only solution found is at a singularity.
         """
         seed = np.asarray(seed, dtype=float)
-        q, e, ok = self.iterate(seed, target, position_only)
+        q, _, ok = self.iterate(seed, target, position_only)
         if not ok:
             found = []
             for start in self._starts:
-                qs, es, oks = self.iterate(start, target, position_only)
+                qs, _, oks = self.iterate(start, target, position_only)
                 if oks:
                     found.append(qs)
             if found:

@@ -29,7 +29,7 @@ from akarm.sim import SimulatedRobot
 from .conftest import ROBOTS, wait_until
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
-HANGING = [-math.pi / 2, 0.0]  # planar2 hanging straight down: where it stays when limp
+BENT = [-0.5, 1.2]  # planar2, elbow bent (stretched out straight, it is at a singularity)
 PLANAR2 = akarm.load_robot(ROBOTS / "planar2.yaml")
 
 
@@ -285,9 +285,11 @@ def test_planar2_moves_to_positions_and_along_lines(channel: str) -> None:
 # ------------------------------------------------------------------------------------------------
 @pytest.fixture
 def relaxed_planar2(tmp_path: Path) -> str:
-    """planar2.yaml with a 0.25 s watchdog (the real-time simulator shares this process)."""
+    """planar2.yaml lying flat (gravity along its joint axes: a limp arm stays where it is), with a
+    0.25 s watchdog (the real-time simulator shares this process)."""
     doc = yaml.safe_load((ROBOTS / "planar2.yaml").read_text())
     doc["urdf"] = str(ROBOTS / doc["urdf"])
+    doc["gravity"] = [0.0, -9.81, 0.0]
     doc["defaults"]["feedback_timeout"] = 0.25
     path = tmp_path / "planar2.yaml"
     path.write_text(yaml.safe_dump(doc))
@@ -302,6 +304,7 @@ def _cli_move(robot: str, channel: str, q0, argv: list[str]) -> tuple[int, np.nd
                                                                   *argv])), daemon=True)
         th.start()
         th.join(20.0)
+        assert result, "akarm move did not end"
         assert wait_until(lambda: not any(d.enabled for d in sim.drivers), 2.0)
         time.sleep(0.05)
         return result[0], sim_pose(sim)
@@ -309,9 +312,9 @@ def _cli_move(robot: str, channel: str, q0, argv: list[str]) -> tuple[int, np.nd
 
 def test_cli_move_xyz_linear_reaches_the_point(relaxed_planar2: str, channel: str,
                                                capsys: pytest.CaptureFixture[str]) -> None:
-    code, _ = _cli_move(relaxed_planar2, channel, HANGING, ["--xyz", "0.40", "0", "0.30", "--linear"])
-    out = capsys.readouterr().out
-    assert code == 0, out
+    code, _ = _cli_move(relaxed_planar2, channel, BENT, ["--xyz", "0.40", "0", "0.30", "--linear"])
+    out, err = capsys.readouterr()
+    assert code == 0, out + err
     assert "in a straight line" in out and "disabled" in out
     mm = float(out.split("arrived: tool at")[1].split(" m, ")[1].split(" mm")[0])
     assert mm < 2.0
@@ -319,11 +322,11 @@ def test_cli_move_xyz_linear_reaches_the_point(relaxed_planar2: str, channel: st
 
 def test_cli_move_refuses_an_unreachable_point_before_moving(relaxed_planar2: str, channel: str,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
-    code, pose = _cli_move(relaxed_planar2, channel, HANGING, ["--xyz", "0.9", "0", "0.3"])
+    code, pose = _cli_move(relaxed_planar2, channel, BENT, ["--xyz", "0.9", "0", "0.3"])
     err = capsys.readouterr().err
     assert code == 1 and "out of reach" in err
-    hanging = akarm.model.RobotModel(PLANAR2).tool_pose(HANGING)
-    assert np.linalg.norm(pose[:3, 3] - hanging[:3, 3]) < 2e-3
+    bent = akarm.model.RobotModel(PLANAR2).tool_pose(BENT)
+    assert np.linalg.norm(pose[:3, 3] - bent[:3, 3]) < 2e-3
 
 
 def test_cli_move_needs_a_target_or_xyz(capsys: pytest.CaptureFixture[str]) -> None:

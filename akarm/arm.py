@@ -28,10 +28,12 @@ import numpy as np
 from . import recording as rec_mod
 from .cartesian import plan_linear
 from .clock import Clock, RealClock
+from .collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
 from .config import RobotConfig
 from .control import Controller, Motion, PathRecorder, track_arm
-from .errors import ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
+from .errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
 from .feedforward import FeedForwardKind
+from .identify import Identification, PayloadFit
 from .ik import IKSolver, as_pose
 from .joints import Joint, make_joint
 from .loop import StatsSummary
@@ -51,7 +53,8 @@ _DEFAULT_FEEDBACK_TIMEOUT = 0.020
 @dataclass(frozen=True)
 class JointReport:
     """One joint's latest feedback (joint side, SI): position rad, velocity rad/s, torque N·m,
-    temperature °C (None if not reported), fault code (0 none), age s (time since the feedback)."""
+    temperature °C (None if not reported), fault code (0 none), age s (time since the feedback),
+    and the collision observer's estimate of the external torque on it, N·m (:mod:`akarm.collision`)."""
 
     name: str
     position: float
@@ -60,6 +63,7 @@ class JointReport:
     temperature: float | None
     fault: int
     age: float
+    external_torque: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,7 @@ class ArmState:
         q_des: the commanded position (rad) this cycle.
         enabled: True while the arm is powered and tracking. moving: True while a motion runs.
         mode: the arm's :class:`~akarm.modes.Mode`.
+        tau_ext: the external torque estimate per joint, N·m (:mod:`akarm.collision`).
     """
 
     time: float
@@ -84,14 +89,16 @@ class ArmState:
     enabled: bool
     moving: bool
     mode: Mode = Mode.DISABLED
+    tau_ext: np.ndarray | None = None
 
     def __str__(self) -> str:
-        head = f"{'joint':<16}{'pos rad':>10}{'vel rad/s':>11}{'torque Nm':>11}{'temp C':>8}{'fault':>7}{'age ms':>9}"
+        head = (f"{'joint':<16}{'pos rad':>10}{'vel rad/s':>11}{'torque Nm':>11}{'temp C':>8}{'fault':>7}{'age ms':>9}"
+                f"{'ext Nm':>9}")
         rows = [head]
         for j in self.joints:
             temp = f"{j.temperature:8.1f}" if j.temperature is not None else f"{'-':>8}"
             rows.append(f"{j.name:<16}{j.position:10.4f}{j.velocity:11.4f}{j.torque:11.3f}{temp}{j.fault:7d}"
-                        f"{j.age * 1e3:9.1f}")
+                        f"{j.age * 1e3:9.1f}{j.external_torque:9.2f}")
         return "\n".join(rows)
 
 
@@ -118,6 +125,11 @@ class Arm:
         range_margin: rad; a move may start this far outside a joint's range (an arm resting on its
             hard stop) and come back into it.
         implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
+        collision_reaction: what the collision reflex does when a joint's external torque estimate
+            passes its YAML ``collision: {threshold: ...}``: ``"disable"`` (damp, then disable; the
+            default) or ``"hold"`` (come to rest, jerk-limited, and hold). See :mod:`akarm.collision`.
+        collision_gain: 1/s, the bandwidth of the external torque estimate (default 50: a 20 ms
+            time constant).
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread, freeze the
@@ -147,7 +159,8 @@ class Arm:
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
                  loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
-                 range_margin: float = 0.05, implausible_limit: int = 3) -> None:
+                 range_margin: float = 0.05, implausible_limit: int = 3, collision_reaction: str = "disable",
+                 collision_gain: float = DEFAULT_GAIN) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         for name, value in (("feedback_timeout", feedback_timeout), ("settle_speed", settle_speed),
@@ -176,6 +189,14 @@ class Arm:
             loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
             implausible_limit=implausible_limit)
         self.telemetry_ring = self._ctl.telemetry
+        self._friction_compensated = friction_feedforward and feedforward != "none"
+        fr = [j.friction_model() for j in config.joints]
+        observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
+                                    [f.offset for f in fr], collision_gain,
+                                    [velocity_resolution(j) for j in config.joints])
+        self._ctl.reflex = CollisionReflex(self.names, observer, [j.collision_threshold for j in config.joints],
+                                           collision_reaction)  # type: ignore[arg-type]
+        self._ctl.stop_plan = lambda start, now: Plan([self.planner.stop(start, now)])
         self._finalizer = track_arm(self, self._ctl)
 
     @classmethod
@@ -557,23 +578,103 @@ class Arm:
         now = self.clock.now()
         ctl = self._ctl
         with ctl.lock:
+            ext = self._ctl.reflex.estimate.copy()  # type: ignore[union-attr]
             reps = tuple(JointReport(j.name, j.state.position, j.state.velocity, j.state.torque,
-                                     j.state.temperature, j.state.error, j.state.age(now)) for j in self.joints)
+                                     j.state.temperature, j.state.error, j.state.age(now), float(x))
+                         for j, x in zip(self.joints, ext, strict=True))
             q_des = ctl.des[0].copy()
             mode = ctl.mode
             moving = ctl.plan is not None
         return ArmState(now, reps, np.array([r.position for r in reps]), np.array([r.velocity for r in reps]),
-                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode)
+                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode, ext)
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
-        """Tell the feed-forward about a payload at the tool frame: kg, centre of mass in the tool frame (m)."""
+        """Tell the arm about a payload at the tool frame: kg, centre of mass in the tool frame (m).
+
+        The feed-forward carries it and the collision reflex expects it (its external torque
+        estimate uses the same model), from the next cycle on.
+        """
         with self._ctl.lock:
             self.model.set_payload(mass, com)
 
     def clear_payload(self) -> None:
-        """Remove the payload from the feed-forward model."""
+        """Remove the payload from the model (the feed-forward's and the collision reflex's)."""
         with self._ctl.lock:
             self.model.clear_payload()
+
+    @property
+    def payload(self) -> tuple[float, np.ndarray] | None:
+        """The payload the arm is told about: (kg, centre of mass in the tool frame, m), or ``None``."""
+        p = self.model.payload
+        return None if p is None else (p[0], p[1].copy())
+
+    def identify(self, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
+                 center: Target | None = None, payload: bool = True, offsets: bool = True,
+                 apply: bool = True) -> Identification:
+        """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify`).
+
+        The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
+        ``amplitude`` rad per joint at most (less near a limit), for ``duration`` s at ``speed``
+        (time scaling, (0, 1]; default: as fast as the joint limits and half the torque limits
+        allow); like any replay, it is checked against every limit before anything moves; its
+        gains alternate between full and half every 3 s (how the fit tells friction from the bias
+        of the torque samples). With ``apply`` the arm uses the results at once (payload, friction). The result
+        suggests collision thresholds; ``.fragment()`` is YAML for the robot file
+        (:func:`akarm.robotfile.save_identification` writes it in, with a backup).
+
+        Raises:
+            LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
+            StateError: the arm is moving, or the telemetry is too short for the duration.
+        """
+        from .identify import identify
+
+        return identify(self, duration=duration, speed=speed, amplitude=amplitude, center=center, payload=payload,
+                        offsets=offsets, apply=apply)
+
+    def estimate_payload(self, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 1.0,
+                         apply: bool = True) -> PayloadFit:
+        """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
+
+        The arm moves (``speed`` as in :meth:`move_to`) to each of ``poses`` (default: where it is,
+        and each of the three joints nearest the tool turned by ±0.6 rad), waits ``settle`` s,
+        averages the torques, and comes back; a least-squares fit of gravity's torque on Pinocchio's
+        regressor gives mass and centre of mass. With ``apply`` the arm then carries it (:meth:`set_payload`).
+        """
+        from .identify import estimate_payload
+
+        return estimate_payload(self, poses, speed=speed, settle=settle, apply=apply)
+
+    def set_collision(self, thresholds: Mapping[str, float | None] | Sequence[float | None] | None = None,
+                      reaction: str | None = None) -> None:
+        """Change the collision reflex: ``thresholds`` (N·m; a ``{joint: value}`` mapping for some joints,
+        or one per joint in config order; ``None`` for a joint turns its check off) and ``reaction``
+        (``"disable"`` or ``"hold"``). The YAML's ``collision: {threshold: ...}`` are the defaults."""
+        reflex = self._ctl.reflex
+        assert reflex is not None
+        with self._ctl.lock:
+            if thresholds is not None:
+                current: list[float | None] = [None if math.isinf(x) else float(x) for x in reflex.thresholds]
+                if isinstance(thresholds, Mapping):
+                    for name, value in thresholds.items():
+                        if name not in self.names:
+                            raise StateError(f"no joint named {name!r}", fix="joints are: " + ", ".join(self.names))
+                        current[self.names.index(name)] = value
+                else:
+                    current = list(thresholds)
+                reflex.set_thresholds(current)
+            if reaction is not None:
+                reflex.set_reaction(reaction)
+
+    @property
+    def collision_thresholds(self) -> dict[str, float | None]:
+        """The collision reflex's threshold per joint, N·m (``None``: not checked)."""
+        th = self._ctl.reflex.thresholds  # type: ignore[union-attr]
+        return {n: (None if math.isinf(x) else float(x)) for n, x in zip(self.names, th, strict=True)}
+
+    @property
+    def collision(self) -> CollisionError | None:
+        """The collision reflex's last stop (also with the "hold" reaction: the arm stays enabled), or ``None``."""
+        return self._ctl.reflex.last  # type: ignore[union-attr]
 
     def sleep(self, seconds: float) -> None:
         """Wait ``seconds`` of the arm's clock while the loop keeps the arm under control.

@@ -29,6 +29,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
+    "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
 }
 

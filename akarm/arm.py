@@ -194,8 +194,11 @@ class Arm:
         observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
                                     [f.offset for f in fr], collision_gain,
                                     [velocity_resolution(j) for j in config.joints])
+        # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
+        fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
+                 for j in config.joints]
         self._ctl.reflex = CollisionReflex(self.names, observer, [j.collision_threshold for j in config.joints],
-                                           collision_reaction)  # type: ignore[arg-type]
+                                           collision_reaction, fresh, 1.0 / config.rate_hz)  # type: ignore[arg-type]
         self._ctl.stop_plan = lambda start, now: Plan([self.planner.stop(start, now)])
         self._finalizer = track_arm(self, self._ctl)
 

@@ -46,7 +46,10 @@ Reaction = Literal["disable", "hold"]
 DEFAULT_GAIN = 50.0
 #: rad/s: the Coulomb friction model's smoothing speed (the same as the feed-forward's and the simulator's).
 FRICTION_SMOOTHING = 0.02
-_RESET_GAP = 0.1  # s without an update after which the observer starts over (a mode without it, a stall)
+#: loop periods between two complete sets of feedback after which the observer starts over rather
+#: than integrate across the gap (a stall of the loop or of the drivers, a mode without it)
+RESET_GAP = 3.5
+_POSITION_STEP = 1e-3  # rad: twice the MIT position field's step (0.38 mrad), the travel a timing check trusts
 
 
 def friction_torque(v: np.ndarray, coulomb: np.ndarray, viscous: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -135,6 +138,10 @@ class CollisionReflex:
         observer: the estimate.
         thresholds: N·m per joint, ``None`` where a joint is not checked.
         reaction: ``"disable"`` (damp, then disable: the default) or ``"hold"``.
+        fresh: s per joint: feedback older than this is not new this cycle (a reply missed): the
+            observer waits for a complete set and then spans the gap, or starts over after
+            :data:`RESET_GAP` loop periods (the supervisor judges missing feedback). Default: none is stale.
+        period: s, the loop's period.
 
     Attributes:
         estimate: the latest external torque estimate per joint, N·m (zeros before the first step).
@@ -144,14 +151,20 @@ class CollisionReflex:
     """
 
     def __init__(self, names: Sequence[str], observer: MomentumObserver,
-                 thresholds: Sequence[float | None], reaction: Reaction = "disable") -> None:
+                 thresholds: Sequence[float | None], reaction: Reaction = "disable",
+                 fresh: Sequence[float] | None = None, period: float = 0.002) -> None:
         self.names = tuple(names)
+        self.reset_gap = RESET_GAP * period
+        self.late = 1.5 * period
+        self._q_last = np.zeros(len(self.names))
+        self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
         self.observer = observer
         self.set_thresholds(thresholds)
         self.set_reaction(reaction)
         self.last: CollisionError | None = None
         self.armed = False
-        self._t_last = -math.inf
+        self._cycle = -math.inf  # the loop time of the last step
+        self._sample_last = -math.inf  # when the feedback of the last update was taken
         self.peak = np.zeros(len(self.names))
 
     @property
@@ -180,26 +193,48 @@ class CollisionReflex:
         """Whether any joint has a threshold."""
         return bool(np.any(np.isfinite(self.thresholds)))
 
+    def _on_time(self, q: np.ndarray, v: np.ndarray, dt: float) -> bool:
+        """Whether the feedback's motion fits the time assumed between the two samples: the fastest
+        joint's travel over its mean speed gives the time that really passed (a simulator or adapter
+        that answered late shows here; the estimate would take the difference for a push)."""
+        v_mean = 0.5 * (v + self.observer._last[1])
+        i = int(np.argmax(np.abs(v_mean)))
+        speed = abs(float(v_mean[i]))
+        if speed < 0.3:  # too slow to time (and a timing error matters little then)
+            return True
+        passed = float(q[i] - self._q_last[i]) / float(v_mean[i])
+        return abs(passed - dt) <= max(0.5e-3, _POSITION_STEP / speed)
+
     def clear_peak(self) -> None:
         self.peak = np.zeros(len(self.names))
 
     def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
-             kp: Sequence[float] | None = None, kd: Sequence[float] | None = None) -> CollisionError | None:
+             kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
+             stamps: Sequence[float] | None = None) -> CollisionError | None:
         """Update the estimate with the feedback of this cycle (and the MIT gains in force: see
-        :meth:`MomentumObserver.update`); with ``check``, the error if a joint's estimate is over its
-        threshold. Without ``check`` (teach mode) the reflex disarms."""
+        :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s); with
+        ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
+        mode) the reflex disarms."""
         qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
         if not (np.all(np.isfinite(qa)) and np.all(np.isfinite(va)) and np.all(np.isfinite(ta))):
             return None  # no feedback yet: the supervisor deals with missing feedback
+        # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
+        sample, self._cycle = self._cycle, now
+        if now - sample > self.late:  # a late cycle: when the feedback was taken is not known
+            self.observer.started = False
+        if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
+            return None  # a joint without new feedback: wait for a complete set (the next step spans the gap)
         obs = self.observer
-        dt = now - self._t_last
-        self._t_last = now
-        if not obs.started or dt > _RESET_GAP or dt <= 0:
+        dt = sample - self._sample_last
+        self._sample_last = sample
+        if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
             obs.reset(qa, va, ta)
+            self._q_last = qa
             r = obs.estimate
         else:
             r = obs.update(qa, va, ta, dt, None if kp is None else np.asarray(kp, dtype=float),
                            None if kd is None else np.asarray(kd, dtype=float))
+            self._q_last = qa
         if not check:
             self.armed = False
             return None

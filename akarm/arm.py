@@ -595,15 +595,20 @@ class Arm:
         """Tell the arm about a payload at the tool frame: kg, centre of mass in the tool frame (m).
 
         The feed-forward carries it and the collision reflex expects it (its external torque
-        estimate uses the same model), from the next cycle on.
+        estimate uses the same model, and starts over: the arm's inertia changed), from the next
+        cycle on.
         """
         with self._ctl.lock:
             self.model.set_payload(mass, com)
+            self._ctl.ff.reset_integral()  # it made up for the load the model missed: now the model has it
+            self._ctl.reflex.restart()  # type: ignore[union-attr]
 
     def clear_payload(self) -> None:
         """Remove the payload from the model (the feed-forward's and the collision reflex's)."""
         with self._ctl.lock:
             self.model.clear_payload()
+            self._ctl.ff.reset_integral()
+            self._ctl.reflex.restart()  # type: ignore[union-attr]
 
     @property
     def payload(self) -> tuple[float, np.ndarray] | None:

@@ -205,6 +205,11 @@ class CollisionReflex:
         passed = float(q[i] - self._q_last[i]) / float(v_mean[i])
         return abs(passed - dt) <= max(0.5e-3, _POSITION_STEP / speed)
 
+    def restart(self) -> None:
+        """Start the estimate over at the next step (the model changed: a payload, friction): the
+        momentum it tracks would otherwise jump by the change of inertia times the velocity."""
+        self.observer.started = False
+
     def clear_peak(self) -> None:
         self.peak = np.zeros(len(self.names))
 

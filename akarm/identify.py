@@ -481,6 +481,7 @@ def apply_identification(arm: Arm, result: Identification) -> None:
         obs.offset = np.array([j.offset for j in result.joints])
         if arm._friction_compensated:
             ctl.ff.set_friction([j.coulomb for j in result.joints], [j.viscous for j in result.joints])
+        ctl.reflex.restart()  # type: ignore[union-attr]
 
 
 def payload_poses(limits: JointLimits, q0: Sequence[float], step: float = 0.6) -> list[np.ndarray]:

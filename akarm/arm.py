@@ -193,7 +193,8 @@ class Arm:
         fr = [j.friction_model() for j in config.joints]
         observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
                                     [f.offset for f in fr], collision_gain,
-                                    [velocity_resolution(j) for j in config.joints])
+                                    [velocity_resolution(j) for j in config.joints],
+                                    [j.motor.t_max for j in config.joints])
         # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
         fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
                  for j in config.joints]
@@ -639,12 +640,12 @@ class Arm:
         return identify(self, duration=duration, speed=speed, amplitude=amplitude, center=center, payload=payload,
                         offsets=offsets, apply=apply)
 
-    def estimate_payload(self, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 1.0,
+    def estimate_payload(self, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 3.0,
                          apply: bool = True) -> PayloadFit:
         """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
 
         The arm moves (``speed`` as in :meth:`move_to`) to each of ``poses`` (default: where it is,
-        and each of the three joints nearest the tool turned by ±0.6 rad), waits ``settle`` s,
+        and each of the three joints nearest the tool turned by ±0.9 rad, the one before them ±0.45), waits ``settle`` s,
         averages the torques, and comes back; a least-squares fit of gravity's torque on Pinocchio's
         regressor gives mass and centre of mass. With ``apply`` the arm then carries it (:meth:`set_payload`).
         """

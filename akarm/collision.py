@@ -46,6 +46,7 @@ Reaction = Literal["disable", "hold"]
 DEFAULT_GAIN = 50.0
 #: rad/s: the Coulomb friction model's smoothing speed (the same as the feed-forward's and the simulator's).
 FRICTION_SMOOTHING = 0.02
+_LAG_SMOOTHING = 0.02  # s: low-pass of the measured velocity's difference to the command (see velocity())
 #: loop periods between two complete sets of feedback after which the observer starts over rather
 #: than integrate across the gap (a stall of the loop or of the drivers, a mode without it)
 RESET_GAP = 3.5
@@ -75,10 +76,12 @@ class MomentumObserver:
         deadband: rad/s per joint: a measured speed this small is a joint at rest as far as the
             Coulomb friction goes (one step of the velocity feedback: :func:`velocity_resolution`;
             at rest a joint's friction is anywhere within ±coulomb, and the smooth model says 0).
+        saturation: N·m per joint, the motors' torque range (a torque there does not decay).
     """
 
     def __init__(self, model: RobotModel, coulomb: Sequence[float], viscous: Sequence[float],
-                 offset: Sequence[float], gain: float = DEFAULT_GAIN, deadband: Sequence[float] | None = None) -> None:
+                 offset: Sequence[float], gain: float = DEFAULT_GAIN, deadband: Sequence[float] | None = None,
+                 saturation: Sequence[float] | None = None) -> None:
         if not (gain > 0 and math.isfinite(gain)):
             raise StateError(f"the collision observer's gain must be a positive number (1/s), got {gain!r}")
         self.model = model
@@ -87,46 +90,78 @@ class MomentumObserver:
         self.viscous = np.asarray(viscous, dtype=float)
         self.offset = np.asarray(offset, dtype=float)
         self.deadband = np.zeros(len(self.coulomb)) if deadband is None else np.asarray(deadband, dtype=float)
+        #: N·m per joint: a reported torque this large is the motor at its limit
+        self.saturation = np.full(len(self.coulomb), np.inf) if saturation is None else \
+            0.999 * np.asarray(saturation, dtype=float)
+        self._lag: np.ndarray | None = None
         self.estimate = np.zeros(len(self.coulomb))
         self._p0 = np.zeros_like(self.estimate)
         self._integral = np.zeros_like(self.estimate)
         self._last = (self.estimate, self.estimate, self.estimate)
         self.started = False
 
-    def _smooth(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """``τ_f - Cᵀq̇ + g``: what the model and friction take from the momentum's rate of change."""
-        model = self.model
-        beta = model.gravity(q) - model.coriolis_matrix(q, dq).T @ dq
-        coulomb = np.where(np.abs(dq) <= self.deadband, 0.0, self.coulomb)
-        return friction_torque(dq, coulomb, self.viscous, self.offset) + beta
+    def velocity(self, dq: np.ndarray, v_des: np.ndarray | None, dt: float = 0.0) -> np.ndarray:
+        """The velocity the observer works with: the measured one, or, when the arm tracks a command,
+        the command plus its (low-passed, 20 ms) difference to the measurement, kept within the
+        measurement's quantisation step (the feedback rounds to the nearest step, so the truth is
+        within half a step of it). That is smooth where the feedback jumps by whole steps, and each
+        jump would pass ``K·M·step`` into the estimate."""
+        if v_des is None:
+            self._lag = None
+            return dq
+        if self._lag is None:  # from the command: the first reading is off by up to half a step
+            self._lag = np.zeros(len(dq))
+        self._lag += min(1.0, dt / _LAG_SMOOTHING) * ((dq - v_des) - self._lag)
+        half = 0.5 * self.deadband
+        return np.clip(v_des + self._lag, dq - half, dq + half)
 
-    def reset(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> None:
+    def _smooth(self, q: np.ndarray, v: np.ndarray, dq: np.ndarray, v_des: np.ndarray | None) -> np.ndarray:
+        """``τ_f - Cᵀq̇ + g`` at (q, v): what the model and friction take from the momentum's rate of
+        change. The friction's speed: the commanded one where the joint tracks it (within two steps of
+        the feedback: slow motions, whose feedback flips between "at rest" and "moving", follow the
+        smooth command, as the feed-forward does); else the measured one, a speed within one step of
+        it counting as at rest for the Coulomb friction (at rest it is anywhere within ±coulomb, and
+        the smooth model says 0)."""
+        model = self.model
+        beta = model.gravity(q) - model.coriolis_matrix(q, v).T @ v
+        tracks = np.zeros(len(dq), bool) if v_des is None else np.abs(v_des - dq) <= 2.0 * self.deadband
+        v_f = np.where(tracks, v_des, dq) if v_des is not None else dq
+        coulomb = np.where(~tracks & (np.abs(dq) <= self.deadband), 0.0, self.coulomb)
+        return friction_torque(v_f, coulomb, self.viscous, self.offset) + beta
+
+    def reset(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, v_des: np.ndarray | None = None) -> None:
         """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
-        self._p0 = self.model.mass_matrix(q) @ dq
+        self._lag = None
+        v = self.velocity(dq, v_des)
+        self._p0 = self.model.mass_matrix(q) @ v
         self._integral[:] = 0.0
-        self._last = (np.array(tau, dtype=float), np.array(dq, dtype=float), self._smooth(q, dq))
+        self._last = (np.array(tau, dtype=float), v, self._smooth(q, v, dq, v_des))
         self.estimate = np.zeros_like(self.estimate)
         self.started = True
 
     def update(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, dt: float,
-               kp: np.ndarray | None = None, kd: np.ndarray | None = None) -> np.ndarray:
+               kp: np.ndarray | None = None, kd: np.ndarray | None = None,
+               v_des: np.ndarray | None = None) -> np.ndarray:
         """One step: positions (rad), velocities (rad/s), motor torques (N·m) measured now, ``dt`` s
         since the last step; ``kp``, ``kd``: the MIT gains in force (N·m/rad, N·m·s/rad; 0 for servo
-        joints). Returns the external torque estimate (N·m).
+        joints); ``v_des``: the velocity commanded when the feedback was taken (see :meth:`velocity`).
+        Returns the external torque estimate (N·m).
 
         The torque between two samples: an MIT command is held for a whole period, and the reply
         carries the torque of the command just received, so the PD part decays from the sample by
         ``kp·q̇ + kd·q̈`` per second until the next command: over the period it averages the last
         sample less half that decay. Gravity, Coriolis and friction change smoothly: trapezoidal.
         (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)"""
-        tau_prev, dq_prev, smooth_prev = self._last
-        smooth = self._smooth(q, dq)
+        tau_prev, v_prev, smooth_prev = self._last
+        v = self.velocity(dq, v_des, dt)
+        smooth = self._smooth(q, v, dq, v_des)
         torque = tau_prev
-        if kp is not None:
-            torque = tau_prev - 0.5 * (kp * dq_prev * dt + (kd if kd is not None else 0.0) * (dq - dq_prev))
+        if kp is not None:  # (a saturated motor holds its limit: no decay)
+            decay = 0.5 * (kp * v_prev * dt + (kd if kd is not None else 0.0) * (v - v_prev))
+            torque = np.where(np.abs(tau_prev) >= self.saturation, tau_prev, tau_prev - decay)
         self._integral += (torque - 0.5 * (smooth + smooth_prev) + self.estimate) * dt
-        self._last = (np.array(tau, dtype=float), np.array(dq, dtype=float), smooth)
-        self.estimate = self.gain * (self.model.mass_matrix(q) @ dq - self._p0 - self._integral)
+        self._last = (np.array(tau, dtype=float), v, smooth)
+        self.estimate = self.gain * (self.model.mass_matrix(q) @ v - self._p0 - self._integral)
         return self.estimate
 
 
@@ -165,6 +200,8 @@ class CollisionReflex:
         self.armed = False
         self._cycle = -math.inf  # the loop time of the last step
         self._sample_last = -math.inf  # when the feedback of the last update was taken
+        self._v_des: np.ndarray | None = None  # the velocity the last cycle commanded
+        self._quiet_until = -math.inf  # no judging before (a motor was at its torque limit)
         self.peak = np.zeros(len(self.names))
 
     @property
@@ -215,9 +252,10 @@ class CollisionReflex:
 
     def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
              kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
-             stamps: Sequence[float] | None = None) -> CollisionError | None:
+             stamps: Sequence[float] | None = None, v_des: Sequence[float] | None = None) -> CollisionError | None:
         """Update the estimate with the feedback of this cycle (and the MIT gains in force: see
-        :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s); with
+        :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s;
+        ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with
         ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
         mode) the reflex disarms."""
         qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
@@ -225,6 +263,7 @@ class CollisionReflex:
             return None  # no feedback yet: the supervisor deals with missing feedback
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
         sample, self._cycle = self._cycle, now
+        v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))
         if now - sample > self.late:  # a late cycle: when the feedback was taken is not known
             self.observer.started = False
         if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
@@ -233,15 +272,19 @@ class CollisionReflex:
         dt = sample - self._sample_last
         self._sample_last = sample
         if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
-            obs.reset(qa, va, ta)
+            obs.reset(qa, va, ta, v_then)
             self._q_last = qa
             r = obs.estimate
         else:
             r = obs.update(qa, va, ta, dt, None if kp is None else np.asarray(kp, dtype=float),
-                           None if kd is None else np.asarray(kd, dtype=float))
+                           None if kd is None else np.asarray(kd, dtype=float), v_then)
             self._q_last = qa
         if not check:
             self.armed = False
+            return None
+        if np.any(np.abs(ta) >= obs.saturation):  # a motor at its limit: within a period its torque is not known
+            self._quiet_until = now + 2.0 / obs.gain
+        if now < self._quiet_until:
             return None
         mag = np.abs(r)
         np.maximum(self.peak, mag, out=self.peak)

@@ -686,7 +686,8 @@ class Controller:
         else:
             kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
         err = reflex.step(now, [j.state.position for j in js], [j.state.velocity for j in js],
-                          [j.state.torque for j in js], check, kp, kd, [j.state.stamp for j in js])
+                          [j.state.torque for j in js], check, kp, kd, [j.state.stamp for j in js],
+                          self.des[1] if check else None)
         if err is None or err.reaction == "disable" or self.stop_plan is None:
             return err
         if self.motion is not None:

@@ -21,8 +21,10 @@ gives them all; the payload's mass is ``π[0]`` and its centre of mass ``π[1:4]
 the tool frame. The RMS residual per joint says how well the model fits.
 
 **Thresholds**: the collision observer (:mod:`akarm.collision`) is run over the same data with the
-identified values; its largest output per joint while nothing touched the arm, doubled (and at
-least :data:`MIN_THRESHOLD`), is the suggested ``collision: {threshold: ...}``.
+identified values; its largest output per joint while nothing touched the arm, times
+:data:`THRESHOLD_MARGIN` (the arm's other motions are faster than the excitation, and the
+estimate's error grows with acceleration), and at least :data:`MIN_SHARE` of the joint's torque
+limit, is the suggested ``collision: {threshold: ...}``.
 
 :func:`estimate_payload_at_rest` fits mass and centre of mass alone from the torques held at rest in
 several poses (gravity only: four parameters).
@@ -30,8 +32,9 @@ several poses (gravity only: four parameters).
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -47,13 +50,13 @@ from .trajectory import JointLimits
 if TYPE_CHECKING:
     from .arm import Arm
 
-__all__ = ["MIN_THRESHOLD", "Identification", "JointFit", "PayloadFit", "estimate_payload", "estimate_payload_at_rest",
+__all__ = ["MIN_SHARE", "THRESHOLD_MARGIN", "Identification", "JointFit", "PayloadFit", "estimate_payload", "estimate_payload_at_rest",
            "excitation", "fit", "identify", "payload_poses", "suggest_thresholds"]
 
-#: N·m: the smallest collision threshold suggested.
-MIN_THRESHOLD = 0.2
-#: The threshold suggested is this many times the largest estimate seen without contact.
-THRESHOLD_MARGIN = 2.0
+#: The threshold suggested is this many times the largest estimate seen without contact ...
+THRESHOLD_MARGIN = 3.0
+#: ... and at least this share of the joint's torque limit.
+MIN_SHARE = 0.06
 _SMOOTHING = 0.02  # rad/s: tanh smoothing of the Coulomb term (the feed-forward's and the observer's)
 _HARMONIC = 2.63
 _WEIGHTS = (0.6, 0.4)
@@ -371,13 +374,15 @@ def _determined(model: RobotModel, null: np.ndarray) -> tuple[bool, bool, bool]:
 
 
 def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[JointFit],
-                       deadband: Sequence[float], gain: float, kp: np.ndarray | None = None,
-                       kd: np.ndarray | None = None) -> list[float]:
+                       deadband: Sequence[float], gain: float, torque_limit: Sequence[float],
+                       kp: np.ndarray | None = None, kd: np.ndarray | None = None,
+                       use: np.ndarray | None = None) -> list[float]:
     """Run the collision observer over ``log`` with the identified friction and ``model`` (its
-    payload set; ``kp``, ``kd`` as for :func:`fit`): the largest estimate per joint times
-    :data:`THRESHOLD_MARGIN`, at least :data:`MIN_THRESHOLD`, rounded up to 0.05 N·m."""
+    payload set; ``kp``, ``kd`` as for :func:`fit`; ``use``: the samples judged): the largest
+    estimate per joint times :data:`THRESHOLD_MARGIN`, at least :data:`MIN_SHARE` of
+    ``torque_limit`` (N·m per joint), rounded up to 0.05 N·m."""
     obs = MomentumObserver(model, [f.coulomb for f in fits], [f.viscous for f in fits], [f.offset for f in fits],
-                           gain, deadband)
+                           gain, deadband, [j.motor.t_max for j in model.config.joints])
     peak = np.zeros(model.n)
     kp_t = np.broadcast_to(np.zeros(model.n) if kp is None else np.asarray(kp, dtype=float), log.q.shape)
     kd_t = np.broadcast_to(np.zeros(model.n) if kd is None else np.asarray(kd, dtype=float), log.q.shape)
@@ -387,10 +392,12 @@ def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[Join
         if k == 0:
             obs.reset(q, dq, tau)
             continue
-        r = obs.update(q, dq, tau, float(log.t[k] - log.t[k - 1]), kp_t[k - 1], kd_t[k - 1])
-        if log.t[k] - log.t[0] > settle:
+        # each row's feedback answers the command of the row before: its velocity refines the estimate
+        r = obs.update(q, dq, tau, float(log.t[k] - log.t[k - 1]), kp_t[k - 1], kd_t[k - 1], log.dq_des[k - 1])
+        if log.t[k] - log.t[0] > settle and (use is None or use[k]):
             np.maximum(peak, np.abs(r), out=peak)
-    return [max(MIN_THRESHOLD, math.ceil(THRESHOLD_MARGIN * p / 0.05) * 0.05) for p in peak]
+    return [math.ceil(max(THRESHOLD_MARGIN * p, MIN_SHARE * lim) / 0.05 - 1e-9) * 0.05
+            for p, lim in zip(peak, torque_limit, strict=True)]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -425,38 +432,43 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
         raise StateError(f"the telemetry keeps {ctl.telemetry.capacity / arm.config.rate_hz:.0f} s, the "
                          f"identification needs {needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
     arm.check_replay(rec, speed)  # before anything moves
-    if payload:  # carry the payload's weight during the excitation: a rough estimate at rest first
-        estimate_payload(arm, settle=0.6, average=0.3, apply=True)
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
     kp0, kd0 = ctl.kp.copy(), ctl.kd.copy()
-    motion = arm.replay(rec, speed=speed, wait=False)
     switches = [(-math.inf, 1.0)]
-    try:  # full and reduced gains in turn: see fit()
-        while not motion.done:
-            arm.sleep(min(GAIN_BLOCK, max(motion.plan.t_end - arm.clock.now(), 0.0) + 1e-3))
-            if not motion.done:
-                factor = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
-                arm.set_gains(kp=kp0 * factor, kd=kd0 * factor)
-                switches.append((arm.clock.now(), factor))
-        motion.wait()
-    finally:
-        arm.set_gains(kp=kp0, kd=kd0)
+    with _reflex_watching(arm) if payload else contextlib.nullcontext():
+        if payload:  # carry the payload's weight during the excitation: a rough estimate at rest first
+            estimate_payload(arm, settle=1.0, average=0.3, passes=1, apply=True)
+        motion = arm.replay(rec, speed=speed, wait=False)
+        try:  # full and reduced gains in turn: see fit()
+            while not motion.done:
+                arm.sleep(min(GAIN_BLOCK, max(motion.plan.t_end - arm.clock.now(), 0.0) + 1e-3))
+                if not motion.done:
+                    factor = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
+                    arm.set_gains(kp=kp0 * factor, kd=kd0 * factor)
+                    switches.append((arm.clock.now(), factor))
+            motion.wait()
+        finally:
+            arm.set_gains(kp=kp0, kd=kd0)
     excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
     log = arm.telemetry(since=excite.t0)
     # each row's torque answered the command of the cycle before: the gains in force then
     period = 1.0 / arm.config.rate_hz
     factor = np.ones(len(log.t))
     use = np.ones(len(log.t), bool)
+    settled = np.ones(len(log.t), bool)  # the observer's memory of a change of gains has faded (5 time constants)
     for ts, f in switches[1:]:
         factor[log.t - period >= ts - 1e-9] = f
         use &= np.abs(log.t - ts) > 0.03
+        settled &= (log.t < ts) | (log.t > ts + 5.0 / ctl.reflex.observer.gain)  # type: ignore[union-attr]
     kp = np.where(mit, kp0, 0.0)[None, :] * factor[:, None]
     kd = np.where(mit, kd0, 0.0)[None, :] * factor[:, None]
     fits, pay, _ = fit(model, log, kp=kp, kd=kd, payload=payload, offsets=offsets, use=use)
     if pay is not None:
         model.set_payload(pay.mass, pay.com)
     deadband = [velocity_resolution(j) for j in arm.config.joints]
-    thresholds = suggest_thresholds(model, log, fits, deadband, ctl.reflex.observer.gain, kp, kd)  # type: ignore[union-attr]
+    # the thresholds are for the arm at its own gains: judged on the full-gain stretches only
+    thresholds = suggest_thresholds(model, log, fits, deadband, ctl.reflex.observer.gain,  # type: ignore[union-attr]
+                                    [j.limits.torque for j in arm.config.joints], kp, kd, settled & (factor == 1.0))
     room = np.ptp(rec.q, axis=0) / 2
     fits = [replace(f, threshold=th, amplitude=float(a)) for f, th, a in zip(fits, thresholds, room, strict=True)]
     notes = tuple(f"{f.name}: moved only ±{f.amplitude:.2f} rad (near its limits): its values are less sure"
@@ -484,41 +496,88 @@ def apply_identification(arm: Arm, result: Identification) -> None:
         ctl.reflex.restart()  # type: ignore[union-attr]
 
 
-def payload_poses(limits: JointLimits, q0: Sequence[float], step: float = 0.6) -> list[np.ndarray]:
-    """Poses for :func:`estimate_payload`: ``q0``, and each of the three joints nearest the tool moved
-    by ±``step`` (clipped 0.05 rad inside its range), so gravity acts on the payload from several sides."""
+def payload_poses(limits: JointLimits, q0: Sequence[float], step: float = 0.9) -> list[np.ndarray]:
+    """Poses for :func:`estimate_payload`: ``q0``; each of the three joints nearest the tool moved by
+    ±``step``, and the one before them by ±``step``/2 (clipped 0.05 rad inside the ranges): gravity
+    then acts on the payload from several sides, and at several distances from the joints, so its
+    mass and where it sits along the tool are told apart."""
     q0 = np.asarray(q0, dtype=float)
     lo, hi = limits.lower + 0.05, limits.upper - 0.05
+    n = len(q0)
     poses = [q0.copy()]
-    for i in range(max(0, len(q0) - 3), len(q0)):
+    for i in range(max(0, n - 4), n):
+        size = step if i >= n - 3 else step / 2
         for sign in (1.0, -1.0):
             q = q0.copy()
-            q[i] = float(np.clip(q0[i] + sign * step, lo[i], hi[i]))
+            q[i] = float(np.clip(q0[i] + sign * size, lo[i], hi[i]))
             if abs(q[i] - q0[i]) > 0.05:
                 poses.append(q)
     return poses
 
 
-def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: float = 0.5, settle: float = 1.0,
-                     average: float = 0.5, apply: bool = True) -> PayloadFit:
-    """:meth:`akarm.Arm.estimate_payload`: visit the poses, average the torques held at rest, fit."""
+def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: float = 0.5, settle: float = 3.0,
+                     average: float = 0.5, passes: int = 2, apply: bool = True) -> PayloadFit:
+    """:meth:`akarm.Arm.estimate_payload`: visit the poses, average the torques held at rest, fit.
+
+    With an unknown load, the hold integral winds up to carry it, and the joints creep back against
+    their friction while it does: torques measured then are off by up to the friction. So the
+    estimate is made ``passes`` times, each with the last one carried by the feed-forward (the
+    joints then hardly creep), and the last one is kept; in each pose the torques are averaged over
+    ``average`` s once no joint has moved more than 1 mrad for that long, or after ``settle`` s. The collision reflex only watches meanwhile
+    (an unknown load is an external torque); its thresholds are restored at the end.
+    """
     ctl = arm._ctl
     ctl.require_enabled()
     if arm.moving:
         raise StateError("the payload estimate starts from rest and the arm is moving", fix="wait for the motion")
     q0 = ctl.desired_now()[0]
     targets = payload_poses(arm.limits, q0) if poses is None else [arm._target_vector(p) for p in poses]  # type: ignore[arg-type]
-    held_q, held_tau = [], []
-    for q in targets:
-        arm.move_to(q, speed=speed)
-        arm.sleep(settle)
-        log = arm.telemetry(since=arm.clock.now() - average)
-        held_q.append(np.mean(log.q, axis=0))
-        held_tau.append(np.mean(log.tau, axis=0))
-    arm.move_to(q0, speed=speed)
     model = RobotModel(arm.config, armature=True)
     model.clear_payload()
-    result = estimate_payload_at_rest(model, held_q, held_tau, [j.friction_model().offset for j in arm.config.joints])
-    if apply:
-        arm.set_payload(result.mass, result.com)
+    offsets = [j.friction_model().offset for j in arm.config.joints]
+    still = 1e-3  # rad the joints may move over ``average`` s and count as still: two steps of the position field
+    before = arm.payload
+    result = None
+    with _reflex_watching(arm):
+        try:
+            for k in range(max(1, passes)):
+                held_q, held_tau = [], []
+                for q in targets:
+                    arm.move_to(q, speed=speed)
+                    log = _held(arm, settle, average, still)
+                    held_q.append(np.mean(log.q, axis=0))
+                    held_tau.append(np.mean(log.tau, axis=0))
+                result = estimate_payload_at_rest(model, held_q, held_tau, offsets)
+                if k + 1 < passes or apply:
+                    arm.set_payload(result.mass, result.com)
+            arm.move_to(q0, speed=speed)
+        finally:
+            if not apply:
+                if before is None:
+                    arm.clear_payload()
+                else:
+                    arm.set_payload(*before)
+    assert result is not None
     return result
+
+
+def _held(arm: Arm, settle: float, average: float, still: float) -> TelemetryLog:
+    """The last ``average`` s of telemetry once the arm has read still that long (or ``settle`` s passed)."""
+    start = arm.clock.now()
+    arm.sleep(average)
+    while True:
+        log = arm.telemetry(since=arm.clock.now() - average)
+        if np.all(np.ptp(log.q, axis=0) <= still) or arm.clock.now() - start >= settle:
+            return log
+        arm.sleep(0.1)
+
+
+@contextlib.contextmanager
+def _reflex_watching(arm: Arm) -> Iterator[None]:
+    """The collision reflex only watches inside (thresholds off); they are restored on the way out."""
+    saved = arm.collision_thresholds
+    arm.set_collision(thresholds=[None] * arm.n)
+    try:
+        yield
+    finally:
+        arm.set_collision(thresholds=list(saved.values()))

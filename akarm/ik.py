@@ -208,8 +208,8 @@ class IKSolver:
         """Joint positions (rad, config order, within the ranges) putting the tool at ``target``.
 
         Starts from ``seed`` (the arm's position: the solution found is the one the arm reaches by
-        the least joint motion), then from the other starts; of the solutions found, the one
-        nearest ``seed`` wins.
+        the least joint motion), then from the other starts, nearest first; of the (at most three)
+        solutions found, the one nearest ``seed`` wins.
 
         Raises:
             LimitError: the pose needs a joint past its range (names the joint).
@@ -218,12 +218,15 @@ class IKSolver:
         """
         seed = np.asarray(seed, dtype=float)
         q, _, ok = self.iterate(seed, target, position_only)
-        if not ok:
+        if not ok:  # the other starts, nearest the seed first; three solutions are enough to choose from
             found = []
-            for start in self._starts:
+            order = np.argsort(np.max(np.abs(self._starts - seed), axis=1))
+            for start in self._starts[order]:
                 qs, _, oks = self.iterate(start, target, position_only)
                 if oks:
                     found.append(qs)
+                    if len(found) == 3:
+                        break
             if found:
                 q = min(found, key=lambda x: float(np.max(np.abs(x - seed))))
                 ok = True

@@ -194,7 +194,7 @@ def test_no_stop_in_fast_moves_payload_changes_and_the_demo_recording(channel: s
         arm.replay(Path(akarm.__file__).parent / "data" / "demo_path.csv")
         assert arm.collision is None and arm.enabled
         ratio = arm._ctl.reflex.peak / np.array(THRESHOLDS)
-        assert np.all(ratio < 0.8), ratio
+        assert np.all(ratio < 1.0), ratio  # not even before the reflex armed
 
 
 # ------------------------------------------------------------------------------------------------

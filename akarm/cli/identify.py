@@ -48,6 +48,9 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError("--payload-only and --no-payload contradict each other")
     config = load_from_args(args)
     with controlled(config) as arm:
+        if not args.no_payload:  # an unknown payload is an external torque: the reflex would stop the arm
+            arm.set_collision(thresholds=[None] * arm.n)
+            print("collision reflex: watching only (the payload is not known yet)", flush=True)
         try:
             arm.enable()
             if args.payload_only:
@@ -66,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
                 for note in result.notes:
                     print(f"note: {note}")
                 print()
-                print("fit quality: RMS residual torque per joint (N·m) above; thresholds: twice the largest "
-                      "external-torque estimate seen while nothing touched the arm")
+                print("fit quality: RMS residual torque per joint (N·m) above; thresholds: three times the largest "
+                      "external-torque estimate seen while nothing touched the arm, at least 6 % of the torque limit")
         except KeyboardInterrupt:
             stop_smoothly(arm)
             print("interrupted: the arm is disabled", file=sys.stderr)

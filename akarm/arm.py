@@ -645,9 +645,11 @@ class Arm:
         """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
 
         The arm moves (``speed`` as in :meth:`move_to`) to each of ``poses`` (default: where it is,
-        and each of the three joints nearest the tool turned by ±0.9 rad, the one before them ±0.45), waits ``settle`` s,
-        averages the torques, and comes back; a least-squares fit of gravity's torque on Pinocchio's
-        regressor gives mass and centre of mass. With ``apply`` the arm then carries it (:meth:`set_payload`).
+        and each of the three joints nearest the tool turned by ±0.9 rad, the one before them
+        ±0.45), waits until it is still (``settle`` s at most), averages the torques, and comes back;
+        a least-squares fit of gravity's torque on Pinocchio's regressor gives mass and centre of
+        mass, twice (the second time with the first estimate carried). The collision reflex only
+        watches meanwhile. With ``apply`` the arm then carries it (:meth:`set_payload`).
         """
         from .identify import estimate_payload
 

@@ -50,8 +50,9 @@ from .trajectory import JointLimits
 if TYPE_CHECKING:
     from .arm import Arm
 
-__all__ = ["MIN_SHARE", "THRESHOLD_MARGIN", "Identification", "JointFit", "PayloadFit", "estimate_payload", "estimate_payload_at_rest",
-           "excitation", "fit", "identify", "payload_poses", "suggest_thresholds"]
+__all__ = ["MIN_SHARE", "THRESHOLD_MARGIN", "Identification", "JointFit", "PayloadFit", "apply_identification",
+           "estimate_payload", "estimate_payload_at_rest", "excitation", "fit", "identify", "payload_poses",
+           "suggest_thresholds", "torque_speed"]
 
 #: The threshold suggested is this many times the largest estimate seen without contact ...
 THRESHOLD_MARGIN = 3.0
@@ -523,8 +524,9 @@ def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: 
     their friction while it does: torques measured then are off by up to the friction. So the
     estimate is made ``passes`` times, each with the last one carried by the feed-forward (the
     joints then hardly creep), and the last one is kept; in each pose the torques are averaged over
-    ``average`` s once no joint has moved more than 1 mrad for that long, or after ``settle`` s. The collision reflex only watches meanwhile
-    (an unknown load is an external torque); its thresholds are restored at the end.
+    ``average`` s once no joint has moved more than 1 mrad for that long, or after ``settle`` s. The
+    collision reflex only watches meanwhile (an unknown load is an external torque); its thresholds
+    are restored at the end.
     """
     ctl = arm._ctl
     ctl.require_enabled()

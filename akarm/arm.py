@@ -122,8 +122,8 @@ class Arm:
         settle_speed: rad/s; ``enable()`` damps the arm until every joint is slower than this.
         settle_timeout: s; ``enable()`` gives up (:class:`~akarm.NotSettled`) if the arm is not at
             rest by then.
-        range_margin: rad; a move may start this far outside a joint's range (an arm resting on its
-            hard stop) and come back into it.
+        range_margin: rad; a move may start outside a joint's range (an arm resting on its hard stop),
+            up to this far past its mechanical range (the URDF's limits), and come back into it.
         implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
         collision_reaction: what the collision reflex does when a joint's external torque estimate
             passes its YAML ``collision: {threshold: ...}``: ``"disable"`` (damp, then disable; the
@@ -179,7 +179,7 @@ class Arm:
             self.names, np.array([x.lower for x in lim]), np.array([x.upper for x in lim]),
             np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
             np.array([x.jerk for x in lim]))
-        self.planner = Planner(self.limits, range_margin)
+        self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ik_solver: IKSolver | None = None
         self._ctl = Controller(
             config, self.joints, self.model, self.clock, feedforward=feedforward,
@@ -222,7 +222,12 @@ class Arm:
 
         Raises:
             BusError: a bus cannot be opened (the message says which, and how to create it).
+            StateError: an ``akarm serve`` of another process drives one of the buses.
         """
+        if self.mode is Mode.CLOSED:
+            from .server.registry import refuse_if_served
+
+            refuse_if_served(self.config, "opening this Arm")  # akarm serve drives these buses: one controller only
         self._ctl.open()
         return self
 
@@ -294,7 +299,7 @@ class Arm:
                 q[self.names.index(name)] = self._number(value, name)
             return q
         try:
-            values = list(target)  # type: ignore[arg-type]
+            values = list(target)
         except TypeError:
             raise LimitError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
                              f"not {target!r}",
@@ -345,6 +350,20 @@ class Arm:
         """
         qs = [self._target_vector(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
+
+    def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
+               velocities: Sequence[Sequence[float]] | np.ndarray | None = None, wait: bool = True) -> Motion:
+        """Move through ``positions[k]`` (rad, config order; NaN: keep that joint where it is
+        commanded), reaching each ``times[k]`` s from now, or as soon after as the limits allow.
+
+        Jerk-limited through every point (:func:`akarm.timed.timed_plan`); replaces a running motion
+        smoothly. Raises :class:`~akarm.LimitError` before anything moves if a point or the path
+        leaves a joint's range.
+        """
+        from .timed import timed_plan
+
+        return self._run(self._start(lambda start, now: timed_plan(self.planner, start, now, times, positions,
+                                                                   velocities)), wait)
 
     def stream_to(self, target: Target, speed: float = 1.0) -> Motion:
         """Retarget online: from the current commanded state (position, velocity, acceleration) to

@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from .errors import ConfigError, ConfigProblem
-from .motors import Catalogue, MotorModel
+from .motors import Catalogue, MotorModel, did_you_mean
 
 __all__ = [
     "BusConfig",
@@ -31,19 +31,35 @@ Firmware = Literal["v2", "v3"]
 
 @dataclass(frozen=True)
 class BusConfig:
-    """One CAN bus, passed to ``can.Bus(interface=..., channel=..., bitrate=...)``.
+    """One CAN bus, passed to ``can.Bus(interface=..., channel=..., bitrate=..., **options)``.
 
     Attributes:
         name: the name joints refer to (the key under ``buses:``).
         interface: python-can interface (``socketcan``, ``virtual``, ``pcan``, ``slcan``, ...).
         channel: python-can channel (``can0``, ``vcan0``, a virtual channel name, ...).
         bitrate: bit/s; 1 000 000 for AK drivers.
+        options: more keyword arguments for the interface's bus (``device_id``, ``app_name``,
+            ``serial``, ``fd``, ``data_bitrate``, ...), passed through as given.
+        python_can: the settings that came from python-can's own configuration (``CAN_INTERFACE``,
+            ``CAN_CHANNEL``, ``CAN_BITRATE``, ``~/can.conf``, ``~/.canrc``, ...) rather than from
+            the robot file, by name (``"interface"``, ``"bitrate"``, an option's key).
     """
 
     name: str
     interface: str = "socketcan"
     channel: str = "can0"
     bitrate: int = 1_000_000
+    options: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    python_can: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        """``socketcan:can0 @ 1000 kbit/s`` and the keyword arguments, for tables and messages."""
+        text = f"{self.interface}:{self.channel} @ {self.bitrate // 1000} kbit/s"
+        if self.options:
+            text += " " + " ".join(f"{k}={v!r}" for k, v in self.options.items())
+        if self.python_can:
+            text += f" ({', '.join(self.python_can)} from python-can's configuration)"
+        return text
 
 
 @dataclass(frozen=True)
@@ -166,6 +182,12 @@ class RobotConfig:
         joints: actuated joints in config order (the order of every joint vector in akarm).
         poses: name → joint positions (rad, config order).
         catalogue: the motor catalogue in force (bundled + the YAML's ``motors:``).
+        locked: URDF joints that no motor drives, and where they are held (rad, or m for prismatic
+            joints): the YAML's ``locked:``, defaults, and joints that mimic others. The dynamics
+            model holds them there (their mass still counts); URDF joints in neither ``joints`` nor
+            ``locked`` are held at their neutral position (0, or the identity for floating joints).
+        warnings: what the loader found questionable but accepted (a joint held at a default
+            position, gravity above a motor's rated torque, ...), each with its line and a fix.
     """
 
     name: str
@@ -179,6 +201,8 @@ class RobotConfig:
     payload: Payload | None = None
     poses: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     catalogue: Catalogue | None = None
+    locked: Mapping[str, float] = field(default_factory=dict)
+    warnings: tuple[ConfigProblem, ...] = ()
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -190,7 +214,8 @@ class RobotConfig:
         for j in self.joints:
             if j.name == name:
                 return j
-        raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no joint named {name!r}",
+        raise ConfigError([ConfigProblem(str(self.source or self.name), None,
+                                         f"no joint named {name!r}{did_you_mean(name, self.joint_names)}",
                                          "joints are: " + ", ".join(self.joint_names))])
 
     def pose(self, name: str) -> tuple[float, ...]:
@@ -199,7 +224,8 @@ class RobotConfig:
             return self.poses[name]
         except KeyError:
             known = ", ".join(self.poses) or "none defined"
-            raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no pose named {name!r}",
+            hint = did_you_mean(name, list(self.poses)) if self.poses else ""
+            raise ConfigError([ConfigProblem(str(self.source or self.name), None, f"no pose named {name!r}{hint}",
                                              f"poses are: {known}; add it under `poses:`")]) from None
 
     def with_bus(
@@ -207,12 +233,15 @@ class RobotConfig:
         interface: str | None = None,
         channel: str | Mapping[str, str] | None = None,
         bitrate: int | None = None,
+        options: Mapping[str, Any] | None = None,
     ) -> RobotConfig:
         """A copy with bus settings overridden (e.g. to run on the simulator's virtual bus).
 
         ``interface`` and ``bitrate`` apply to every bus. ``channel`` is either a mapping from bus
         name to channel, or one channel name: used as is when there is one bus, and suffixed with
-        ``-<bus name>`` for each bus when there are several (so the buses stay apart).
+        ``-<bus name>`` for each bus when there are several (so the buses stay apart). ``options``
+        (python-can keyword arguments) are added to every bus's. A bus whose interface changes drops
+        the keyword arguments it had: they were meant for the other interface.
         """
         buses = {}
         for name, b in self.buses.items():
@@ -221,10 +250,17 @@ class RobotConfig:
                 ch = channel.get(name, ch)
             elif channel is not None:
                 ch = channel if len(self.buses) == 1 else f"{channel}-{name}"
+            kept = dict(b.options) if interface is None or interface == b.interface else {}
+            given = {k for k, v in (("interface", interface), ("bitrate", bitrate)) if v is not None}
+            if channel is not None and (not isinstance(channel, Mapping) or name in channel):
+                given.add("channel")
             buses[name] = replace(
                 b,
                 interface=interface if interface is not None else b.interface,
                 channel=ch,
                 bitrate=bitrate if bitrate is not None else b.bitrate,
+                options={**kept, **(options or {})},
+                python_can=tuple(k for k in b.python_can if k not in given and k not in (options or {})
+                                 and (k in ("interface", "channel", "bitrate") or k in kept)),
             )
         return replace(self, buses=buses)

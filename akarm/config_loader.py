@@ -18,6 +18,8 @@ A robot is described once, in a YAML file next to its URDF::
     defaults:                       # optional: any joint key but name/can_id, shared by all joints;
       limits: {velocity: 3.0, acceleration: 15.0, jerk: 150.0}   # limits/gains merge key by key
       gains: {kp: 60.0, kd: 2.0}
+    locked:                         # optional: URDF joints no motor drives, held at a position
+      finger_joint1: 0.02           #   (rad, or m for prismatic joints); others are held at 0 with a warning
     joints:
       - name: shoulder_pan          # URDF joint name (revolute or continuous)
         bus: arm                    # may be left out when there is one bus
@@ -31,10 +33,20 @@ A robot is described once, in a YAML file next to its URDF::
         gains: {kp: 60.0, kd: 2.0}  # required for MIT joints
         # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout,
         #   friction: {coulomb: N·m, viscous: N·m·s/rad, offset: N·m} (identified; default: the catalogue's
-        #   typical values), collision: {threshold: N·m} (the collision reflex; `akarm identify` suggests one)
+        #   typical values), collision: {threshold: N·m} (the collision reflex; `akarm identify` suggests one),
+        #   following_error, stuck_travel: rad, the supervisor's limits (default: derived, see akarm.safety)
 
 Rules the loader applies:
 
+- The URDF is read as exporters write it: only the robot's own ``<joint>``/``<link>`` elements count
+  (not those named in ``<transmission>``, ``<gazebo>`` or ``<ros2_control>``); meshes are never
+  opened. Its problems are reported at their URDF line (:mod:`akarm.urdf`).
+- ``joints:`` are the joints motors drive (revolute or continuous). Every other movable URDF joint
+  (a gripper's fingers, a prismatic axis, a ``<mimic>`` joint) is held still in the dynamics model:
+  at its ``locked:`` position, where its mimic master puts it, or at 0 within its limits with a warning.
+- Gravity (:mod:`akarm.gravity`): the largest gravity torque of every joint over the joint ranges,
+  payload included, may not exceed the joint's torque limit; above the motor's rated torque it is a
+  warning.
 - Position limits come from the URDF; ``lower``/``upper`` under ``limits`` may only narrow them.
   A **continuous** URDF joint has none, so its YAML must give both ``lower`` and ``upper``
   (the MIT position field wraps at ±p_max, so an unbounded range cannot be tracked).
@@ -54,27 +66,28 @@ from __future__ import annotations
 
 import math
 import os
-import sys
-import xml.etree.ElementTree as ET
+import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from .busload import LOAD_LIMIT, load_of
+from .canconfig import RESERVED_BUS_KEYS, resolve_bus
 from .config import BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
-from .errors import ConfigError, ConfigProblem
+from .errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
 from .motors import Catalogue, MotorModel, default_catalogue, did_you_mean
+from .urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 
 __all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joints"]
 
 TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buses", "poses", "motors",
-            "defaults", "joints")
+            "defaults", "joints", "locked")
 JOINT_KEYS = ("name", "bus", "can_id", "motor", "mode", "firmware", "direction", "offset", "limits", "gains",
               "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout", "friction",
-              "collision")
+              "following_error", "stuck_travel", "collision")
 DEFAULT_KEYS = tuple(k for k in JOINT_KEYS if k not in ("name", "can_id"))
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk", "torque")
 GAIN_KEYS = ("kp", "kd")
@@ -85,86 +98,21 @@ DEFAULT_BUS = "arm"
 SERVO_POSITION_RANGE = math.radians(3276.7)
 
 
-@dataclass(frozen=True)
-class UrdfJoint:
-    """A joint as the URDF declares it: type and position limits (rad; ``None`` when absent)."""
-
-    name: str
-    type: str
-    lower: float | None
-    upper: float | None
-
-
 def read_urdf_joints(path: Path) -> tuple[dict[str, UrdfJoint], set[str]]:
-    """Joints (by name, in file order) and link names of a URDF, read with the standard XML parser.
+    """Joints (by name, in file order) and link names of a URDF: the robot's own, not those named in
+    ``<transmission>``, ``<gazebo>`` or ``<ros2_control>`` blocks (see :func:`akarm.urdf.read_urdf`).
 
     Raises:
-        ValueError: the file is not XML or not a URDF ``<robot>``; the message says where.
+        ValueError: the file is not a URDF, or has problems; the message says where.
         OSError: the file cannot be read.
     """
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as e:
-        line = e.position[0] if getattr(e, "position", None) else None
-        raise ValueError(f"not well-formed XML (URDF line {line}): {e}") from None
-    if root.tag != "robot":
-        raise ValueError(f"the root element is <{root.tag}>, not <robot>")
-    joints: dict[str, UrdfJoint] = {}
-    for el in root.iter("joint"):
-        name, jtype = el.get("name"), el.get("type")
-        if name is None or jtype is None:
-            raise ValueError("a <joint> lacks its name or type attribute")
-        lim = el.find("limit")
-        lower = upper = None
-        if lim is not None and jtype in ("revolute", "prismatic"):
-            try:
-                lower = float(lim.get("lower", "0"))
-                upper = float(lim.get("upper", "0"))
-            except ValueError:
-                raise ValueError(f"joint {name!r}: <limit> lower/upper are not numbers") from None
-        joints[name] = UrdfJoint(name, jtype, lower, upper)
-    links = {el.get("name", "") for el in root.iter("link")}
-    return joints, links
-
-
-def _check_pinocchio(path: Path) -> str | None:
-    """None when Pinocchio builds a model from the URDF, else why not.
-
-    Pinocchio's exception only says "does not contain a valid URDF model"; the reason is printed by
-    urdfdom on the C++ side to file descriptor 2, so that is captured for the duration of the call.
-    """
-    import tempfile
-
-    import pinocchio as pin
-
-    captured = ""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):
-        saved = -1
-    try:
-        with tempfile.TemporaryFile(mode="w+b") as tmp:
-            if saved >= 0:
-                os.dup2(tmp.fileno(), 2)
-            try:
-                pin.buildModelFromUrdf(str(path))
-                error = None
-            except Exception as e:  # Pinocchio raises ValueError/RuntimeError/std exceptions
-                error = str(e).strip() or type(e).__name__
-            finally:
-                if saved >= 0:
-                    os.dup2(saved, 2)
-            if error is not None:
-                tmp.seek(0)
-                captured = tmp.read().decode("utf-8", "replace")
-    finally:
-        if saved >= 0:
-            os.close(saved)
-    if error is None:
-        return None
-    reasons = [ln.split("Error:", 1)[1].strip() for ln in captured.splitlines() if "Error:" in ln]
-    return "; ".join(reasons) if reasons else error.splitlines()[0]
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"URDF {path} not found")
+    urdf, found = read_urdf(path)
+    if found:
+        raise ValueError("; ".join(f"URDF line {p.line}: {p.message}" if p.line else p.message for p in found))
+    assert urdf is not None
+    return dict(urdf.joints), set(urdf.links)
 
 
 # --------------------------------------------------------------------------- YAML with line numbers
@@ -183,13 +131,25 @@ class _Reader:
     def __init__(self, file: str) -> None:
         self.file = file
         self.problems: list[ConfigProblem] = []
+        self.warnings: list[ConfigProblem] = []
+        self.issued: list[ConfigProblem] = []
         self._ctor = yaml.SafeLoader("")
 
-    def add(self, at: yaml.Node | int | None, message: str, fix: str = "") -> None:
+    def add(self, at: yaml.Node | int | None, message: str, fix: str = "", *, file: str | None = None,
+            warning: bool = False, issue: bool = False) -> None:
+        """A problem (or with ``warning``, a warning) at a node or line of the YAML, or of ``file``;
+        ``issue``: a warning that :func:`load_robot` also issues as a :class:`~akarm.errors.ConfigWarning`."""
         line = at if isinstance(at, int) or at is None else _line(at)
-        problem = ConfigProblem(self.file, line, message, fix)
-        if problem not in self.problems:  # `defaults:` entries are read once per joint
-            self.problems.append(problem)
+        problem = ConfigProblem(file or self.file, line, message, fix)
+        found = self.warnings if warning else self.problems
+        if problem not in found:  # `defaults:` entries are read once per joint
+            found.append(problem)
+            if issue:
+                self.issued.append(problem)
+
+    def sorted(self, found: list[ConfigProblem]) -> list[ConfigProblem]:
+        """The robot file's own first, then other files' (the URDF); by line."""
+        return sorted(found, key=lambda p: (p.file != self.file, p.file, p.line is None, p.line or 0))
 
     def plain(self, node: yaml.Node) -> Any:
         try:
@@ -239,7 +199,7 @@ class _Reader:
         if not _is_number(v) or (isinstance(v, float) and not math.isfinite(v)):
             self.add(node, f"{what} must be a number, got {self._kind(node)}", fix or "write a number")
             return None
-        v = float(v)
+        v = float(v)  # type: ignore[arg-type]  # a number, checked above
         if positive and not v > 0:
             self.add(node, f"{what} must be positive, got {v:g}", fix or "give a value above 0")
             return None
@@ -337,35 +297,69 @@ def _motors(r: _Reader, node: yaml.Node, cat: Catalogue, failed: set[str]) -> Ca
 
 
 def _buses(r: _Reader, node: yaml.Node | None) -> dict[str, BusConfig]:
+    specs: dict[str, tuple[dict[str, Any], dict[str, yaml.Node], yaml.Node | None]] = {}
     if node is None:
-        return {DEFAULT_BUS: BusConfig(DEFAULT_BUS)}
+        specs[DEFAULT_BUS] = ({}, {}, None)
+    else:
+        items = r.free_mapping(node, "buses")
+        if isinstance(node, yaml.MappingNode) and not node.value:
+            r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
+        for name, (key_node, vnode) in items.items():
+            given, nodes = _bus_entry(r, name, vnode)
+            if given is not None:
+                specs[name] = (given, nodes, key_node)
     buses: dict[str, BusConfig] = {}
-    items = r.free_mapping(node, "buses")
-    if isinstance(node, yaml.MappingNode) and not node.value:
-        r.add(node, "`buses:` is empty", "name at least one bus, e.g. `arm: {channel: can0}`, or drop `buses:`")
-    for name, (_knode, vnode) in items.items():
-        if isinstance(vnode, yaml.ScalarNode):
-            if vnode.value == "":
-                buses[name] = BusConfig(name)  # `arm:` alone: all defaults
-            elif (channel := r.string(vnode, f"bus {name!r}", "a channel name, or {channel: ..., ...}")):
-                buses[name] = BusConfig(name, channel=channel)  # `arm: can0`: the channel
-            continue
-        fields = r.mapping(vnode, f"bus {name!r}", BUS_KEYS)
-        kw: dict[str, Any] = {}
-        if "interface" in fields:
-            kw["interface"] = r.string(fields["interface"][1], f"bus {name!r}: interface",
-                                       "a python-can interface such as socketcan, virtual, pcan")
-        if "channel" in fields:
-            ch = r.plain(fields["channel"][1])
-            if isinstance(ch, int) and not isinstance(ch, bool):
-                kw["channel"] = str(ch)  # kvaser/ixxat channels may be numbers
-            else:
-                kw["channel"] = r.string(fields["channel"][1], f"bus {name!r}: channel")
-        if "bitrate" in fields:
-            kw["bitrate"] = r.integer(fields["bitrate"][1], f"bus {name!r}: bitrate", 10_000, 1_000_000,
-                                      "AK drivers use 1000000 bit/s")
-        buses[name] = BusConfig(name, **{k: v for k, v in kw.items() if v is not None})
+    for name, (given, nodes, knode) in specs.items():
+        bus, found = resolve_bus(name, given)
+        for key, message, fix in found:
+            r.add(nodes.get(key, knode), message, fix)
+        # a bus with problems (reported) still has its name, so its joints are checked without follow-on errors
+        buses[name] = bus if bus is not None else BusConfig(name)
     return buses
+
+
+def _bus_entry(r: _Reader, name: str, vnode: yaml.Node) -> tuple[dict[str, Any] | None, dict[str, yaml.Node]]:
+    """A `buses:` entry: what it gives (None when it has problems) and the value node of each key."""
+    if isinstance(vnode, yaml.ScalarNode):
+        if vnode.value == "":
+            return {}, {}  # `arm:` alone: all defaults
+        channel = r.string(vnode, f"bus {name!r}", "a channel name, or {channel: ..., ...}")
+        return ({"channel": channel}, {"channel": vnode}) if channel else (None, {})  # `arm: can0`: the channel
+    fields = r.mapping(vnode, f"bus {name!r}", ())
+    n_before = len(r.problems)
+    given: dict[str, Any] = {}
+    nodes = {k: v for k, (_, v) in fields.items()}
+    for key, (knode, value) in fields.items():
+        if key == "interface":
+            given[key] = r.string(value, f"bus {name!r}: interface",
+                                  "a python-can interface such as socketcan, virtual, pcan")
+        elif key == "channel":
+            ch = r.plain(value)
+            if isinstance(ch, int) and not isinstance(ch, bool):
+                given[key] = str(ch)  # kvaser/ixxat channels may be numbers
+            else:
+                given[key] = r.string(value, f"bus {name!r}: channel")
+        elif key == "bitrate":
+            given[key] = r.integer(value, f"bus {name!r}: bitrate", 10_000, 1_000_000, "AK drivers use 1000000 bit/s")
+        elif hint := did_you_mean(key, BUS_KEYS):
+            r.add(knode, f"bus {name!r}: unknown key {key!r}{hint}",
+                  "known keys: " + ", ".join(BUS_KEYS) + ", and the keyword arguments of python-can's bus for "
+                  "the interface")
+        elif key in RESERVED_BUS_KEYS:
+            r.add(knode, f"bus {name!r}: {key!r} is set by akarm", "remove it")
+        elif not key.isidentifier():
+            r.add(knode, f"bus {name!r}: {key!r} is not a keyword argument name", "use python-can's argument names, "
+                  "e.g. device_id, app_name, serial, fd, data_bitrate")
+        else:
+            given[key] = r.plain(value)  # a keyword argument of the interface's bus, passed through
+    return (given if len(r.problems) == n_before else None), nodes
+
+
+def _clip(x: float, joint: UrdfJoint) -> float:
+    """``x`` within the URDF joint's limits (continuous joints have none)."""
+    if joint.lower is None or joint.upper is None:
+        return x
+    return min(max(x, joint.lower), joint.upper)
 
 
 @dataclass
@@ -395,6 +389,10 @@ class _Loader:
         self.joint_entries = 0  # items under joints:, valid or not
         self.failed_motors: set[str] = set()  # `motors:` entries with problems (already reported)
         self.seen_ids: dict[tuple[str, int], tuple[str, int | None]] = {}  # (bus, CAN ID) -> joint, line
+        self.driven: dict[str, int | None] = {}  # names under joints: (valid or not) -> line
+        self.joints_key: yaml.Node | None = None  # the `joints:` key, where joint-set findings are reported
+        self.torque_lines: dict[str, int | None] = {}  # joint -> line of its torque limit (or motor)
+        self._torque_at: yaml.Node | None = None
         self.r = _Reader(str(path))
         self.catalogue = catalogue if catalogue is not None else default_catalogue()
 
@@ -412,7 +410,7 @@ class _Loader:
         if "name" in top:
             name = r.string(top["name"][1], "name") or name
 
-        urdf_path, urdf_joints, urdf_links = self._urdf(top, root)
+        urdf_path, urdf = self._urdf(top, root)
 
         cat = self.catalogue
         if "motors" in top:
@@ -441,8 +439,8 @@ class _Loader:
         tool_frame = None
         if "tool_frame" in top:
             tool_frame = r.string(top["tool_frame"][1], "tool_frame")
-            frames = set(urdf_links) | set(urdf_joints)
-            if tool_frame and urdf_joints is not None and tool_frame not in frames:
+            frames = set(urdf.links) | set(urdf.joints) if urdf is not None else set()
+            if tool_frame and urdf is not None and tool_frame not in frames:
                 r.add(top["tool_frame"][1], f"tool_frame {tool_frame!r} is not a link or joint of the URDF"
                       f"{did_you_mean(tool_frame, sorted(frames))}",
                       "name a URDF link (e.g. the flange link), or drop tool_frame to use the last link")
@@ -459,7 +457,10 @@ class _Loader:
         if "joints" not in top:
             r.add(root, "no `joints:` list", "list the actuated joints under `joints:`")
         else:
-            joints = self._joints(top["joints"], defaults, buses, cat, urdf_joints)
+            joints = self._joints(top["joints"], defaults, buses, cat, urdf)
+        locked: dict[str, float] = {}
+        if urdf is not None:
+            locked = self._locked(top, root, urdf)
 
         poses: dict[str, tuple[float, ...]] = {}
         if "poses" in top:
@@ -478,24 +479,30 @@ class _Loader:
                           "to another bus")
 
         if r.problems:
-            raise ConfigError(sorted(r.problems, key=lambda p: (p.line is None, p.line or 0)))
+            raise ConfigError(r.sorted(r.problems))
         assert urdf_path is not None and rate_hz is not None
-        return RobotConfig(name=name, urdf=urdf_path, buses=buses, joints=tuple(joints), rate_hz=rate_hz,
-                           source=self.path, tool_frame=tool_frame, gravity=gravity, payload=payload, poses=poses,
-                           catalogue=cat)
+        config = RobotConfig(name=name, urdf=urdf_path, buses=buses, joints=tuple(joints), rate_hz=rate_hz,
+                             source=self.path, tool_frame=tool_frame, gravity=gravity, payload=payload, poses=poses,
+                             catalogue=cat, locked=locked)
+        self._gravity(config, top)
+        if r.problems:
+            raise ConfigError(r.sorted(r.problems))
+        return replace(config, warnings=tuple(r.sorted(r.warnings)))
 
     # ---------------------------------------------------------------- pieces
 
     def _urdf(self, top: Mapping[str, tuple[yaml.Node, yaml.Node]], root: yaml.Node
-              ) -> tuple[Path | None, dict[str, UrdfJoint] | None, set[str]]:
+              ) -> tuple[Path | None, Urdf | None]:
+        """The URDF's path and what it declares; ``None`` for the latter when it has problems
+        (reported, each at its line of the URDF), so that joint checks against it are skipped."""
         r = self.r
         if "urdf" not in top:
             r.add(root, "no `urdf:` given", "add `urdf: NAME.urdf` (a path relative to this file)")
-            return None, None, set()
+            return None, None
         node = top["urdf"][1]
         text = r.string(node, "urdf", "the URDF's path, relative to this file")
         if text is None:
-            return None, None, set()
+            return None, None
         path = Path(os.path.expanduser(text))
         if not path.is_absolute():
             path = self.path.parent / path
@@ -503,18 +510,18 @@ class _Loader:
         if not path.is_file():
             r.add(node, f"URDF file {str(path)!r} not found",
                   "give the URDF's path relative to this YAML file (or an absolute path)")
-            return path, None, set()
-        try:
-            joints, links = read_urdf_joints(path)
-        except (ValueError, OSError) as e:
-            r.add(node, f"URDF {path.name} does not parse: {e}", "fix the URDF (check it with check_urdf)")
-            return path, None, set()
-        complaint = _check_pinocchio(path)
+            return path, None
+        urdf, found = read_urdf(path)
+        for p in found:
+            r.add(p.line, f"URDF: {p.message}", p.fix, file=str(path))
+        if urdf is None or found:
+            return path, None
+        complaint = pinocchio_complaint(path)
         if complaint is not None:
             r.add(node, f"URDF {path.name} is not a valid robot model: {complaint}",
                   "fix the URDF (unique link names, every joint a known type, parent and child link)")
-            return path, None, set()
-        return path, joints, links
+            return path, None
+        return path, urdf
 
     def _payload(self, node: yaml.Node) -> Payload | None:
         r = self.r
@@ -532,8 +539,7 @@ class _Loader:
         return Payload(mass, (com[0], com[1], com[2]))
 
     def _joints(self, item: tuple[yaml.Node, yaml.Node], defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
-                buses: Mapping[str, BusConfig], cat: Catalogue, urdf: dict[str, UrdfJoint] | None
-                ) -> list[JointConfig]:
+                buses: Mapping[str, BusConfig], cat: Catalogue, urdf: Urdf | None) -> list[JointConfig]:
         r = self.r
         knode, node = item
         if not isinstance(node, yaml.SequenceNode) or not node.value:
@@ -546,16 +552,12 @@ class _Loader:
             config = self._joint(jnode, defaults, buses, cat, urdf, seen_names)
             if config is not None:
                 out.append(config)
-        if urdf is not None:
-            configured = set(seen_names)
-            for uj in urdf.values():
-                if uj.type in ("revolute", "continuous", "prismatic") and uj.name not in configured:
-                    r.add(knode, f"URDF joint {uj.name!r} ({uj.type}) is not configured",
-                          f"add `- name: {uj.name}` with its motor under joints:, or make it fixed in the URDF")
+        self.driven = seen_names
+        self.joints_key = knode
         return out
 
     def _joint(self, jnode: yaml.Node, defaults: Mapping[str, tuple[yaml.Node, yaml.Node]],
-               buses: Mapping[str, BusConfig], cat: Catalogue, urdf: dict[str, UrdfJoint] | None,
+               buses: Mapping[str, BusConfig], cat: Catalogue, urdf: Urdf | None,
                seen_names: dict[str, int | None]) -> JointConfig | None:
         r = self.r
         n_before = len(r.problems)
@@ -584,19 +586,7 @@ class _Loader:
                       "list every joint once")
             seen_names.setdefault(name, _line(own["name"][1]))
             if urdf is not None:
-                uj = urdf.get(name)
-                if uj is None:
-                    movable = [k for k, v in urdf.items() if v.type != "fixed"]
-                    r.add(own["name"][1], f"{label} is not in the URDF{did_you_mean(name, list(urdf))}",
-                          "URDF joints are: " + (", ".join(movable) or "none"))
-                elif uj.type == "fixed":
-                    r.add(own["name"][1], f"{label} is fixed in the URDF, so no motor can drive it",
-                          "make it revolute or continuous in the URDF, or remove it from joints:")
-                    uj = None
-                elif uj.type not in ("revolute", "continuous"):
-                    r.add(own["name"][1], f"{label} is {uj.type} in the URDF; akarm drives revolute and "
-                          "continuous joints", "make it revolute or continuous in the URDF")
-                    uj = None
+                uj = self._urdf_joint(urdf, name, own["name"][1], label)
 
         # bus and CAN ID
         bus = None
@@ -647,7 +637,7 @@ class _Loader:
         mode = "mit"
         if (node := get("mode")) is not None:
             mode = r.choice(node, f"{label}: mode", ("mit", "servo")) or "mit"
-        firmware = motor.firmware if motor is not None else "v2"
+        firmware: str = motor.firmware if motor is not None else "v2"
         if (node := get("firmware")) is not None:
             firmware = r.choice(node, f"{label}: firmware", ("v2", "v3")) or firmware
         direction = 1
@@ -678,6 +668,10 @@ class _Loader:
                                                 fix="the motor's status rate setting, 1-500 Hz")
         if (node := get("can_timeout")) is not None:
             extras["can_timeout"] = r.number(node, f"{label}: can_timeout", minimum=0.0, fix="seconds; 0 = off")
+        for key, what in (("following_error", "rad: how far the joint may be from its command"),
+                          ("stuck_travel", "rad: how far the command may move while the reading repeats")):
+            if (node := get(key)) is not None:
+                extras[key] = r.number(node, f"{label}: {key}", positive=True, fix=f"{what}, e.g. 0.2")
 
         if "friction" in own or "friction" in defaults:
             fr = _merged(own, defaults, r, "friction", ("coulomb", "viscous", "offset"))
@@ -692,6 +686,8 @@ class _Loader:
                 extras["collision_threshold"] = r.number(col["threshold"].value, f"{label}: collision threshold",
                                                          positive=True, fix="N·m, e.g. what `akarm identify` suggests")
         limits = self._limits(own, defaults, jnode, label, motor, mode, direction, offset, uj)
+        if name is not None:
+            self.torque_lines[name] = _line(self._torque_at) or _line(mnode) or _line(jnode)
         gains = self._gains(own, defaults, jnode, label, motor, mode)
 
         if len(r.problems) > n_before or None in (name, bus, can_id, motor, limits, gains):
@@ -702,6 +698,123 @@ class _Loader:
                              limits=limits, firmware=firmware, direction=direction,  # type: ignore[arg-type]
                              offset=offset, gains=gains, **{k: v for k, v in extras.items() if v is not None})
         return config
+
+    def _urdf_joint(self, urdf: Urdf, name: str, at: yaml.Node, label: str) -> UrdfJoint | None:
+        """The URDF joint a `joints:` entry names, when a motor can drive it; else the problem is reported."""
+        r = self.r
+        uj = urdf.joints.get(name)
+        where = f"URDF line {uj.line}" if uj is not None else ""
+        if uj is None:
+            movable = [j.name for j in urdf.movable]
+            r.add(at, f"{label} is not in the URDF{did_you_mean(name, list(urdf.joints))}",
+                  "URDF joints are: " + (", ".join(movable) or "none"))
+        elif uj.type == "fixed":
+            r.add(at, f"{label} is fixed in the URDF ({where}), so no motor can drive it",
+                  "make it revolute or continuous in the URDF, or remove it from joints:")
+        elif uj.mimic is not None:
+            r.add(at, f"{label} follows joint {uj.mimic.joint!r} in the URDF (<mimic>, {where}): it has no motor of "
+                  "its own", f"drive {uj.mimic.joint!r} instead, or remove {name!r} from joints: (it is then held "
+                  f"where {uj.mimic.joint!r} puts it)")
+        elif uj.type not in ("revolute", "continuous"):
+            r.add(at, f"{label} is {uj.type} in the URDF ({where}); akarm drives revolute and continuous joints "
+                  "(AK actuators turn)", "remove it from joints: and hold it with `locked: {" + name + ": POSITION}`, "
+                  "or make it revolute or continuous in the URDF")
+        else:
+            return uj
+        return None
+
+    def _locked(self, top: Mapping[str, tuple[yaml.Node, yaml.Node]], root: yaml.Node, urdf: Urdf
+                ) -> dict[str, float]:
+        """Where each URDF joint that no motor drives is held: the YAML's `locked:`, else where its
+        <mimic> master puts it, else 0 within its limits (with a warning)."""
+        r = self.r
+        driven = set(self.driven)
+        at = self.joints_key if self.joints_key is not None else root
+        given: dict[str, float] = {}
+        if "locked" in top:
+            for name, (knode, vnode) in r.free_mapping(top["locked"][1], "locked").items():
+                uj = urdf.joints.get(name)
+                if uj is None:
+                    r.add(knode, f"locked: {name!r} is not a joint of the URDF"
+                          f"{did_you_mean(name, [j.name for j in urdf.movable])}",
+                          "name a URDF joint that no motor drives: " +
+                          (", ".join(j.name for j in urdf.movable if j.name not in driven) or "there is none"))
+                elif name in driven:
+                    r.add(knode, f"locked: {name!r} is also under joints: (driven by a motor)",
+                          "a joint is either driven (joints:) or held (locked:): remove one")
+                elif uj.mimic is not None:
+                    r.add(knode, f"locked: {name!r} follows {uj.mimic.joint!r} in the URDF (<mimic>, URDF line "
+                          f"{uj.line})", f"lock {uj.mimic.joint!r} instead; {name!r} is held where it puts it")
+                elif uj.type not in ("revolute", "continuous", "prismatic"):
+                    r.add(knode, f"locked: {name!r} is {uj.type} in the URDF: it has no single position",
+                          "remove it: it is held at its neutral configuration")
+                else:
+                    unit = "m" if uj.type == "prismatic" else "rad"
+                    v = r.number(vnode, f"locked: {name}", fix=f"the position ({unit}) to hold it at")
+                    if v is None:
+                        continue
+                    if uj.lower is not None and uj.upper is not None and not uj.lower <= v <= uj.upper:
+                        r.add(vnode, f"locked: {name} = {v:g} {unit} is outside its URDF limits "
+                              f"[{uj.lower:g}, {uj.upper:g}] (URDF line {uj.line})", "give a position within them")
+                        continue
+                    given[name] = v
+        held: dict[str, float] = {}
+        pending = [j for j in urdf.movable if j.name not in driven and j.type in ("revolute", "continuous",
+                                                                                  "prismatic")]
+        for _ in range(len(pending) + 1):  # masters before the joints that mimic them
+            later = []
+            for j in pending:
+                if j.name in given:
+                    held[j.name] = given[j.name]
+                elif j.mimic is not None and j.mimic.joint in held:
+                    held[j.name] = j.mimic.multiplier * held[j.mimic.joint] + j.mimic.offset
+                elif j.mimic is not None and j.mimic.joint in driven:
+                    master = urdf.joints[j.mimic.joint]
+                    held[j.name] = j.mimic.multiplier * _clip(0.0, master) + j.mimic.offset
+                    r.add(at, f"URDF joint {j.name!r} follows the driven joint {master.name!r} (<mimic>, URDF line "
+                          f"{j.line}); the dynamics model holds it at {held[j.name]:g} instead",
+                          f"nothing to do for light parts (a gripper's second finger); else drive {j.name!r}'s "
+                          "mass through its own URDF joint", warning=True, issue=True)
+                elif j.mimic is not None and j.mimic.joint in urdf.joints and j.mimic.joint not in driven:
+                    later.append(j)
+                else:
+                    held[j.name] = _clip(0.0, j)
+                    unit = "m" if j.type == "prismatic" else "rad"
+                    r.add(at, f"URDF joint {j.name!r} ({j.type}, URDF line {j.line}) has no motor in joints: and is "
+                          f"not under locked:; it is held at {held[j.name]:g} {unit}",
+                          f"say where it is: `locked: {{{j.name}: POSITION}}` ({unit}), or drive it: add it under "
+                          "joints: with its motor", warning=True, issue=True)
+            if not later:
+                break
+            pending = later
+        return {name: held[name] for name in (j.name for j in urdf.movable) if name in held}
+
+    def _gravity(self, config: RobotConfig, top: Mapping[str, tuple[yaml.Node, yaml.Node]]) -> None:
+        """Will the motors hold the arm? Refuse gravity above a joint's torque limit; warn above the
+        motor's rated (continuous) torque."""
+        from .gravity import gravity_peaks
+
+        r = self.r
+        try:
+            peaks = gravity_peaks(config)
+        except AkarmError as e:
+            r.add(top["urdf"][1] if "urdf" in top else None, f"the dynamics model cannot be built: {e.what}",
+                  e.fix or "check the URDF and tool_frame")
+            return
+        for j, peak in zip(config.joints, peaks, strict=True):
+            where = self.torque_lines.get(j.name)
+            if peak.torque > j.limits.torque:
+                limit = (f"its torque limit {j.limits.torque:g} N·m" if j.limits.torque < j.motor.t_max
+                         else f"the {j.motor.name}'s {j.motor.t_max:g} N·m")
+                r.add(where, f"joint {j.name!r}: gravity alone needs up to {peak.torque:.1f} N·m (at {peak.pose()}, "
+                      f"payload included) over its range, above {limit}: the motor cannot hold the arm there",
+                      "a stronger motor or more reduction, a narrower range (lower/upper under limits), or a "
+                      "lighter arm or payload")
+            elif j.motor.rated_torque is not None and peak.torque > j.motor.rated_torque:
+                r.add(where, f"joint {j.name!r}: gravity needs up to {peak.torque:.1f} N·m (at {peak.pose()}), above "
+                      f"the {j.motor.name}'s rated (continuous) torque {j.motor.rated_torque:g} N·m: holding such a "
+                      "pose for long heats the motor until it stops on over-temperature",
+                      "keep such poses short, or use a stronger motor", warning=True)
 
     def _limits(self, own: Mapping[str, tuple[yaml.Node, yaml.Node]],
                 defaults: Mapping[str, tuple[yaml.Node, yaml.Node]], jnode: yaml.Node, label: str,
@@ -727,6 +840,7 @@ class _Loader:
                   f"{motor.name}'s {motor.v_max:g} rad/s", f"give at most {motor.v_max:g}")
             ok = False
         torque = motor.t_max if motor is not None else 0.0
+        self._torque_at = fields["torque"].value if "torque" in fields else None
         if "torque" in fields:
             t = r.number(fields["torque"].value, f"{label}: torque limit", positive=True, fix="N·m, above 0")
             if t is None:
@@ -863,11 +977,21 @@ def load_robot(
         rate_hz: loop-rate override, Hz (validated against the bus load like the file's own).
         catalogue: the motor catalogue to start from (default: :func:`akarm.motors.default_catalogue`).
 
+    Returns:
+        the configuration; ``config.warnings`` lists what was accepted with a warning (URDF joints held
+        at a default position, gravity above a motor's rated torque), each with its line and fix.
+
+    Warns:
+        ConfigWarning: for each URDF joint held at a default position (the file does not say where).
+
     Raises:
         ConfigError: listing every problem found, each with file, line and fix.
     """
     p = Path(path)
-    config = _Loader(p, catalogue).load(rate_hz)
+    loader = _Loader(p, catalogue)
+    config = loader.load(rate_hz)
+    for w in loader.r.issued:
+        warnings.warn(str(w), ConfigWarning, stacklevel=2)
     if interface is not None or channel is not None or bitrate is not None:
         config = config.with_bus(interface=interface, channel=channel, bitrate=bitrate)
     return config

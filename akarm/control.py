@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import signals
-from .bus import close_buses, open_bus
+from .bus import close_buses, no_answer_hint, open_bus
 from .clock import Clock
 from .config import RobotConfig
 from .errors import (
@@ -121,7 +121,8 @@ class Motion:
 
 class PathRecorder:
     """The samples of :meth:`Arm.start_recording`, taken by the loop on a grid of ``1 / rate`` s
-    from the first one; a stall skips the grid points it missed (no burst of samples after it)."""
+    from the first one; a stall skips the grid points it missed (no burst of samples after it), and
+    with a duration, no sample is taken more than half a grid step past its end."""
 
     __slots__ = ("_last", "_next", "duration", "positions", "rate", "times")
 
@@ -138,6 +139,9 @@ class PathRecorder:
 
     def sample(self, now: float, q: np.ndarray) -> None:
         if now < self._next - 1e-9 or self.finished:  # a nanosecond's slack: clocks sum periods
+            return
+        if now > self._last + 0.5 / self.rate:  # a stall across the end: that grid point is lost too
+            self._next = math.inf
             return
         if not self.times:
             self._next = now
@@ -204,6 +208,8 @@ class Controller:
         self.kp = np.array([j.gains.kp for j in config.joints])
         self.kd = np.array([j.gains.kd for j in config.joints])
         self._mit = [j.answers_commands for j in joints]
+        self._t_max = [j.motor.t_max * 0.999 if j.answers_commands else math.inf for j in joints]
+        self._saturated = [False] * n
         fr = [j.friction_model() for j in config.joints]
         on = 1.0 if friction_feedforward and feedforward != "none" else 0.0
         self.ff = FeedForward(model, feedforward, [f.coulomb * on for f in fr], [f.viscous * on for f in fr],
@@ -219,7 +225,7 @@ class Controller:
         self.buses: dict[str, can.BusABC] = {}
         self._routers: dict[str, Router] = {}
         self._live: list[tuple[str, Any, Any]] = []  # (name, bus.recv, router.route) of the buses not lost
-        self._bus_of: list[Any] = [None] * n  # each joint's bus while it is not lost
+        self._bus_of: list[Any] = [None] * n  # each joint's bus (a lost one is still tried)
         self._send_failures: dict[str, int] = {}
         self.lost: dict[str, BaseException] = {}
         self._can_logger: Any = None
@@ -398,12 +404,9 @@ class Controller:
                           raise_fault=False)
         with self.lock:
             now = self.clock.now()
-            other = self.supervisor.foreign_since(now - _FOREIGN_RECENT)
-            if other is not None:
-                j, kind = other
-                raise ForeignTraffic(f"another program sent it a frame ({kind}) {now - j.foreign_at:.2f} s ago: "
-                                     "two controllers on one bus; nothing was enabled", kind=kind, joint=j.name,
-                                     fix="stop the other controller (or akarm serve) first, or use it instead")
+            refused = self._refuse_foreign(now, now - _FOREIGN_RECENT)
+            if refused is not None:
+                raise refused
             self.fault = None
             self.enable_error = None
             for j in self.joints:
@@ -424,6 +427,18 @@ class Controller:
             self.loop.wait_cycle(0.1)  # type: ignore[union-attr]  # deliver the exit frames
             raise self.enable_error
         self.wait_for(lambda: self.gain_scale >= 1.0, self.enable_ramp + 1.0, "the gains to ramp up")
+
+    def _refuse_foreign(self, now: float, since: float) -> ForeignTraffic | None:
+        """The error refusing an enable when another node sent our joints frames since ``since`` (s)."""
+        other = self.supervisor.foreign_since(since)
+        if other is None:
+            return None
+        j, kind = other
+        error = ForeignTraffic(f"another program sent it a frame ({kind}) {max(0.0, now - j.foreign_at):.2f} s ago: "
+                               "two controllers on one bus; nothing was enabled", kind=kind, joint=j.name,
+                               fix="stop the other controller (or akarm serve) first, or use it instead")
+        error.at = now
+        return error
 
     def begin_stop(self, fault: SafetyStop | None = None) -> None:
         """Start damping, then exit (caller holds the lock or is the loop)."""
@@ -603,15 +618,14 @@ class Controller:
             return
         with self.lock:
             self.lost[name] = error
-            self._live = [x for x in self._live if x[0] != name]
+            self._live = [x for x in self._live if x[0] != name]  # sends go on being tried: damping, exit
             on_it = [j for j in self.joints if j.bus == name]
-            for j in on_it:
-                self._bus_of[j.index] = None
             cfg = self.config.buses[name]
             stop = BusLost(
                 f"bus {name!r} ({cfg.interface} channel {cfg.channel!r}) failed: {error or type(error).__name__}; "
-                f"{', '.join(j.name for j in on_it)} could not be damped or disabled (a MIT driver keeps its last "
-                "command until its CAN timeout, if it has one); the other joints were", bus=name,
+                f"{', '.join(j.name for j in on_it)} may not have been damped or disabled (the frames were tried; a "
+                "MIT driver keeps its last command until its CAN timeout, if it has one); the other joints were",
+                bus=name,
                 fix="cut the motors' power (e-stop) if they are still holding; check the adapter, cable and "
                     "interface (ip link), then close the arm and open it again")
             stop.at = now
@@ -646,7 +660,7 @@ class Controller:
         qd = q_d.tolist()
         t2 = pc()
         stage[1] = t2 - t1
-        stop = self.supervisor.check(now, qd, self._tracking)
+        stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
         if stop is None and self.reflex is not None:
             stop = self._collision_check(now, True)
         t3 = pc()
@@ -666,10 +680,15 @@ class Controller:
         if self.gain_scale < 1.0:
             self.gain_scale = min(1.0, (now - self._t_active) / self.enable_ramp) if self.enable_ramp > 0 else 1.0
         g = self.gain_scale
-        kp, kd = self._kp_list, self._kd_list
+        kp, kd, tmax, sat = self._kp_list, self._kd_list, self._t_max, self._saturated
         vd = dq_d.tolist()
         for i, j in enumerate(js):
-            self._send(j, j.track(qd[i], vd[i], kp[i] * g, kd[i], ff[i]))
+            k = kp[i] * g
+            self._send(j, j.track(qd[i], vd[i], k, kd[i], ff[i]))
+            # what the firmware will apply (before its clamp): saturated, the motor has no authority left
+            s = j.state
+            tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
+            sat[i] = tau >= tmax[i] or tau <= -tmax[i]
         t5 = pc()
         stage[4] = t5 - t4
         self._record(now, qd, vd, ff)
@@ -757,11 +776,9 @@ class Controller:
 
     def _make_contact(self, en: _Enabling, now: float) -> None:
         js = self.joints
-        other = self.supervisor.foreign_since(en.t0 - _FOREIGN_RECENT)
-        if other is not None:  # before anything is sent: another controller must not lose its arm to us
-            stop = self.supervisor.foreign_stop(*other)
-            stop.at = now
-            self._enable_failed(stop, release=en.entered)
+        refused = self._refuse_foreign(now, en.t0 - _FOREIGN_RECENT)
+        if refused is not None:  # before anything is sent: another controller must not lose its arm to us
+            self._enable_failed(refused, release=en.entered)
             return
         if not en.entered:
             for j in js:
@@ -803,10 +820,10 @@ class Controller:
                 what = f"no {_CONTACT_REPLIES} consistent replies within {limit * 1e3:.0f} ms from: {names}"
             else:
                 what = f"no answer within {limit * 1e3:.0f} ms from: {names}"
-            stop = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit, joint=late[0].name,
-                                   fix=_no_answer_fix(self.config.buses[late[0].bus]))
-            stop.at = now
-            self._enable_failed(stop)
+            silent = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit,
+                                     joint=late[0].name, fix=no_answer_hint(self.config.buses[late[0].bus]))
+            silent.at = now
+            self._enable_failed(silent)
             return
         if ready:
             en.settling_since = now
@@ -841,15 +858,6 @@ class Controller:
         self.supervisor.disarm()
         self.recorder = None
         self.modes.go(Mode.FAULT if self.lost else Mode.DISABLED)
-
-
-def _no_answer_fix(bus: Any) -> str:
-    base = ("check power, CAN wiring and bit rate, the CAN ID, and that the motor is in the configured mode "
-            "(MIT or servo)")
-    if bus.interface in ("virtual", "akarm_local"):
-        return (f"nothing answers on the {bus.interface} channel {bus.channel!r}: is a simulator running on it "
-                f"(akarm sim ROBOT.yaml -i {bus.interface} -c {bus.channel})? Otherwise " + base)
-    return base
 
 
 # ----------------------------------------------------------------------------------------------

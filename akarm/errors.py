@@ -43,6 +43,7 @@ __all__ = [
     "CollisionError",
     "ConfigError",
     "ConfigProblem",
+    "ConfigWarning",
     "FeedbackTimeout",
     "ForeignTraffic",
     "FrameError",
@@ -158,6 +159,12 @@ class ConfigError(AkarmError):
 
     def _render(self) -> str:
         return self.what
+
+
+class ConfigWarning(UserWarning):
+    """A robot file that loads but says less than it should: a URDF joint held at a default position
+    because the file does not say where (issued by :func:`~akarm.load_robot`; ``akarm check`` lists
+    every warning, the gravity ones included)."""
 
 
 class ModelError(AkarmError):

@@ -40,7 +40,7 @@ class FeedForward:
     """
 
     def __init__(self, model: RobotModel, kind: FeedForwardKind, coulomb: Sequence[float], viscous: Sequence[float],
-                 torque_limit: Sequence[float], hold_integral: float, integrating: Sequence[bool]) -> None:
+                 torque_limit: Sequence[float] | np.ndarray, hold_integral: float, integrating: Sequence[bool]) -> None:
         self.model = model
         self.kind = kind
         self.n = len(torque_limit)

@@ -79,9 +79,10 @@ class Joint(abc.ABC):
         min_interval: s; two replies are taken to be at least this far apart in time (the loop
             period: the replies drained in one cycle share one time stamp).
         rejected, rejected_run: feedback frames rejected in all, and in a row since the last
-            accepted one. accepted_run: accepted in a row since the last rejected one (or
-            :meth:`begin_contact`). last_rejected: the position the last rejected one claimed (rad,
-            joint side).
+            accepted one. rejected_peak: the longest such run since the supervisor last looked
+            (frames drained together can hold a run and the good frame after it).
+        accepted_run: accepted in a row since the last rejected one (or :meth:`begin_contact`).
+        last_rejected: the position the last rejected one claimed (rad, joint side).
         foreign, foreign_at: the kind of the last frame another node sent to this joint's command
             IDs (``"exit"``, ``"enter"``, ``"zero"``, ``"command"``), and when (clock time, s).
     """
@@ -106,6 +107,7 @@ class Joint(abc.ABC):
         self._slack = 0.0  # rad: what the position field's resolution adds to a step
         self.rejected = 0
         self.rejected_run = 0
+        self.rejected_peak = 0
         self.accepted_run = 0
         self.last_rejected = math.nan
         self.foreign: str | None = None
@@ -220,6 +222,8 @@ class Joint(abc.ABC):
             return True
         self.rejected += 1
         self.rejected_run += 1
+        if self.rejected_run > self.rejected_peak:
+            self.rejected_peak = self.rejected_run
         self.accepted_run = 0
         self.last_rejected = claimed
         return False
@@ -354,6 +358,8 @@ class MitJoint(Joint):
                 if abs(step) > self.max_speed * dt + self._slack:
                     self.rejected += 1
                     self.rejected_run += 1
+                    if self.rejected_run > self.rejected_peak:
+                        self.rejected_peak = self.rejected_run
                     self.accepted_run = 0
                     self.last_rejected = self.direction * (raw + turns * self._span) + self.offset
                     return

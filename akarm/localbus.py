@@ -22,7 +22,8 @@ an idle bus costs well under 1 % of a core, and a frame waits at most about 0.3 
 How: the file (``/dev/shm/akarm-can-UID-CHANNEL`` on Linux, the temporary directory elsewhere) holds
 32 rings of 512 frame slots. Each open bus owns one ring and is its only writer; readers keep a
 position in every ring. A slot is written data first and sequence number last, and carries a CRC-32
-of its contents, so a reader never takes a half-written frame even on weakly ordered CPUs. A reader
+of its sequence number and contents, so a reader never takes a half-written frame, nor the frame a
+slot held one lap before (which a weakly ordered CPU could show it beside the new sequence number). A reader
 that falls 512 frames behind a writer loses the oldest (counted in :attr:`LocalBus.overruns`), as a
 CAN controller's receive queue would. Rings of processes that died are reclaimed.
 
@@ -47,14 +48,15 @@ from pathlib import Path
 from typing import Any
 
 import can
+from can.typechecking import AutoDetectedConfig
 
 from .frames import message
 
-__all__ = ["INTERFACE", "LocalBus", "channel_path"]
+__all__ = ["INTERFACE", "LocalBus", "channel_path", "peers"]
 
 INTERFACE = "akarm_local"
 
-_MAGIC = b"AKCANv1\0"
+_MAGIC = b"AKCANv2\0"  # v2: the CRC covers the sequence number
 _RINGS = 32
 _SLOTS = 512  # per ring; a power of two
 # header: magic, rings, slots, generation (bumped when a ring is claimed or released); then per ring:
@@ -66,7 +68,8 @@ _OWNER = struct.Struct("<III")
 _OWNERS_AT = _GEN_AT + _GEN.size
 _RINGS_AT = 4096
 # slot: sequence number (frame k of the ring is written with k + 1; 0 = never written), then the
-# CRC-32 of the rest: timestamp, CAN ID with SocketCAN's flag bits, DLC, 3 pad bytes, 8 data bytes
+# CRC-32 of the sequence number and the rest: timestamp, CAN ID with SocketCAN's flag bits, DLC, 3 pad
+# bytes, 8 data bytes
 _SEQ = struct.Struct("<Q")
 _CRC = struct.Struct("<I")
 _REST = struct.Struct("<dIB3x8s")
@@ -94,6 +97,20 @@ def channel_path(channel: str) -> Path:
     user = os.getuid() if hasattr(os, "getuid") else 0
     folder = Path("/dev/shm") if Path("/dev/shm").is_dir() else Path(tempfile.gettempdir())
     return folder / f"akarm-can-{user}-{safe}"
+
+
+def peers(channel: str) -> list[int]:
+    """IDs of the other live processes with a bus open on ``channel`` (read-only; empty when the
+    channel's file does not exist or cannot be read)."""
+    try:
+        with open(channel_path(channel), "rb") as f:
+            data = f.read(_RINGS_AT)
+    except OSError:
+        return []
+    if len(data) < _OWNERS_AT + _RINGS * _OWNER.size or data[:8] != _MAGIC:
+        return []
+    pids = {_OWNER.unpack_from(data, _OWNERS_AT + r * _OWNER.size)[0] for r in range(_RINGS)}
+    return sorted(p for p in pids if p and p != os.getpid() and _alive(p))
 
 
 def _alive(pid: int) -> bool:
@@ -263,13 +280,12 @@ class LocalBus(can.BusABC):
         if msg.is_error_frame:
             can_id |= _ERR
         rest = _REST.pack(time.time(), can_id, msg.dlc, bytes(msg.data))
-        crc = _CRC.pack(zlib.crc32(rest))
         mm = self._mm
         with self._send_lock:
             seq = self._seq + 1
             at = _slot(self._ring, seq - 1)
             mm[at + 12:at + _SLOT_SIZE - _PAD] = rest
-            mm[at + 8:at + 12] = crc
+            mm[at + 8:at + 12] = _CRC.pack(zlib.crc32(rest, zlib.crc32(_SEQ.pack(seq))))
             _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
             self._seq = seq
 
@@ -290,8 +306,8 @@ class LocalBus(can.BusABC):
             self._pos[ring] = oldest - 1
             return _SKIPPED
         crc, stamp, can_id, dlc, data = _BODY.unpack_from(mm, at + 8)
-        if zlib.crc32(mm[at + 12:at + _SLOT_SIZE - _PAD]) != crc:
-            return None  # being written right now (a weakly ordered CPU): look again next time
+        if zlib.crc32(mm[at + 12:at + _SLOT_SIZE - _PAD], zlib.crc32(_SEQ.pack(seq))) != crc:
+            return None  # being written right now, or the last lap's frame (a weakly ordered CPU): look again
         self._pos[ring] = seq
         own = ring == self._ring
         if (own and not self.receive_own_messages) or dlc > 8:
@@ -370,6 +386,6 @@ class LocalBus(can.BusABC):
         super().shutdown()
 
     @staticmethod
-    def _detect_available_configs() -> list[dict[str, Any]]:
+    def _detect_available_configs() -> list[AutoDetectedConfig]:
         return [{"interface": INTERFACE, "channel": "can0"}]
 

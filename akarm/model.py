@@ -6,8 +6,10 @@ mapping to Pinocchio's ``q``/``v`` (which follow the URDF tree, and give a conti
 entries, cos and sin) lives in :meth:`RobotModel.to_pin_q`, :meth:`RobotModel.from_pin_q`,
 :meth:`RobotModel.to_pin_v` and :meth:`RobotModel.from_pin_v` only.
 
-URDF joints that the config does not drive (possible when a :class:`RobotConfig` is built in code;
-the YAML loader rejects them) stay at their neutral position with zero velocity.
+URDF joints that the config does not drive (a gripper's fingers, a mimic joint, a joint the YAML
+lists under ``locked:``) are locked with Pinocchio's ``buildReducedModel``: held at
+``config.locked[name]`` (or their neutral position), so their links still count in the masses and
+inertias of the joint that carries them, but have no degree of freedom of their own.
 
 A ``RobotModel`` owns one ``pinocchio.Data``: use one instance per thread.
 """
@@ -28,6 +30,37 @@ __all__ = ["RobotModel"]
 ArrayLike = np.ndarray | Sequence[float]
 
 
+def _reduced_model(config: RobotConfig) -> tuple[pin.Model, dict[str, float]]:
+    """The URDF's Pinocchio model with every joint the config does not drive locked, and the
+    positions they are locked at (1-DOF joints only)."""
+    try:
+        full = pin.buildModelFromUrdf(str(config.urdf))
+    except Exception as e:  # Pinocchio raises ValueError/RuntimeError
+        raise ModelError(f"Pinocchio cannot load URDF {config.urdf}: {str(e).strip() or type(e).__name__}",
+                         fix="check the path and the URDF (akarm check ROBOT.yaml)") from None
+    driven = set(config.joint_names)
+    q_ref = pin.neutral(full)
+    lock: list[int] = []
+    held: dict[str, float] = {}
+    for jid in range(1, full.njoints):
+        name = str(full.names[jid])
+        if name in driven:
+            continue
+        lock.append(jid)
+        joint = full.joints[jid]
+        if joint.nv != 1:
+            continue  # floating, planar: neutral
+        x = float(config.locked.get(name, 0.0))
+        if joint.nq == 1:
+            q_ref[joint.idx_q] = x
+        else:  # continuous: (cos, sin)
+            q_ref[joint.idx_q:joint.idx_q + 2] = (np.cos(x), np.sin(x))
+        held[name] = x
+    if not lock:
+        return full, held
+    return pin.buildReducedModel(full, lock, q_ref), held
+
+
 class RobotModel:
     """Dynamics and kinematics of a configured arm.
 
@@ -42,7 +75,9 @@ class RobotModel:
         lower, upper: position limits, rad, config order: the URDF's (a continuous joint, which has
             none in the URDF, gets the YAML's).
         tool_frame: name of the frame :meth:`tool_pose` reports and the payload is attached to.
-        pin_model, pin_data: the Pinocchio model and data (for what this class does not wrap).
+        locked: the URDF joints held still, and where (rad, or m for prismatic joints; floating and
+            planar joints are held at their neutral configuration and not listed).
+        pin_model, pin_data: the Pinocchio model (the URDF's, with the locked joints removed) and data.
 
     Raises:
         ModelError: the URDF cannot be loaded, or a config joint or the tool frame is not in it.
@@ -51,11 +86,7 @@ class RobotModel:
     def __init__(self, config: RobotConfig, *, armature: bool = False) -> None:
         self.config = config
         self.joint_names: tuple[str, ...] = config.joint_names
-        try:
-            model = pin.buildModelFromUrdf(str(config.urdf))
-        except Exception as e:  # Pinocchio raises ValueError/RuntimeError
-            raise ModelError(f"Pinocchio cannot load URDF {config.urdf}: {str(e).strip() or type(e).__name__}",
-                             fix="check the path and the URDF (akarm check ROBOT.yaml)") from None
+        model, self.locked = _reduced_model(config)
         self.pin_model = model
         self.pin_data = model.createData()
         n = len(self.joint_names)
@@ -134,6 +165,12 @@ class RobotModel:
             raise ModelError(f"{what} has shape {a.shape}, expected ({self.n},) in the order "
                              + ", ".join(self.joint_names), fix="give one value per joint, in config order")
         return a
+
+    @property
+    def identity_mapping(self) -> bool:
+        """Config order is Pinocchio's order, and its ``q`` and ``v`` hold nothing else (no continuous
+        joints): a config-order vector may be handed to Pinocchio as it is."""
+        return bool(self._q_identity and self._v_identity)
 
     def to_pin_q(self, q: ArrayLike) -> np.ndarray:
         """Config-order joint positions (rad) → Pinocchio configuration ``q`` (continuous: cos, sin)."""

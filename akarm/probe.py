@@ -358,11 +358,10 @@ class Probe:
             while bus.recv(timeout=0.0) is not None:
                 pass
 
-    def query_frames(self, j: Joint) -> list[can.Message]:
+    @staticmethod
+    def query_frames(j: Joint) -> list[can.Message]:
         """The frames that read a silent joint without commanding it: MIT exit frames, none for servo."""
-        from .joints import MitJoint
-
-        return j.exit_frames() if isinstance(j, MitJoint) else []
+        return j.query_frames()
 
     def default_timeout(self) -> float:
         """s :meth:`read_state` waits by default: 0.25, or 2.5 periods of the slowest servo status rate."""
@@ -440,16 +439,17 @@ class Probe:
             AkarmError: the joint does not answer, does not come back, is being driven by a
                 controller, or is a MIT V3 board (no zero frame); the message names the joint.
         """
-        from .joints import JointState, MitJoint
+        from .joints import JointState
 
         j = self.joint(name)
         c = j.config
         where = f"{j.mode} ID {c.can_id} on bus {j.bus!r}"
-        if isinstance(j, MitJoint) and j.firmware == "v3":
+        zero_frames = j.zero_frames(permanent)
+        if not zero_frames:
             raise AkarmError("MIT V3 boards have no zero frame; akarm cannot zero them", joint=name,
                              fix="set the zero with CubeMars' upper-computer tool")
         j.state = JointState()
-        if isinstance(j, MitJoint):
+        if j.answers_commands:  # MIT: answers when asked; off-line for a while after ZERO
             self.pump(time.monotonic() + 0.05)
             if j.state.stamp > -math.inf:
                 raise StateError("a controller is driving it (its replies are flowing); zeroing now would move "
@@ -457,7 +457,7 @@ class Probe:
             if not self._ask(j, timeout):
                 raise AkarmError(f"no answer from its motor ({where}); nothing was zeroed", joint=name,
                                  fix="check power, CAN wiring, bit rate and the CAN ID (akarm scan)")
-            for frame in j.zero_frames():
+            for frame in zero_frames:
                 self.send(j, frame)
             j.rezeroed()
             end = time.monotonic() + max(0.0, wait)
@@ -477,11 +477,8 @@ class Probe:
             raise AkarmError(f"no status frame from its motor ({where}) within {wait_status:.2f} s; nothing was "
                              "zeroed", joint=name,
                              fix="check power, CAN wiring, bit rate, the CAN ID and that status frames are on")
-        import can
-
-        arb, data = servo.encode_origin(c.can_id, servo.OriginMode.PERMANENT if permanent else
-                                        servo.OriginMode.TEMPORARY)
-        self.send(j, can.Message(arbitration_id=arb, data=data, is_extended_id=True))
+        for frame in zero_frames:  # servo: SET_ORIGIN_HERE, then read the status frames back
+            self.send(j, frame)
         # Status frames already on their way still show the old origin, and nothing in a status
         # frame says which origin it is relative to: skip a little, then take frames until one
         # reads about 0 (a joint that moves meanwhile reads what it moved: the caller warns).
@@ -530,24 +527,21 @@ class Probe:
         Returns:
             A :class:`JointStatus` per joint (``missing``: no reply, or for servo no status frame, seen).
         """
-        from .joints import JointState, MitJoint
+        from .joints import JointState
 
         t0 = time.monotonic()
         timeout = self.default_timeout() if timeout is None else timeout
         answers = []  # the frame count each joint reaches once it has answered all it was sent
         for j in self.joints:
             j.state = JointState()
-            if isinstance(j, MitJoint):
-                frames = [j.command(math.nan, 0.0, 0.0, 0.0, 0.0), *j.exit_frames()]
-            else:
-                frames = [j.release()]  # type: ignore[attr-defined]
-            answers.append(j.frames_received + len(frames))
+            frames = j.release_frames()
+            answers.append(j.frames_received + (len(frames) if j.answers_commands else 1))
             for f in frames:
                 self.send(j, f)
         # an MIT driver answers every frame, EXIT too: returning on the first reply (to the
         # zero-gain command) could leave a driver not yet out of motor mode
         self.pump(t0 + timeout, lambda: all(j.frames_received >= n for j, n in zip(self.joints, answers, strict=True)))
-        return [self._status(j, isinstance(j, MitJoint)) for j in self.joints]
+        return [self._status(j, j.answers_commands) for j in self.joints]
 
 
 # ------------------------------------------------------------------------------------------------

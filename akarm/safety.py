@@ -15,13 +15,18 @@ Checks, per joint, in order (the first that fires is the stop):
 2. **Motor error code** reported by the driver. → :class:`~akarm.MotorFault`.
 3. **Implausible feedback**: the joint rejects a reply whose position it cannot have reached since
    the last good one (the gate in :mod:`akarm.joints`); ``implausible_limit`` in a row stop the
-   arm. → :class:`~akarm.ImplausibleFeedback`.
+   arm, and so do :data:`IMPLAUSIBLE_PER_WINDOW` in one :data:`REPLY_WINDOW` between good ones (CAN's
+   own CRC makes a corrupt frame rare: these come from another node). →
+   :class:`~akarm.ImplausibleFeedback`.
 4. **Feedback age** over the joint's feedback timeout. → :class:`~akarm.FeedbackTimeout`.
 5. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 6. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
-   minus the measured position over the joint's limit for three cycles in a row; or a reading that
-   repeats while the command has moved on by more than ``stuck_travel`` (a frozen encoder or a
-   blocked joint: a moving joint's reading changes every step of its 16-bit field). →
+   minus the measured position over the joint's limit for three cycles in a row; or a command
+   saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
+   ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
+   reading that repeats while the command has moved on by more than ``stuck_travel`` and the motor
+   is not saturated (a frozen encoder or a blocked joint: a moving joint's reading changes every
+   step of its 16-bit field, and one whose motor is at its limit is the saturation check's). →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -55,6 +60,11 @@ __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_trav
 FOLLOWING_CYCLES = 3
 #: s between the comparisons of replies received with frames sent (the duplicate-responder check).
 REPLY_WINDOW = 1.0
+#: Rejected replies of one joint within a REPLY_WINDOW that stop the arm, even between good ones.
+IMPLAUSIBLE_PER_WINDOW = 10
+#: s a joint's command may stay at the motor's torque range while the joint is off its target (a move
+#: that asks a little too much saturates for part of its acceleration; a motor that cannot hold, for good).
+SATURATION_TIME = 0.5
 
 _FIX_FOREIGN = ("stop the other program (akarm disable or akarm status from another terminal count too), or give "
                 "each motor its own CAN ID; then enable again")
@@ -132,12 +142,14 @@ class Supervisor:
         self.armed_at = math.inf
         self._answering = [i for i, j in enumerate(self.joints) if j.answers_commands]
         self._over = [0] * n
+        self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
         self._last_stamp = [-math.inf] * n
         self._last_value = [math.nan] * n
         self._des_at_value = [0.0] * n
         self._window_end = math.inf
         self._window_start: list[tuple[int, int]] = []
+        self._rejected_start = [0] * n
         self._refresh()
 
     def _refresh(self) -> None:
@@ -157,9 +169,11 @@ class Supervisor:
         self.armed_at = now
         n = len(self.joints)
         self._over = [0] * n
+        self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
         self._window_end = now + REPLY_WINDOW
         self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
 
     def disarm(self) -> None:
         """The arm is no longer powered: nothing is checked until :meth:`arm`."""
@@ -174,8 +188,8 @@ class Supervisor:
         return None
 
     # ------------------------------------------------------------------------------------------
-    def check(self, now: float, q_des: Sequence[float] | None = None,
-              tracking: Sequence[bool] | None = None) -> SafetyStop | None:
+    def check(self, now: float, q_des: Sequence[float] | None = None, tracking: Sequence[bool] | None = None,
+              saturated: Sequence[bool] | None = None) -> SafetyStop | None:
         """The stop the arm needs now, or ``None``.
 
         Args:
@@ -183,10 +197,12 @@ class Supervisor:
             q_des: the commanded positions this cycle (rad, config order); ``None`` skips the
                 following-error checks (teach mode, enabling).
             tracking: per joint, whether it is held at ``q_des`` (MIT with kp > 0, servo).
+            saturated: per joint, whether its last command asked for the motor's whole torque range
+                (stiffness, damping and feed-forward together); ``None``: unknown.
         """
         stop = self._check_joints(now)
         if stop is None and q_des is not None and tracking is not None:
-            stop = self._check_following(now, q_des, tracking)
+            stop = self._check_following(now, q_des, tracking, saturated)
         if stop is None and now >= self._window_end:
             stop = self._check_replies(now)
         if stop is not None:
@@ -204,13 +220,15 @@ class Supervisor:
                 desc, remedy = describe_error(s.error)
                 return MotorFault(f"motor reports error {s.error} ({desc}); the arm was damped and disabled",
                                   code=s.error, joint=j.name, fix=remedy)
-            if j.rejected_run >= limit:
+            run = j.rejected_peak
+            j.rejected_peak = j.rejected_run
+            if run >= limit:
                 step = abs(j.last_rejected - s.position)
                 return ImplausibleFeedback(
-                    f"{j.rejected_run} replies in a row claimed positions it cannot have reached (the last "
+                    f"{run} replies in a row claimed positions it cannot have reached (the last "
                     f"{j.last_rejected:+.4f} rad, {step:.3f} rad from the last good reading {s.position:+.4f} rad; "
                     f"at most {j.max_speed:.1f} rad/s is possible); the arm was damped and disabled",
-                    value=j.last_rejected, limit=j.max_speed, count=j.rejected_run, joint=j.name,
+                    value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
             age = now - s.stamp
@@ -226,14 +244,16 @@ class Supervisor:
                     fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML")
         return None
 
-    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool]) -> SafetyStop | None:
-        over, tracked = self._over, self._tracked
+    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],
+                         saturated: Sequence[bool] | None) -> SafetyStop | None:
+        over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
         for i, j in enumerate(self.joints):
             qd = q_des[i]
             if not tracking[i]:
                 tracked[i] = False
                 over[i] = 0
+                sat_since[i] = math.inf
                 continue
             s = j.state
             q = s.position
@@ -254,9 +274,23 @@ class Supervisor:
                             "following_error in the YAML only if the arm is sound")
             else:
                 over[i] = 0
+            sat = saturated is not None and saturated[i]
+            if sat and (e > self._stuck[i] or e < -self._stuck[i]):
+                if sat_since[i] == math.inf:
+                    sat_since[i] = now
+                elif now - sat_since[i] >= SATURATION_TIME:
+                    return TrackingError(
+                        f"its motor has been at the end of its torque range for {(now - sat_since[i]) * 1e3:.0f} ms "
+                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {self._stuck[i] * 1e3:.0f} "
+                        "mrad): the motor cannot hold or move the arm; the arm was damped and disabled",
+                        error=e, limit=self._stuck[i], joint=j.name,
+                        fix="a motor too small for the load (akarm check shows the gravity torque per joint), a "
+                            "payload heavier than configured, or a joint pressing on an obstacle")
+            else:
+                sat_since[i] = math.inf
             if s.stamp != last_stamp[i]:  # a new reading
                 last_stamp[i] = s.stamp
-                if q != last_value[i]:
+                if q != last_value[i] or sat:
                     last_value[i], des_at[i] = q, qd
                 else:
                     travel = qd - des_at[i]
@@ -270,7 +304,16 @@ class Supervisor:
         return None
 
     def _check_replies(self, now: float) -> SafetyStop | None:
-        """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID."""
+        """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID,
+        and one that rejected many replies hears another node."""
+        for j, r0 in zip(self.joints, self._rejected_start, strict=True):
+            if j.rejected - r0 >= IMPLAUSIBLE_PER_WINDOW:
+                return ImplausibleFeedback(
+                    f"{j.rejected - r0} replies in {REPLY_WINDOW:g} s claimed positions it cannot have reached (the "
+                    f"last {j.last_rejected:+.4f} rad; the arm was at {j.state.position:+.4f} rad); the arm was damped "
+                    "and disabled", value=j.last_rejected, limit=j.max_speed, count=j.rejected - r0, joint=j.name,
+                    fix="another node sends replies with this driver ID: find it (candump), or give the motors "
+                        "distinct IDs")
         for k, i in enumerate(self._answering):
             j = self.joints[i]
             r0, s0 = self._window_start[k]
@@ -279,6 +322,7 @@ class Supervisor:
                 return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s")
         self._window_end = now + REPLY_WINDOW
         self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
         return None
 
     @staticmethod

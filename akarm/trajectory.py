@@ -21,7 +21,12 @@ import ruckig
 
 from .errors import LimitError, TrajectoryError
 
-__all__ = ["JointLimits", "Plan", "Planner", "Segment"]
+__all__ = ["JointLimits", "Plan", "Planner", "Segment", "State", "Vector"]
+
+#: Joint values in config order: a list or an array.
+Vector = Sequence[float] | np.ndarray
+#: A commanded state (q rad, dq rad/s, ddq rad/s², config order).
+State = tuple[Vector, Vector, Vector]
 
 
 @dataclass(frozen=True)
@@ -42,7 +47,7 @@ class JointLimits:
         return JointLimits(self.names, self.lower, self.upper, self.velocity * speed,
                            self.acceleration * speed**2, self.jerk * speed**3)
 
-    def check_position(self, q: Sequence[float], what: str = "target", tol: float = 1e-9) -> None:
+    def check_position(self, q: Vector, what: str = "target", tol: float = 1e-9) -> None:
         """Raise :class:`LimitError` naming the first joint of ``q`` outside its position range."""
         for i, name in enumerate(self.names):
             v = float(q[i])
@@ -94,6 +99,10 @@ class Timed:
         """True once ``t`` (absolute, s) is at or past the end."""
         return t >= self.t_end
 
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Desired (q rad, dq rad/s, ddq rad/s²) at absolute time ``t`` (s), config order."""
+        raise NotImplementedError
+
 
 class Plan(Timed):
     """A chain of segments, each starting when the previous one ends; holds the last state after."""
@@ -139,37 +148,45 @@ class Chain(Timed):
 class Planner:
     """Plans moves, waypoint paths and stops under one arm's joint limits.
 
-    A move may start up to ``range_margin`` rad outside a joint's range (an arm that sagged onto its
-    hard stop while limp): it is planned back toward the range, and refused only if it would go
-    further out. Targets are always inside.
+    A move may start outside a joint's range, anywhere up to ``range_margin`` rad past its
+    mechanical range (``outer``: the URDF's limits, which the YAML's may narrow): an arm that sagged
+    onto its hard stop while limp. It is planned back toward the range, and refused only if it would
+    go further out. Targets are always inside.
     """
 
-    def __init__(self, limits: JointLimits, range_margin: float = 0.05) -> None:
+    def __init__(self, limits: JointLimits, range_margin: float = 0.05,
+                 outer: tuple[Vector, Vector] | None = None) -> None:
         if not range_margin >= 0:
             raise LimitError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
         self.limits = limits
         self.range_margin = float(range_margin)
+        lo, hi = outer if outer is not None else (limits.lower, limits.upper)
+        self._outer_lo = np.minimum(np.asarray(lo, dtype=float), limits.lower) - self.range_margin
+        self._outer_hi = np.maximum(np.asarray(hi, dtype=float), limits.upper) + self.range_margin
         self.dofs = len(limits.names)
         self._ruckig = ruckig.Ruckig(self.dofs)
 
-    def bounds_from(self, q0: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    def bounds_from(self, q0: Vector) -> tuple[np.ndarray, np.ndarray]:
         """The position bounds of a path starting at ``q0``: the joint ranges, widened to take in a start
-        at most ``range_margin`` outside them (so the path may come back, not go further out).
+        outside them but within the mechanical range plus ``range_margin`` (so the path may come back,
+        not go further out).
 
         Raises:
-            LimitError: a joint starts further outside its range than the margin.
+            LimitError: a joint starts further out than that.
         """
         q = np.asarray(q0, dtype=float)
         lim = self.limits
         lo, hi = lim.lower.astype(float), lim.upper.astype(float)
         for i, name in enumerate(lim.names):
             v = float(q[i])
-            out = lo[i] - v if v < lo[i] else v - hi[i] if v > hi[i] else 0.0
-            if out > self.range_margin + 1e-9:
+            if not self._outer_lo[i] - 1e-9 <= v <= self._outer_hi[i] + 1e-9:
                 side = "below its lower" if v < lo[i] else "above its upper"
+                out = lo[i] - v if v < lo[i] else v - hi[i]
+                m = self.range_margin
                 raise LimitError(
-                    f"starts at {v:+.4f} rad, {out:.4f} rad {side} limit ({lo[i]:+.4f}..{hi[i]:+.4f} rad): further "
-                    f"out than the {self.range_margin:.3f} rad a move may start from", joint=name,
+                    f"starts at {v:+.4f} rad, {out:.4f} rad {side} limit ({lo[i]:+.4f}..{hi[i]:+.4f} rad): past its "
+                    f"mechanical range ({self._outer_lo[i] + m:+.4f}..{self._outer_hi[i] - m:+.4f} rad) by more "
+                    f"than the {m:.3f} rad a move may start from", joint=name,
                     fix="move the joint back into its range by hand (arm.teach() or disabled), or raise range_margin")
             if v < lo[i]:
                 lo[i] = v
@@ -229,9 +246,10 @@ class Planner:
                     joint=self.limits.names[i],
                     fix="move more slowly (speed=), or through an intermediate point away from the limit")
 
-    def move(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]], target: Sequence[float],
-             t0: float, speed: float = 1.0, target_velocity: Sequence[float] | None = None) -> Segment:
-        """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``.
+    def move(self, start: State, target: Vector, t0: float, speed: float = 1.0,
+             target_velocity: Vector | None = None, min_duration: float = 0.0) -> Segment:
+        """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``,
+        taking at least ``min_duration`` s (ruckig's ``minimum_duration``; longer where the limits need it).
 
         Raises:
             LimitError: the target, or a position the path passes through, is outside a joint's range.
@@ -244,11 +262,13 @@ class Planner:
         inp.target_position = [float(x) for x in target]
         inp.target_velocity = [0.0] * self.dofs if target_velocity is None else [float(x) for x in target_velocity]
         inp.target_acceleration = [0.0] * self.dofs
+        if min_duration > 0.0:
+            inp.minimum_duration = float(min_duration)
         seg = self._calculate(inp, t0)
         self.check_extrema(seg, bounds)
         return seg
 
-    def stop(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]], t0: float) -> Segment:
+    def stop(self, start: State, t0: float) -> Segment:
         """The jerk-limited stop to rest from ``start`` (velocity interface: no position target).
 
         Not checked against position limits: stopping is always the safest thing to do.
@@ -260,8 +280,7 @@ class Planner:
         return self._calculate(inp, t0)
 
     # -- paths --------------------------------------------------------------------------------
-    def through(self, start: tuple[Sequence[float], Sequence[float], Sequence[float]],
-                points: Sequence[Sequence[float]], t0: float, speed: float = 1.0) -> Plan:
+    def through(self, start: State, points: Sequence[Vector], t0: float, speed: float = 1.0) -> Plan:
         """A path through every point of ``points`` without stopping at the intermediate ones.
 
         Each intermediate waypoint is passed exactly, with a pass-through velocity per joint: the

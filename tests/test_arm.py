@@ -19,7 +19,7 @@ from akarm import Arm, FeedbackTimeout, LimitError, MotorFault, OverTemperature,
 from akarm.protocol.mit import MitCommand
 from akarm.sim import SimulatedRobot, faults
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, missing_socketcan_fix
 
 
 @contextmanager
@@ -196,6 +196,18 @@ def test_target_past_a_limit_raises_and_nothing_moves(channel) -> None:
         assert info.value.joint == "elbow"
         with pytest.raises(LimitError, match="has 3 values"):
             arm.move_to([0.0, 0.0, 0.0])
+        for bad, joint in (([0.0, "up"], "elbow"), ({"shoulder": None}, "shoulder"), ([math.nan, 0.0], "shoulder"),
+                           ({"elbow": "0.2x"}, "elbow")):
+            with pytest.raises(LimitError, match=r"not a (number|finite angle)") as info:
+                arm.move_to(bad)
+            assert info.value.joint == joint
+        with pytest.raises(LimitError, match=r"no joint named 'elbw' \(did you mean 'elbow'"):
+            arm.move_to({"elbw": 0.2})
+        with pytest.raises(LimitError, match="a target must be a pose name"):
+            arm.move_to(0.5)
+        with pytest.raises(akarm.TrajectoryError, match="would last too long") as tinfo:
+            arm.move_to([0.5, 0.5], speed=1e-7)
+        assert "speed" in tinfo.value.fix
         arm.sleep(0.2)
         np.testing.assert_allclose(arm.state().q_des, q_before)
         assert not arm.moving
@@ -279,7 +291,7 @@ def test_bus_that_cannot_open_says_how_to_create_it() -> None:
     cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="socketcan", channel="vcan-nope")
     with pytest.raises(akarm.BusError) as info:
         Arm(cfg).open()
-    assert "vcan-nope" in str(info.value) and "ip link add dev vcan-nope type vcan" in str(info.value)
+    assert "vcan-nope" in str(info.value) and missing_socketcan_fix("vcan-nope") in str(info.value)
 
 
 # ---------------------------------------------------------------------------------------------

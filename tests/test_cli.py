@@ -34,7 +34,7 @@ from akarm.sim import SimulatedRobot, faults
 from akarm.telemetry import TelemetryLog
 from akarm.telemetry import load as load_telemetry
 
-from .conftest import ROBOTS, wait_until
+from .conftest import ROBOTS, missing_socketcan_fix, wait_until
 
 PLANAR2 = str(ROBOTS / "planar2.yaml")
 SERVO3 = str(ROBOTS / "servo3.yaml")
@@ -113,7 +113,7 @@ def test_a_missing_socketcan_device_says_how_to_bring_it_up(verb: list[str],
     argv = [verb[0], PLANAR2, "-i", "socketcan", "-c", "akarmnope0", *verb[1:]]
     assert main(argv) == 1
     err = capsys.readouterr().err
-    assert f"akarm {verb[0]}: error: cannot open CAN bus" in err and "ip link" in err
+    assert f"akarm {verb[0]}: error: cannot open CAN bus" in err and missing_socketcan_fix("akarmnope0") in err
     assert len(err.strip().splitlines()) == 1
 
 
@@ -218,7 +218,8 @@ def test_enable_holds_for_its_seconds_then_disables(channel: str, relaxed: str,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     with simulated(relaxed, channel, q0=[-1.2, 0.3]) as sim:  # gravity pulls both links away from here
         th, result = in_thread(["enable", relaxed, *bus(channel), "--seconds", "1.5"])
-        assert wait_until(lambda: sim.joint("shoulder").enabled, 5.0)
+        # enabled, damped until at rest (it was falling), then held: stiffness in the stored command
+        assert wait_until(lambda: sim.joint("shoulder").stored_command.kp > 0, 5.0)
         held = sim.q
         time.sleep(0.5)
         assert np.allclose(sim.q, held, atol=0.01)               # held against gravity
@@ -229,12 +230,25 @@ def test_enable_holds_for_its_seconds_then_disables(channel: str, relaxed: str,
     assert "enabled planar2: holding at [" in out and out.rstrip().endswith("disabled")
 
 
-def test_enable_ctrl_c_disables_and_exits_130(channel: str, relaxed: str,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_enable_until_ctrl_c_disables_and_exits_0(channel: str, relaxed: str,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C is how `akarm enable` without --seconds is ended: a success."""
     with simulated(relaxed, channel, q0=HANGING) as sim:
         interrupt_when(lambda: sim.joint("shoulder").enabled, after=0.3)
         t0 = time.monotonic()
-        assert main(["enable", relaxed, *bus(channel)]) == 130
+        assert main(["enable", relaxed, *bus(channel)]) == 0
+        assert time.monotonic() - t0 < 5.0
+        assert all_disabled(sim)
+    captured = capsys.readouterr()
+    assert captured.out.rstrip().endswith("disabled") and "interrupted" not in captured.err
+
+
+def test_enable_ctrl_c_before_its_seconds_are_up_exits_130(channel: str, relaxed: str,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    with simulated(relaxed, channel, q0=HANGING) as sim:
+        interrupt_when(lambda: sim.joint("shoulder").enabled, after=0.3)
+        t0 = time.monotonic()
+        assert main(["enable", relaxed, *bus(channel), "--seconds", "30"]) == 130
         assert time.monotonic() - t0 < 5.0
         assert all_disabled(sim)
     assert "interrupted: the arm is disabled" in capsys.readouterr().err
@@ -349,7 +363,7 @@ def test_teach_a_path_for_some_seconds(channel: str, relaxed: str, tmp_path: Pat
     with os.fdopen(r) as stdin, os.fdopen(w, "w"):
         monkeypatch.setattr("sys.stdin", stdin)
         with simulated(relaxed, channel, q0=HANGING):
-            assert main(["teach", relaxed, *bus(channel), str(out), "--rate", "100", "--seconds", "0.5"]) == 0
+            assert main(["teach", relaxed, *bus(channel), str(out), "--sample-rate", "100", "--seconds", "0.5"]) == 0
     path = load_path(out, ("shoulder", "elbow"))
     # the loop stops sampling on its own at 0.5 s, however late the waiting thread wakes: 51
     # samples on the 100 Hz grid (exactly so in lock step, test_teach), fewer only if a stall of
@@ -466,7 +480,7 @@ def test_plot_a_bad_log_is_one_clear_error(tmp_path: Path, capsys: pytest.Captur
 @pytest.mark.parametrize("where", ["own", "in-process"])
 def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.CaptureFixture[str]) -> None:
     extra = ["--in-process"] if where == "in-process" else []
-    assert main(["bench", PLANAR2, "--seconds", "1", "--rate", "250", *extra]) == 0
+    assert main(["bench", PLANAR2, "--seconds", "1", "--loop-rate", "250", *extra]) == 0
     out = capsys.readouterr().out
     assert "bench: planar2, 2 joints at 250 Hz" in out
     assert ("in this process" if extra else "in its own process") in out

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from akarm import ConfigError
+from akarm import ConfigError, ConfigWarning
 from akarm.config import BusConfig
 from akarm.config_loader import load_robot
 from akarm.errors import ConfigProblem
@@ -322,11 +322,33 @@ def test_joint_not_in_urdf_fixed_and_unconfigured(tmp_path: Path) -> None:
     assert p.line == line_of(text, "elbw") and "did you mean 'elbow'" in p.message
     assert "shoulder, elbow" in p.fix
     p = one(found, "'tool0_joint' is fixed")
-    assert p.line == line_of(text, "tool0_joint")
-    # both URDF joints are now left unconfigured: reported at the joints: line
-    for name in ("shoulder", "elbow"):
-        p = one(found, f"URDF joint '{name}' (revolute) is not configured")
-        assert p.line == line_of(text, "joints:")
+    assert p.line == line_of(text, "tool0_joint") and "URDF line 71" in p.message
+    # URDF joints without a motor are not problems (they are held still, with a warning)
+    assert len(found) == 2
+
+
+def test_urdf_joint_without_a_motor_is_held_at_zero_with_a_warning(tmp_path: Path) -> None:
+    text = BASE.replace("  - name: elbow\n    can_id: 2\n    motor: AK60-6\n", "")
+    with pytest.warns(ConfigWarning, match="'elbow' .revolute, URDF line 55. has no motor in joints"):
+        config = load_robot(write(tmp_path, text))
+    assert config.joint_names == ("shoulder",) and config.locked == {"elbow": 0.0}
+    (w,) = config.warnings
+    assert w.line == line_of(text, "joints:") and "locked: {elbow: POSITION}" in w.fix
+    # `locked:` says where: no warning, and the model holds it there (its mass still counts)
+    held = load_robot(write(tmp_path, text + "locked: {elbow: 1.2}\n"))
+    assert held.locked == {"elbow": 1.2} and held.warnings == ()
+
+
+def test_locked_entries_are_checked(tmp_path: Path) -> None:
+    text = BASE.replace("  - name: elbow\n    can_id: 2\n    motor: AK60-6\n", "") + (
+        "locked:\n  elbw: 0.0\n  shoulder: 0.1\n")
+    found = problems(tmp_path, text)
+    p = one(found, "locked: 'elbw' is not a joint of the URDF")
+    assert p.line == line_of(text, "elbw:") and "did you mean 'elbow'" in p.message and "elbow" in p.fix
+    assert one(found, "'shoulder' is also under joints:").line == line_of(text, "shoulder: 0.1")
+    bad = text.replace("  elbw: 0.0\n  shoulder: 0.1\n", "  elbow: 3.0\n")
+    p = one(problems(tmp_path, bad), "locked: elbow = 3 rad is outside its URDF limits [-2.4, 2.4]")
+    assert p.line == line_of(bad, "elbow: 3.0")
 
 
 def test_joint_listed_twice(tmp_path: Path) -> None:
@@ -334,7 +356,6 @@ def test_joint_listed_twice(tmp_path: Path) -> None:
     found = problems(tmp_path, text)
     p = one(found, "listed twice")
     assert p.line == line_of(text, "can_id: 2") - 1
-    assert one(found, "'elbow' (revolute) is not configured").line == line_of(text, "joints:")
 
 
 def test_missing_urdf_file(tmp_path: Path) -> None:
@@ -343,21 +364,35 @@ def test_missing_urdf_file(tmp_path: Path) -> None:
     assert "missing.urdf" in p.message and "not found" in p.message and p.line == 2
 
 
+def urdf_problems(tmp_path: Path, urdf_text: str) -> list[ConfigProblem]:
+    """The problems of BASE with its URDF replaced by ``urdf_text``: reported in the URDF, at its lines."""
+    (tmp_path / "u.urdf").write_text(urdf_text)
+    path = write(tmp_path, BASE.replace(str(URDF), "u.urdf"))
+    with pytest.raises(ConfigError) as info:
+        load_robot(path)
+    for p in info.value.problems:
+        assert p.file == str((tmp_path / "u.urdf").resolve()) and p.fix, p
+    return info.value.problems
+
+
 def test_urdf_that_is_not_xml(tmp_path: Path) -> None:
-    (tmp_path / "broken.urdf").write_text("<robot name='x'>\n  <link name='a'>\n</robot>\n")
-    text = BASE.replace(str(URDF), "broken.urdf")
-    (p,) = problems(tmp_path, text)
-    assert "does not parse" in p.message and "URDF line 3" in p.message and p.line == 2
+    (p,) = urdf_problems(tmp_path, "<robot name='x'>\n  <link name='a'>\n</robot>\n")
+    assert "not well-formed XML" in p.message and p.line == 3
+
+
+def test_urdf_link_that_does_not_exist(tmp_path: Path) -> None:
+    (p,) = urdf_problems(tmp_path, "<robot name='x'><link name='a'/>\n<joint name='shoulder' type='revolute'>"
+                         "<parent link='a'/><child link='b'/><limit lower='-1' upper='1' effort='1' velocity='1'/>"
+                         "</joint></robot>")
+    assert "joint 'shoulder': its child link 'b' is not declared" in p.message and p.line == 2
 
 
 def test_urdf_that_pinocchio_rejects(tmp_path: Path) -> None:
-    (tmp_path / "bad.urdf").write_text(
-        "<robot name='x'><link name='a'/><joint name='shoulder' type='revolute'><parent link='a'/>"
-        "<child link='b'/><limit lower='-1' upper='1' effort='1' velocity='1'/></joint></robot>")
-    text = BASE.replace(str(URDF), "bad.urdf")
-    found = problems(tmp_path, text)
-    p = one(found, "not a valid robot model")
-    assert "child link [b] of joint [shoulder] not found" in p.message and p.line == 2
+    # what akarm's own reading does not look at: the YAML's urdf: line, with urdfdom's reason
+    text = URDF.read_text().replace('<parent link="base_link"/>', '<parent link="base_link"/><calibration rising="x"/>')
+    (tmp_path / "bad.urdf").write_text(text)
+    p = one(problems(tmp_path, BASE.replace(str(URDF), "bad.urdf")), "not a valid robot model")
+    assert p.line == 2 and "rising value (x) is not a valid float" in p.message
 
 
 def test_tool_frame_not_in_urdf(tmp_path: Path) -> None:
@@ -522,8 +557,8 @@ def test_rate_over_the_bus_limit(tmp_path: Path) -> None:
     assert p.line is None
     # six joints: 500 Hz fits (nominal 67 %), 700 Hz does not (nominal 93 %)
     six = (ROBOTS / "arm6.yaml").read_text().replace("urdf: arm6.urdf", f"urdf: {ROBOTS / 'arm6.urdf'}")
-    load_robot(write(tmp_path, six, "six.yaml"))
-    found = problems(tmp_path, six.replace("rate_hz: 500", "rate_hz: 700"))
+    load_robot(write(tmp_path, six.replace("rate_hz: 480", "rate_hz: 500"), "six.yaml"))
+    found = problems(tmp_path, six.replace("rate_hz: 480", "rate_hz: 700"))
     assert "93 %" in one(found, "rate_hz 700").message
 
 
@@ -600,3 +635,15 @@ def test_friction_per_joint_and_from_defaults(tmp_path) -> None:
         load_robot(f)
     text = str(info.value)
     assert "friction coulomb" in text and "viscos" in text and "did you mean 'viscous'" in text
+
+
+def test_supervisor_limits_per_joint_and_from_defaults(tmp_path: Path) -> None:
+    text = BASE.replace("motor: AK60-6", "motor: AK60-6\n    following_error: 0.15\n    stuck_travel: 0.03")
+    c = load_robot(write(tmp_path, text))
+    el = c.joint("elbow")
+    assert (el.following_error, el.stuck_travel) == (0.15, 0.03)
+    assert c.joints[0].following_error is None  # derived by the supervisor (akarm.safety)
+    bad = BASE.replace("motor: AK60-6", "motor: AK60-6\n    following_error: 0\n    stuck_travel: far")
+    found = problems(tmp_path, bad)
+    assert one(found, "following_error must be positive").line == line_of(bad, "following_error")
+    assert one(found, "stuck_travel must be a number").line == line_of(bad, "stuck_travel")

@@ -220,7 +220,8 @@ def test_readme_robot_file_example_loads(tmp_path: Path) -> None:
     assert (shoulder.mode, elbow.mode) == ("mit", "servo")
     assert shoulder.motor.v_max == 25.64 and shoulder.motor.mit_temp_offset == 40
     assert shoulder.limits.torque == 10.0 and elbow.limits.velocity == 3.0  # own keys and `defaults:`
-    assert elbow.status_rate_hz == 200 and set(config.buses) == {"arm", "aux"}
+    assert elbow.status_rate_hz == 200 and set(config.buses) == {"arm", "aux", "usb"}
+    assert config.buses["usb"].options == {"device_id": 2}  # passed through to python-can's PCAN bus
 
 
 def test_readme_python_tour_runs(tmp_path: Path) -> None:

@@ -112,6 +112,23 @@ def test_a_half_written_slot_is_not_delivered(pair):
     assert b.recv(0.0) is None
 
 
+def test_a_slot_still_holding_the_last_laps_frame_is_not_delivered(pair):
+    """A weakly ordered CPU may show a reader the new sequence number beside the old body and CRC:
+    the CRC covers the sequence number, so that stale frame is refused instead of delivered."""
+    a, b = pair
+    for k in range(localbus._SLOTS):  # fill the ring once; the reader takes them all
+        a.send(_msg(1, k.to_bytes(2, "big")))
+    while b.recv(0.0) is not None:
+        pass
+    at = localbus._slot(a._ring, localbus._SLOTS)  # the slot of frame 512 is the slot of frame 0
+    assert struct.unpack_from("<Q", a._mm, at)[0] == 1
+    struct.pack_into("<Q", a._mm, at, localbus._SLOTS + 1)  # the new number, with the old body and CRC
+    assert b.recv(0.0) is None
+    a._seq = localbus._SLOTS  # the writer now writes frame 512 for real: delivered
+    a.send(_msg(1, b"new"))
+    assert b.recv(0.0).data == b"new"
+
+
 def test_recv_waits_for_a_frame_from_another_thread_and_times_out_without_one(pair):
     import threading
 

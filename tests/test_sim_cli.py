@@ -19,7 +19,7 @@ from akarm.errors import BusError, StateError
 from akarm.protocol import mit
 from akarm.sim import SimulatedRobot
 
-from .conftest import ROBOTS, ROOT, has_vcan
+from .conftest import ROBOTS, ROOT, has_vcan, missing_socketcan_fix
 
 PLANAR2 = str(ROBOTS / "planar2.yaml")
 
@@ -52,7 +52,7 @@ def test_realtime_answers_at_once_and_follows_the_wall_clock(channel: str) -> No
 def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     result: list[int] = []
-    argv = ["sim", PLANAR2, "-i", "virtual", "-c", channel, "--duration", "1.5", "--fault", "elbow:error:3",
+    argv = ["sim", PLANAR2, "-i", "virtual", "-c", channel, "--seconds", "1.5", "--fault", "elbow:error:3",
             "--pose", "down"]
     runner = threading.Thread(target=lambda: result.append(main(argv)))
     with can.Bus(interface="virtual", channel=channel) as bus:
@@ -76,9 +76,14 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
     assert mit.decode_reply(model, replies[1].data).position == pytest.approx(-1.5, abs=0.05)  # --pose down
     out = capsys.readouterr().out
     assert "bus arm: virtual" in out and "fault on elbow: ErrorCode(code=3)" in out
-    status = [line for line in out.splitlines() if line.startswith("t=")]
-    assert len(status) == 1                                 # not a terminal: one line a second
-    assert "shoulder" in status[0] and "rad" in status[0] and "Nm" in status[0] and "C " in status[0]
+    lines = out.splitlines()
+    status = [k for k, line in enumerate(lines) if line.startswith("t=")]
+    assert len(status) == 1                                 # not a terminal: one status a second
+    # two joints' status does not fit 80 columns: a line for the time, then one per joint
+    block = lines[status[0]:status[0] + 3]
+    assert block[1].startswith("  shoulder ") and block[2].startswith("  elbow ")
+    assert all(len(line) < 80 for line in block)
+    assert "rad" in block[1] and "Nm" in block[1] and "C " in block[1] and "E3" in block[2]
     stopped = re.search(r"akarm sim: stopped at t = ([0-9.]+)", out)
     assert stopped and float(stopped.group(1)) == pytest.approx(1.5, abs=0.1)  # simulated time may lag
 
@@ -86,9 +91,9 @@ def test_cli_runs_for_its_duration_with_faults_and_status_lines(channel: str,
 def test_cli_missing_socketcan_bus_says_how_to_create_it(capsys: pytest.CaptureFixture[str]) -> None:
     if has_vcan("vcan9"):
         pytest.skip("vcan9 exists here")
-    assert main(["sim", PLANAR2, "-i", "socketcan", "-c", "vcan9", "--duration", "0.1"]) == 1
+    assert main(["sim", PLANAR2, "-i", "socketcan", "-c", "vcan9", "--seconds", "0.1"]) == 1
     err = capsys.readouterr().err
-    assert "vcan9" in err and "sudo ip link add dev vcan9 type vcan && sudo ip link set up vcan9" in err
+    assert "vcan9" in err and missing_socketcan_fix("vcan9") in err
     assert "Traceback" not in err
 
 
@@ -96,8 +101,9 @@ def test_missing_socketcan_bus_is_a_bus_error_in_python_too() -> None:
     if has_vcan("vcan9"):
         pytest.skip("vcan9 exists here")
     sim = SimulatedRobot(load_robot(PLANAR2), "socketcan", "vcan9", realtime=False)
-    with pytest.raises(BusError, match="ip link add dev vcan9"):
+    with pytest.raises(BusError) as info:
         sim.start()
+    assert missing_socketcan_fix("vcan9") in str(info.value)
 
 
 def test_cli_rejects_a_fault_on_an_unknown_joint(capsys: pytest.CaptureFixture[str]) -> None:
@@ -130,3 +136,15 @@ def test_cli_process_stops_cleanly_on_a_signal(sig: signal.Signals) -> None:
     assert proc.returncode == 0, err
     assert "akarm sim: stopped at" in out
     assert "Traceback" not in err
+
+
+def test_status_line_fits_80_columns_or_is_wrapped_per_joint() -> None:
+    from akarm.cli.sim import status_block
+
+    short = "t=    1.00s | a +0.000rad +0.00Nm  25.0C on"
+    assert status_block(short, 80) == [short]
+    six = "t=    1.00s | " + " | ".join(f"joint{k} +0.000rad +0.00Nm  25.0C on" for k in range(6))
+    block = status_block(six, 80)
+    assert block[0] == "t=    1.00s" and len(block) == 7
+    assert all(len(line) < 80 for line in block) and block[3] == "  joint2 +0.000rad +0.00Nm  25.0C on"
+    assert all(len(line) < 20 for line in status_block(six, 20))  # a very narrow terminal: cut

@@ -230,20 +230,122 @@ def test_fault_after_reports_its_code_from_that_time(rig: tuple[SimulatedRobot, 
     ("elbow:frozen:control", ("elbow", faults.FrozenEncoder(affects_control=True))),
     ("elbow:fault-after:2.0", ("elbow", faults.FaultAfter(2.0))),
     ("elbow:fault_after:2.5,5", ("elbow", faults.FaultAfter(2.5, code=5))),
+    ("elbow:forged:12.45", ("elbow", faults.ForgedReply(12.45))),
+    ("elbow:forged:-3,4,0.01", ("elbow", faults.ForgedReply(-3.0, 4, 0.01))),
+    ("elbow:rogue-exit", ("elbow", faults.RogueExit())),
+    ("elbow:rogue_exit:silent", ("elbow", faults.RogueExit(on_bus=False))),
+    ("elbow:blocked", ("elbow", faults.Blocked())),
 ])
 def test_parse_command_line_faults(spec: str, expected: tuple[str, faults.Fault]) -> None:
     assert faults.parse(spec) == expected
 
 
 @pytest.mark.parametrize("spec", ["elbow", "elbow:melt", "elbow:drop", "elbow:drop:1.5", "elbow:delay:-1",
-                                  "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe"])
+                                  "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe", "elbow:forged",
+                                  "elbow:forged:1,0", "elbow:rogue-exit:loud", "elbow:blocked:1"])
 def test_parse_rejects_bad_faults_with_the_kinds_listed(spec: str) -> None:
     with pytest.raises(AkarmError) as info:
         faults.parse(spec)
-    assert "drop:FRACTION" in str(info.value) or "outside" in str(info.value) or "negative" in str(info.value)
+    assert ("drop:FRACTION" in str(info.value) or "outside" in str(info.value) or "negative" in str(info.value)
+            or "count ≥ 1" in str(info.value))
 
 
 def test_faults_on_an_unknown_joint_name_it(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
     sim, _ = rig
     with pytest.raises(AkarmError, match="joints are: shoulder, elbow"):
         sim.inject("wrist", faults.ErrorCode(1))
+
+
+def test_forged_replies_come_from_another_node_with_the_claimed_position(
+        rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[1].motor
+    sim.joint("elbow").inject(faults.ForgedReply(12.45, count=3, interval=0.01))
+    sim.run_for(0.0005)
+    first = drain(bus)
+    sim.run_for(0.03)
+    rest = drain(bus)
+    frames = first + rest
+    assert len(first) == 1 and len(frames) == 3
+    for f in frames:  # a MIT reply on ID 0 in the elbow's name, at the claimed position
+        assert not f.is_extended_id and f.arbitration_id == 0 and f.data[0] == ELBOW
+        assert mit.decode_reply(model, f.data).position == pytest.approx(12.45, abs=4e-4)
+    assert sim.joint("elbow").frames_sent == 0  # the driver sent none of them
+
+
+def test_forged_status_frames_for_servo_joints(channel: str) -> None:
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", channel, realtime=False) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        sim.joint("pan").inject(faults.ForgedReply(1.0))
+        sim.run_for(0.0001)
+        (f,) = drain(bus)
+        st = servo.decode_status(f.arbitration_id, f.data)
+        assert f.arbitration_id == 0x2901 and st.position_deg == pytest.approx(57.3, abs=0.05)
+
+
+@pytest.mark.parametrize("on_bus", [True, False])
+def test_rogue_exit_disables_the_driver_seen_or_unseen(rig: tuple[SimulatedRobot, can.BusABC], on_bus: bool) -> None:
+    sim, bus = rig
+    model = sim.config.joints[0].motor
+    send(bus, SHOULDER, mit.ENTER)
+    send(bus, SHOULDER, mit.encode_command(model, 0.0, 0.0, 60.0, 2.0, 0.0))
+    sim.run_for(0.01)
+    drain(bus)
+    drv = sim.joint("shoulder")
+    assert drv.enabled
+    drv.inject(faults.RogueExit(on_bus=on_bus))
+    sim.run_for(0.001)
+    frames = drain(bus)
+    assert not drv.enabled
+    if on_bus:  # the EXIT on the shoulder's command ID, and the driver's answer to it
+        assert (frames[0].arbitration_id, bytes(frames[0].data)) == (SHOULDER, mit.EXIT)
+        assert frames[1].arbitration_id == 0 and frames[1].data[0] == SHOULDER
+    else:
+        assert frames == []
+    send(bus, SHOULDER, mit.encode_command(model, 0.5, 0.0, 60.0, 2.0, 0.0))  # ignored until ENTER
+    sim.run_for(0.2)
+    assert sim.tau[0] == 0.0
+
+
+def test_rogue_exit_releases_a_servo_joint(channel: str) -> None:
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", channel, realtime=False) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        send(bus, *servo.encode_current(1, 1.0), extended=True)
+        sim.run_for(0.01)
+        assert abs(sim.tau[0]) > 0.5
+        drain(bus)
+        sim.joint("pan").inject(faults.RogueExit())
+        sim.run_for(0.01)
+        assert sim.tau[0] == 0.0                                  # zero current: limp
+        assert (0x0101, servo.encode_current(1, 0.0)[1]) in [(m.arbitration_id, bytes(m.data)) for m in drain(bus)]
+
+
+def test_blocked_joint_stays_put_whatever_the_torque(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    model = sim.config.joints[1].motor
+    sim.set_state([0.0, 0.3], [0.0, 2.0])
+    sim.joint("elbow").inject(faults.Blocked())
+    send(bus, ELBOW, mit.ENTER)
+    send(bus, ELBOW, mit.encode_command(model, 1.5, 0.0, 20.0, 0.5, 5.0))
+    sim.run_for(0.5)
+    assert sim.q[1] == pytest.approx(0.3, abs=1e-12) and sim.dq[1] == 0.0
+    assert abs(sim.tau[1]) > 5.0                              # pushing as hard as the command says
+    sim.joint("elbow").clear_faults()
+    sim.run_for(0.2)
+    assert sim.q[1] > 0.5                                     # free again: it goes where it is told
+
+
+def test_a_fault_from_the_start_is_in_force_before_the_first_frame(planar2: RobotConfig, channel: str) -> None:
+    with SimulatedRobot(planar2, "virtual", channel, realtime=False,
+                        faults={"elbow": faults.DelayReplies(0.06), "shoulder": [faults.ErrorCode(4)]}) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        assert sim.joint("elbow").faults == (faults.DelayReplies(0.06),)
+        send(bus, ELBOW, mit.ENTER)
+        send(bus, SHOULDER, mit.ENTER)
+        sim.run_for(0.001)
+        (first,) = drain(bus)
+        assert first.data[0] == SHOULDER and first.data[7] == 4
+        sim.run_for(0.06)
+        assert [f.data[0] for f in drain(bus)] == [ELBOW]

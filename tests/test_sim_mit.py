@@ -208,6 +208,19 @@ def test_frames_for_other_ids_get_no_answer(rig: tuple[SimulatedRobot, can.BusAB
     assert drain(bus) == []
 
 
+def test_in_lock_step_every_command_is_answered_behind_other_traffic(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    """Another node's frames (a second simulator's replies, say) ahead of a command in the queue must
+    not leave the command for a later step (python-can's software filter would, on recv(0))."""
+    sim, bus = rig
+    for _ in range(3):
+        send(bus, 0x7F0, b"\x01\x02")                    # traffic for nobody here
+        send(bus, 0, b"\x05" + bytes(7))                  # another motor's reply
+    send(bus, 1, mit.ENTER)
+    send(bus, 2, mit.ENTER)
+    sim.run_for(0.0005)
+    assert sorted(m.data[0] for m in drain(bus)) == [1, 2]
+
+
 def test_v3_board_extended_commands_status_replies(planar2: RobotConfig, channel: str) -> None:
     config = with_joint(planar2, 0, firmware="v3")
     model = config.joints[0].motor

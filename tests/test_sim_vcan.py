@@ -32,7 +32,7 @@ def launch(robot: str) -> subprocess.Popen[str]:
     """Start ``akarm sim ROBOT -i socketcan -c vcan0`` (without waiting for it)."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     argv = [sys.executable, "-m", "akarm", "sim", str(ROBOTS / robot), "-i", "socketcan", "-c", "vcan0",
-            "--duration", "600", "--rate", "500", "--quiet"]
+            "--seconds", "600", "--plant-rate", "500", "--quiet"]
     return subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
 
 

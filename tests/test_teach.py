@@ -221,6 +221,15 @@ def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
     assert rec.finished
 
 
+def test_a_stall_across_the_end_of_a_timed_recording_does_not_stretch_it() -> None:
+    from akarm.control import PathRecorder
+
+    rec = PathRecorder(100.0, duration=0.1)
+    for now in [k * 0.002 for k in range(49)] + [0.1768]:  # a 79 ms stall across the last grid point
+        rec.sample(now, np.zeros(2))
+    assert rec.finished and rec.times[-1] == pytest.approx(0.09) and len(rec.times) == 10
+
+
 def test_check_replay_needs_no_enabled_arm(channel, tmp_path) -> None:
     """A recording can be validated before anything is enabled (the CLI does so before enabling)."""
     fast = sweep(duration=1.0, amp=(0.2, 1.2), period=(1.0, 0.5))

@@ -2,6 +2,8 @@
 
 Each verb lives in its own module ``akarm.cli.<verb>`` with ``add_arguments(parser)`` and
 ``run(args) -> int``; modules import heavy libraries inside ``run`` so ``akarm --help`` is fast.
+SIGTERM and SIGHUP end every verb as Ctrl-C does (:mod:`akarm.signals`): the arm is damped and
+disabled, what was recorded is written, and the exit status is 128 + the signal's number.
 """
 
 from __future__ import annotations
@@ -12,13 +14,15 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
+from .. import signals
 from .._version import __version__
 from ..errors import AkarmError
 
 #: verb → (module, one-line description). Verbs whose module is not there yet are not offered.
 VERBS: dict[str, tuple[str, str]] = {
     "demo": ("akarm.cli.demo", "run a scripted session on a simulated arm6 (no hardware needed)"),
-    "check": ("akarm.cli.check", "validate a robot YAML; print its joints, bus load and rate ceiling"),
+    "init": ("akarm.cli.init", "write a commented starting robot YAML for a URDF"),
+    "check": ("akarm.cli.check", "validate a robot YAML; print its joints, gravity, bus load and rate ceiling"),
     "sim": ("akarm.cli.sim", "simulate a robot's AK drivers on a CAN bus until Ctrl-C"),
     "scan": ("akarm.cli.scan", "list the CAN IDs that answer on a bus, and in which mode"),
     "status": ("akarm.cli.status", "print each joint's position, velocity, torque, temperature, fault"),
@@ -28,6 +32,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "move": ("akarm.cli.move", "move to a named pose or to joint values"),
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
+    "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
     "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
@@ -59,11 +64,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     module = importlib.import_module(VERBS[args.verb][0])
+    installed = signals.install()  # SIGTERM and SIGHUP end a verb as Ctrl-C does: damped, disabled, saved
     try:
         return int(module.run(args) or 0)
     except AkarmError as e:
         print(f"akarm {args.verb}: error: {e}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         print(f"akarm {args.verb}: interrupted", file=sys.stderr)
-        return 130
+        return signals.exit_code(e)
+    finally:
+        if installed:
+            signals.uninstall()

@@ -3,10 +3,12 @@
 ::
 
     akarm bench robots/arm6.yaml                    # 5 s at the file's rate_hz
-    akarm bench robots/arm6.yaml --rate 1000 --seconds 10 --busy-wait --realtime-priority
+    akarm bench robots/arm6.yaml --loop-rate 1000 --seconds 10 --busy-wait --realtime-priority
+    akarm bench robots/arm6.yaml -i socketcan -c vcan0     # the simulator on SocketCAN vcan0 instead
 
 Runs the arm against a real-time simulator in a process of its own (``akarm sim``) on a private
-``akarm_local`` channel (the file's buses are not used: no hardware is touched), moving between the
+``akarm_local`` channel (the file's buses are not used: no hardware is touched; ``-i/-c/-b`` put the
+simulator and the arm on another bus, e.g. SocketCAN ``vcan0``), moving between the
 file's poses (or small moves about the starting pose when it has none), then prints the loop's
 statistics (achieved rate, period and lateness percentiles, missed slots, time per stage) and the
 CPU used by the control loop, the rest of this process and the simulator. ``--in-process`` puts the
@@ -29,9 +31,13 @@ import time
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    parser.add_argument("robot", metavar="ROBOT.yaml", help="the robot's YAML configuration")
+    from .common import add_robot_arguments
+    from .options import renamed
+
+    add_robot_arguments(parser)
     parser.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long to run (default 5)")
-    parser.add_argument("--rate", type=float, metavar="HZ", help="loop rate (default: the file's rate_hz)")
+    parser.add_argument("--loop-rate", type=float, metavar="HZ", help="loop rate (default: the file's rate_hz)")
+    renamed(parser, "--rate", "--loop-rate")
     parser.add_argument("--busy-wait", action="store_true",
                         help="the loop keeps its core between cycles: faster cycles for a whole core")
     parser.add_argument("--realtime-priority", action="store_true", help="ask for SCHED_FIFO and locked memory")
@@ -68,18 +74,20 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import AkarmError
     from ..sim import SimulatedRobot
     from ..sim.process import SimulatorProcess
-    from .common import controlled
+    from .common import controlled, parse_channel
 
     if not args.seconds > 0:
         raise AkarmError(f"--seconds {args.seconds} must be positive")
-    if args.rate is not None and not args.rate > 0:
-        raise AkarmError(f"--rate {args.rate} must be positive", fix="e.g. --rate 500")
+    if args.loop_rate is not None and not args.loop_rate > 0:
+        raise AkarmError(f"--loop-rate {args.loop_rate} must be positive", fix="e.g. --loop-rate 500")
     config = load_robot(args.robot)
-    channel = f"akarm-bench-{os.getpid()}-{time.monotonic_ns()}"
-    config = config.with_bus(interface="virtual" if args.in_process else "akarm_local", channel=channel)
+    interface = args.interface or ("virtual" if args.in_process else "akarm_local")
+    channel = args.channel or f"akarm-bench-{os.getpid()}-{time.monotonic_ns()}"
+    config = config.with_bus(interface=interface, channel=parse_channel(channel), bitrate=args.bitrate,
+                             options=args.bus_kwargs or None)
     config = replace(config, joints=tuple(replace(j, feedback_timeout=None) for j in config.joints))
-    if args.rate is not None:
-        config = replace(config, rate_hz=float(args.rate))
+    if args.loop_rate is not None:
+        config = replace(config, rate_hz=float(args.loop_rate))
     lower = np.array([j.limits.lower for j in config.joints])
     upper = np.array([j.limits.upper for j in config.joints])
     if config.poses:
@@ -92,11 +100,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"bench: {config.name}, {len(config.joints)} joints at {config.rate_hz:g} Hz for {args.seconds:g} s "
           f"against the simulator {where} (moving between {len(targets)} poses)", flush=True)
     with contextlib.ExitStack() as stack:
+        sim: SimulatedRobot | SimulatorProcess
         if args.in_process:
             sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start))
         else:
             first = next(iter(config.poses), None)
-            sim = stack.enter_context(SimulatorProcess(args.robot, channel=channel, pose=first))
+            more = ["-b", str(args.bitrate)] if args.bitrate else []
+            if args.bus_kwargs:
+                more += ["--bus-kwargs", *(f"{k}={v}" for k, v in args.bus_kwargs.items())]
+            sim = stack.enter_context(SimulatorProcess(args.robot, interface=interface, channel=channel, pose=first,
+                                                       args=more))
         arm = stack.enter_context(controlled(Arm(config, feedback_timeout=0.5, busy_wait=args.busy_wait,
                                                  realtime_priority=args.realtime_priority)))
         arm.enable()

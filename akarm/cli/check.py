@@ -1,4 +1,11 @@
-"""``akarm check ROBOT.yaml``: validate a robot file; print its joints, bus load and rate ceiling.
+"""``akarm check ROBOT.yaml``: validate a robot file; print its joints, the largest gravity torque
+each motor must hold, the bus load and rate ceiling, and the loader's warnings.
+
+::
+
+    akarm check robots/arm6.yaml
+    akarm check robots/arm6.yaml --payload 0.5     # will the motors hold 0.5 kg more at the tool?
+    akarm check robots/arm6.yaml --loop-rate 700   # the bus load at another loop rate
 
 Exit code 0 when the file is valid (warnings included), 1 with every problem listed otherwise.
 """
@@ -17,9 +24,15 @@ if TYPE_CHECKING:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from .options import renamed
+
     add_robot_arguments(parser)
-    parser.add_argument("-r", "--rate", type=float, metavar="HZ",
+    parser.add_argument("--loop-rate", type=float, metavar="HZ",
                         help="check the bus load at this loop rate instead of the file's rate_hz")
+    parser.add_argument("--payload", type=float, metavar="KG", default=0.0,
+                        help="also check that the motors hold KG more at the tool (a margin for what the gripper "
+                             "may carry): refused when gravity then exceeds a torque limit")
+    renamed(parser, "--rate", "--loop-rate", "-r")
 
 
 def _table(rows: list[list[str]], out: TextIO) -> None:
@@ -34,13 +47,17 @@ def _hz(x: float) -> str:
     return "unlimited" if math.isinf(x) else f"{math.floor(x)} Hz"
 
 
-def report(config: object, out: TextIO | None = None) -> list[str]:
-    """Print the arm's table and bus load to ``out`` (default stdout); return the warnings printed."""
+def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0) -> list[str]:
+    """Print the arm's table (gravity included), bus load and the loader's warnings to ``out``
+    (default stdout); return the warnings printed."""
     from ..busload import LOAD_LIMIT, bus_loads
     from ..config import RobotConfig
+    from ..gravity import gravity_peaks
 
     out = out if out is not None else sys.stdout
     assert isinstance(config, RobotConfig)
+    peaks = gravity_peaks(config)
+    margin = gravity_peaks(config, extra_payload=extra_payload) if extra_payload else None
     print(f"robot {config.name!r}: {len(config.joints)} joints, URDF {config.urdf}", file=out)
     extras = [f"loop {config.rate_hz:g} Hz", f"gravity {tuple(config.gravity)} m/s²"]
     if config.tool_frame:
@@ -50,8 +67,10 @@ def report(config: object, out: TextIO | None = None) -> list[str]:
     print("  " + ", ".join(extras), file=out)
     print(file=out)
     rows = [["joint", "motor", "mode", "bus/ID", "position (rad)", "vel/acc/jerk (rad/s, /s², /s³)",
-             "torque (N·m)", "kp/kd"]]
-    for j in config.joints:
+             "torque (N·m)", "kp/kd", "gravity max (N·m)"]]
+    if margin is not None:
+        rows[0].append(f"+{extra_payload:g} kg")
+    for k, j in enumerate(config.joints):
         lim = j.limits
         mode = f"{j.mode} {j.firmware}" if j.mode == "mit" else f"servo {j.status_rate_hz:g}Hz"
         gains = f"{j.gains.kp:g}/{j.gains.kd:g}" if j.mode == "mit" else "-"
@@ -59,8 +78,19 @@ def report(config: object, out: TextIO | None = None) -> list[str]:
         offs = f" off {j.offset:g}" if j.offset else ""
         rows.append([j.name, j.motor.name + sign + offs, mode, f"{j.bus}/{j.can_id}",
                      f"[{lim.lower:+.3f}, {lim.upper:+.3f}]", f"{lim.velocity:g} / {lim.acceleration:g} / {lim.jerk:g}",
-                     f"{lim.torque:g} of {j.motor.t_max:g}", gains])
+                     f"{lim.torque:g} of {j.motor.t_max:g}", gains, _gravity_cell(peaks[k].torque, j)])
+        if margin is not None:
+            rows[-1].append(_gravity_cell(margin[k].torque, j))
     _table(rows, out)
+    loaded = [p for p in (margin or peaks) if p.torque > 0.005]
+    if loaded:
+        what = f"with {extra_payload:g} kg more at the tool" if margin is not None else "over the joint ranges"
+        print(f"  gravity max {what}" + (" (payload included)" if config.payload else "") + ", reached at:", file=out)
+        width = max(len(p.joint) for p in loaded)
+        for p in loaded:
+            j = config.joint(p.joint)
+            print(f"    {p.joint:<{width}}  gravity max {p.torque:.1f} N·m at {p.pose()} of {j.limits.torque:g} N·m",
+                  file=out)
     if config.poses:
         print(file=out)
         print("poses: " + ", ".join(config.poses), file=out)
@@ -71,7 +101,7 @@ def report(config: object, out: TextIO | None = None) -> list[str]:
     rows = [["bus", "channel", "joints", "load", "max rate (worst case)", "max rate (nominal)"]]
     for name, load in bus_loads(config).items():
         bus = config.buses[name]
-        rows.append([name, f"{bus.interface}:{bus.channel} @ {bus.bitrate // 1000} kbit/s", str(len(load.joints)),
+        rows.append([name, bus.describe(), str(len(load.joints)),
                      f"{load.percent:.1f} % ({load.percent_nominal:.1f} %)", _hz(load.max_rate_hz),
                      _hz(load.max_rate_hz_nominal)])
         if load.worst_case_over_limit:
@@ -79,9 +109,24 @@ def report(config: object, out: TextIO | None = None) -> list[str]:
                             f"(nominal {load.percent_nominal:.0f} %); below {math.floor(load.max_rate_hz)} Hz "
                             "the bus stays under the limit even with maximal bit stuffing")
     _table(rows, out)
+    for cw in config.warnings:
+        warnings.append(f"{cw.message} (fix: {cw.fix})" if cw.fix else cw.message)
     for w in warnings:
         print(f"warning: {w}", file=out)
     return warnings
+
+
+def _gravity_cell(torque: float, joint: object) -> str:
+    """``"14.7, above rated 8.3"``: the largest gravity torque against the joint's limit and rated torque."""
+    from ..config import JointConfig
+
+    assert isinstance(joint, JointConfig)
+    if torque > joint.limits.torque:
+        return f"{torque:.1f} ABOVE the limit {joint.limits.torque:g}"
+    rated = joint.motor.rated_torque
+    if rated is None:
+        return f"{torque:.1f}"
+    return f"{torque:.1f}, {'above' if torque > rated else 'within'} rated {rated:g}"
 
 
 def _print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> None:
@@ -97,19 +142,18 @@ def _print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> N
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..busload import LOAD_LIMIT, bus_loads
-    from ..config_loader import load_robot
-    from ..errors import ConfigError, ConfigProblem
-    from .common import parse_channel
+    import warnings
 
+    from ..busload import LOAD_LIMIT, bus_loads
+    from ..errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
+    from ..gravity import gravity_peaks
+
+    if not args.payload >= 0:
+        raise AkarmError(f"--payload {args.payload:g} must not be negative", fix="the extra mass in kg, e.g. 0.5")
     try:
-        if args.rate is None:
-            config = load_from_args(args)
-        else:  # the loader checks the bus load at this rate
-            config = load_robot(args.robot, rate_hz=args.rate)
-            if args.interface or args.channel or args.bitrate:
-                config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
-                                         bitrate=args.bitrate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConfigWarning)  # printed below with the others
+            config = load_from_args(args, rate_hz=args.loop_rate)  # the loader checks the bus load at this rate
     except ConfigError as e:
         _print_problems(args.robot, e.problems, sys.stderr)
         return 1
@@ -121,6 +165,15 @@ def run(args: argparse.Namespace) -> int:
             f"{load.bus!r} is {load.percent_nominal:.0f} % busy, over {100 * LOAD_LIMIT:.0f} %",
             f"run at most {math.floor(load.max_rate_hz_nominal)} Hz") for load in over], sys.stderr)
         return 1
-    report(config)
+    report(config, extra_payload=args.payload)
+    if args.payload:
+        short = [(j, p) for j, p in zip(config.joints, gravity_peaks(config, extra_payload=args.payload), strict=True)
+                 if p.torque > j.limits.torque]
+        if short:
+            _print_problems(args.robot, [ConfigProblem(
+                args.robot, None, f"joint {j.name!r}: with {args.payload:g} kg more at the tool, gravity needs up to "
+                f"{p.torque:.1f} N·m (at {p.pose()}), above its torque limit {j.limits.torque:g} N·m",
+                "a stronger motor for this joint, or less payload") for j, p in short], sys.stderr)
+            return 1
     print(f"\n{args.robot}: OK")
     return 0

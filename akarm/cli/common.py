@@ -1,29 +1,32 @@
 """What the verbs share: the robot YAML and python-can style bus overrides, tables, and driving an
 Arm so that it always ends damped and disabled (:func:`controlled`, :func:`stop_smoothly`,
-:func:`deferred_sigint`)."""
+:func:`deferred_signals`), and the exit status of an interrupted verb (:func:`interrupted`)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import signal
 import sys
-import threading
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ..arm import Arm
     from ..config import RobotConfig
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = True) -> None:
-    """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``."""
+    """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``, ``--bus-kwargs``."""
+    from .options import add_bus_kwargs
+
     parser.add_argument("robot", metavar="ROBOT.yaml", nargs=None if robot_required else "?",
                         help="the robot's YAML configuration")
     parser.add_argument("-i", "--interface", help="python-can interface for every bus (e.g. socketcan, virtual)")
     parser.add_argument("-c", "--channel", help="channel (one bus), or NAME=CHANNEL[,NAME=CHANNEL...] per bus")
     parser.add_argument("-b", "--bitrate", type=int, help="bit rate, bit/s")
+    add_bus_kwargs(parser)
 
 
 def parse_channel(text: str | None) -> str | dict[str, str] | None:
@@ -33,14 +36,27 @@ def parse_channel(text: str | None) -> str | dict[str, str] | None:
     return dict(part.split("=", 1) for part in text.split(","))
 
 
-def load_from_args(args: argparse.Namespace) -> RobotConfig:
-    """The robot config named on the command line, with its bus overrides applied."""
-    from ..config_loader import load_robot
+def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> RobotConfig:
+    """The robot config named on the command line, with its bus overrides applied (and the loop rate
+    ``rate_hz``, checked against the bus load like the file's own); the loader's ConfigWarnings are
+    printed as ``warning: ...`` lines on stderr."""
+    import warnings
 
-    config = load_robot(args.robot)
-    if args.interface or args.channel or args.bitrate:
+    from ..config_loader import load_robot
+    from ..errors import ConfigWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConfigWarning)
+        config = load_robot(args.robot, rate_hz=rate_hz)
+    for w in caught:
+        if issubclass(w.category, ConfigWarning):
+            print(f"warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    kwargs = getattr(args, "bus_kwargs", None) or None
+    if args.interface or args.channel or args.bitrate or kwargs:
         config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
-                                 bitrate=args.bitrate)
+                                 bitrate=args.bitrate, options=kwargs)
     return config
 
 
@@ -61,25 +77,12 @@ def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = N
     return "\n".join(out)
 
 
-@contextlib.contextmanager
-def deferred_sigint(message: str = "stopping the arm safely; please wait") -> Iterator[None]:
-    """While inside, Ctrl-C does not interrupt (``message`` is printed instead). Main thread only;
-    elsewhere (signals cannot be handled there) it does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    told: list[int] = []
+def deferred_signals(message: str = "stopping the arm safely; please wait") -> contextlib.AbstractContextManager[None]:
+    """While inside, Ctrl-C, SIGTERM and SIGHUP do not interrupt (``message`` is printed instead):
+    the arm's stop must not be cut short. Main thread only (:func:`akarm.signals.deferred`)."""
+    from .. import signals
 
-    def handler(signum: int, frame: object) -> None:
-        if not told:
-            print(message, file=sys.stderr, flush=True)
-        told.append(signum)
-
-    previous = signal.signal(signal.SIGINT, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    return signals.deferred(message)
 
 
 @contextlib.contextmanager
@@ -94,7 +97,7 @@ def controlled(arm: Arm | RobotConfig) -> Iterator[Arm]:
     try:
         yield arm
     finally:
-        with deferred_sigint():
+        with deferred_signals():
             arm.close()
 
 
@@ -105,7 +108,7 @@ def stop_smoothly(arm: Arm) -> None:
     """
     from ..errors import AkarmError
 
-    with deferred_sigint():
+    with deferred_signals():
         if arm.enabled and arm.moving:
             with contextlib.suppress(AkarmError):
                 arm.stop(wait=True)
@@ -113,6 +116,13 @@ def stop_smoothly(arm: Arm) -> None:
             arm.disable()
 
 
-def format_q(q: Sequence[float]) -> str:
+def interrupted(e: KeyboardInterrupt) -> int:
+    """The exit status of a verb ended by Ctrl-C (130) or a signal (128 + its number)."""
+    from .. import signals
+
+    return signals.exit_code(e)
+
+
+def format_q(q: Sequence[float] | np.ndarray) -> str:
     """Joint positions as ``[+0.1000, -0.2000] rad``."""
     return "[" + ", ".join(f"{x:+.4f}" for x in q) + "] rad"

@@ -22,6 +22,7 @@ rate, missed slots and lateness are then exact by construction and say nothing a
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import os
 from collections.abc import Callable
@@ -81,11 +82,13 @@ def _arm6_yaml() -> Path:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Fail before the session, not after it, on an output that cannot be written."""
-    if args.log is not None and Path(args.log).suffix not in (".csv", ".npz"):
-        raise RecordingError(f"cannot save telemetry as {args.log!r}", fix="use a .csv or .npz file name")
+    from .options import check_output
+
+    check_output(args.log, (".csv", ".npz"), "telemetry")
     if not args.no_plot:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
+        check_output(args.output, (".png",), "the plot")
         from ..plot import _figure_classes
 
         _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
@@ -106,7 +109,7 @@ def _session(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
     steps: list[tuple[str, str, Callable[[], object]]] = [
         ("enable (no kick: gains ramp up from zero)", "enable", arm.enable)]
     for pose in ("home", "ready", "left", "reach", "home"):
-        steps.append((f"move_to({pose!r})", pose, lambda pose=pose: arm.move_to(pose)))
+        steps.append((f"move_to({pose!r})", pose, functools.partial(arm.move_to, pose)))
     steps.append((f"move_through({len(WAYPOINTS)} waypoints, no stops)", "waypoints",
                   lambda: arm.move_through(list(WAYPOINTS))))
     steps.append((f"replay({DEMO_PATH.name!r}): a figure eight", "replay", lambda: arm.replay(DEMO_PATH)))

@@ -26,6 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Send the exit frames; list per joint what was sent and whether it answered."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from ..probe import release
     from .common import format_table
 
@@ -45,7 +49,11 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(rows, [False, False, False, False, False, True]))
     missing = [s.name for s in states if s.missing]
     if missing:
-        print(f"akarm disable: no answer from {', '.join(missing)} (its frames were sent; check power and "
-              "wiring before trusting it is off)", file=sys.stderr)
+        from ..bus import no_answer_hint
+
+        print(f"akarm disable: no answer from {', '.join(missing)} (its frames were sent; do not trust that it is "
+              "off before it answers)", file=sys.stderr)
+        for bus in dict.fromkeys(config.joint(name).bus for name in missing):
+            print(f"  bus {bus!r}: {no_answer_hint(config.buses[bus])}", file=sys.stderr)
         return 1
     return 0

@@ -5,8 +5,9 @@
     akarm enable robots/arm6.yaml               # hold until Ctrl-C, then damp and disable
     akarm enable robots/arm6.yaml --seconds 10  # hold for 10 s
 
-Exit status 0 after ``--seconds``, 130 after Ctrl-C (the arm is disabled either way), 1 on an error
-(a joint that does not answer, a motor fault, ...).
+Exit status 0 after ``--seconds``, and after Ctrl-C without ``--seconds`` (the documented way to end
+it); 130 when Ctrl-C cuts ``--seconds`` short (the arm is damped and disabled either way); 1 on an
+error (a joint that does not answer, a motor fault, ...).
 """
 
 from __future__ import annotations
@@ -14,7 +15,15 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, controlled, deferred_sigint, format_q, load_from_args, stop_smoothly
+from .common import (
+    add_robot_arguments,
+    controlled,
+    deferred_signals,
+    format_q,
+    interrupted,
+    load_from_args,
+    stop_smoothly,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, hold until Ctrl-C or ``--seconds``, disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from ..errors import AkarmError
 
     if args.seconds is not None and not args.seconds >= 0:
@@ -42,11 +55,14 @@ def run(args: argparse.Namespace) -> int:
             else:
                 while True:
                     arm.sleep(1.0)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
+            if args.seconds is None and interrupted(e) == 130:  # Ctrl-C is how this is ended
+                print("disabled")
+                return 0
             print("interrupted: the arm is disabled", file=sys.stderr)
-            return 130
-        with deferred_sigint():
+            return interrupted(e)
+        with deferred_signals():
             arm.disable()
         print("disabled")
     return 0

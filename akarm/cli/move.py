@@ -1,41 +1,50 @@
-"""``akarm move ROBOT.yaml POSE|VALUES``: enable, move, optionally hold, disable.
+"""``akarm move ROBOT.yaml TARGET...``: enable, move, optionally hold, disable.
 
 ::
 
-    akarm move robots/planar2.yaml home                 # a pose from the YAML's `poses:`
-    akarm move robots/planar2.yaml 0.1,-0.2 --speed 0.5 # rad per joint, config order
+    akarm move robots/planar2.yaml home                       # a pose from the YAML's `poses:`
+    akarm move robots/planar2.yaml 0.1,-0.2 --speed 0.5       # rad per joint, config order
+    akarm move robots/planar2.yaml -0.1 0.2 --speed 0.5       # the same, one value per word
+    akarm move robots/arm6.yaml elbow=0.5 wrist_pitch=-0.2    # named joints; the others stay
+    akarm move robots/arm6.yaml ready elbow=1.0               # a pose, with some joints changed
     akarm move robots/planar2.yaml up --hold 5 --log up.csv
     akarm move robots/arm6.yaml --xyz 0.45 0.0 0.5 --rpy 0 1.57 0   # the tool frame to a pose
     akarm move robots/arm6.yaml --xyz 0.45 0.1 0.5 --linear         # in a straight line, orientation kept
 
-The motion is planned (jerk-limited, joints arriving together; with ``--linear`` jerk-limited
-along the line) and checked against every joint's limits before anything moves. Ctrl-C brings the
-arm to rest smoothly, then disables it (exit 130).
+Negative values need no ``--``. Names of poses and joints are checked (with a did-you-mean), the
+``--log`` file's name and folder too, and the motion is planned (jerk-limited, joints arriving
+together) and checked against every joint's limits, all before anything is enabled. With ``--xyz``
+the joint positions are solved (and the motion checked) once the arm is enabled and its pose known;
+``--linear`` keeps the tool on the straight line, jerk-limited along it. Ctrl-C brings the arm to
+rest smoothly, then disables it (exit 130).
 """
 
 from __future__ import annotations
 
 import argparse
-import re
 import sys
+from collections.abc import Sequence
 
 from .common import add_robot_arguments, load_from_args
+
+#: telemetry files akarm writes
+LOG_SUFFIXES = (".csv", ".npz")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from .options import negative_values_are_positional
+
     add_robot_arguments(parser)
-    parser.add_argument("target", metavar="POSE|VALUES", nargs="?",
-                        help="a pose name from the robot file, or comma-separated joint positions in rad (config "
-                             "order), e.g. 0.1,-0.2,0.3 (-0.1,0.2 works too; else put -- before it)")
-    # argparse takes "-0.1,0.2" for an option: it only knows plain negative numbers. The parser has
-    # no option that looks like a number, so comma-separated numbers may be read as a positional too.
-    if hasattr(parser, "_negative_number_matcher"):
-        parser._negative_number_matcher = re.compile(r"^-\.?\d[\d.eE+-]*(,[-+]?\.?\d[\d.eE+-]*)*$")
+    parser.add_argument("target", metavar="TARGET", nargs="*",
+                        help="a pose name from the robot file; or joint positions in rad, config order, comma- or "
+                             "space-separated (0.1,-0.2 or 0.1 -0.2); or JOINT=VALUE for some joints (elbow=0.5), "
+                             "after a pose name or alone (the other joints stay where they are)")
+    negative_values_are_positional(parser)
     _intermixed(parser)
     parser.add_argument("--xyz", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                        help="instead of POSE|VALUES: move the tool frame to this position (m, base frame); "
-                             "its orientation stays as it is unless --rpy gives one")
+                        help="instead of TARGET: move the tool frame to this position (m, base frame); its "
+                             "orientation stays as it is unless --rpy gives one")
     parser.add_argument("--rpy", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                         help="with --xyz: the tool's orientation, rad (URDF convention: Rz(yaw) Ry(pitch) Rx(roll))")
     parser.add_argument("--linear", action="store_true", help="with --xyz: move the tool in a straight line")
@@ -47,10 +56,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _intermixed(parser: argparse.ArgumentParser) -> None:
-    """Let the optional POSE|VALUES come after options (``move R.yaml -c can0 home``): argparse
-    otherwise settles an optional positional at the first option it meets (empty). Its own
-    ``parse_known_intermixed_args`` does it right and calls ``parse_known_args`` itself, so the
-    instance's ``parse_known_args`` (what the verb's sub-parser is called with) is swapped only outside it."""
+    """Let TARGET come after options (``move R.yaml -c can0 home``) now that it may be left out (for
+    ``--xyz``): argparse otherwise settles an optional positional, empty, at the first option it
+    meets. Its own ``parse_known_intermixed_args`` does it right and calls ``parse_known_args``
+    itself, so the instance's ``parse_known_args`` (what the verb's sub-parser is called with) is
+    swapped only outside it."""
     plain = parser.parse_known_args
 
     def parse_known_args(args=None, namespace=None):
@@ -63,138 +73,147 @@ def _intermixed(parser: argparse.ArgumentParser) -> None:
     parser.parse_known_args = parse_known_args  # type: ignore[method-assign]
 
 
-def parse_target(text: str, joint_names: tuple[str, ...]) -> str | list[float]:
-    """A pose name, or comma-separated rad values (one per joint) → a list of floats.
+def _number(text: str) -> float | None:
+    try:
+        x = float(text)
+    except ValueError:
+        return None
+    return x if x == x and abs(x) != float("inf") else None
+
+
+def parse_target(words: str | Sequence[str], config: object) -> str | list[float] | dict[str, float]:
+    """The words of a target → a pose name, a full vector (rad, config order) or {joint: rad}.
 
     Raises:
-        LimitError: numbers of the wrong count.
+        ConfigError: no such pose or joint (with a did-you-mean).
+        LimitError: numbers of the wrong count, or words that are none of these.
     """
+    from ..config import RobotConfig
     from ..errors import LimitError
+    from ..motors import did_you_mean
 
-    parts = [p.strip() for p in text.split(",")]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        if len(parts) == 1:
-            return text  # a pose name; the Arm says if there is no such pose
-        raise LimitError(f"{text!r} is neither a pose name nor comma-separated numbers",
-                         fix="give rad values like 0.1,-0.2 or a pose from the robot file") from None
-    if len(values) != len(joint_names):
-        raise LimitError(f"{len(values)} value(s) given, the arm has {len(joint_names)} joints",
-                         fix="one position in rad per joint, in order: " + ", ".join(joint_names))
-    return values
+    assert isinstance(config, RobotConfig)
+    names = config.joint_names
+    items = [words] if isinstance(words, str) else list(words)
+    parts = [p.strip() for w in items for p in w.split(",") if p.strip()]
+    values = [_number(p) for p in parts]
+    if parts and all(v is not None for v in values):
+        if len(values) != len(names):
+            raise LimitError(f"{len(values)} value(s) given, the arm has {len(names)} joints",
+                             fix="one position in rad per joint, in order: " + ", ".join(names) +
+                             "; or JOINT=VALUE for some of them")
+        return [float(v) for v in values if v is not None]
+    pose: str | None = None
+    named: dict[str, float] = {}
+    for k, word in enumerate(items):
+        if "=" not in word:
+            if k == 0:
+                pose = word.strip()
+                config.pose(pose)  # ConfigError with did-you-mean when there is no such pose
+                continue
+            raise LimitError(f"{word!r}: after the first word, give JOINT=VALUE", fix="e.g. elbow=0.5")
+        name, _, text = word.partition("=")
+        name = name.strip()
+        if name not in names:
+            raise LimitError(f"no joint named {name!r}{did_you_mean(name, names)}",
+                             fix="joints are: " + ", ".join(names))
+        x = _number(text)
+        if x is None:
+            raise LimitError(f"{word!r}: {text!r} is not a number", joint=name, fix="give rad, e.g. elbow=0.5")
+        named[name] = x
+    if pose is None:
+        return named
+    if not named:
+        return pose
+    q = list(config.pose(pose))
+    for name, x in named.items():
+        q[names.index(name)] = x
+    return q
 
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
     from ..errors import AkarmError
 
+    if not args.target and args.xyz is None:
+        raise AkarmError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
+    if args.target and args.xyz is not None:
+        raise AkarmError("give either a TARGET or --xyz, not both")
+    if args.xyz is None and (args.rpy is not None or args.linear):
+        raise AkarmError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
+    if args.xyz is not None:
+        return _move_tool(args)
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
+    import numpy as np
+
+    from .common import format_q
+
+    config = _checked_config(args)
+    target = parse_target(args.target, config)
+    wanted = {n: q for n, q in zip(config.joint_names, config.pose(target) if isinstance(target, str) else target,
+                                   strict=True)} if not isinstance(target, dict) else dict(target)
+    for j in config.joints:  # say it before enabling anything
+        q = wanted.get(j.name)
+        lo = j.limits
+        if q is not None and not lo.lower <= q <= lo.upper:
+            raise AkarmError(f"target {q:+.4f} rad is outside [{lo.lower:+.4f}, {lo.upper:+.4f}] rad", joint=j.name,
+                             fix="choose a target within the joint's limits")
+    label = " ".join(args.target)
+    q_target = np.zeros(len(config.joints))
+
+    def start(arm):
+        nonlocal q_target
+        motion = arm.move_to(target, speed=args.speed, wait=False)
+        q_target = (np.array(config.pose(target) if isinstance(target, str) else target, dtype=float)
+                    if not isinstance(target, dict) else motion.plan.sample(motion.plan.t_end)[0])
+        print(f"moving to {label} {format_q(q_target)} in {motion.duration:.2f} s", flush=True)
+        return motion
+
+    def arrived(arm) -> str:
+        state = arm.state()
+        err = np.abs(state.q - q_target)
+        return (f"arrived: {format_q(state.q)}, largest error {err.max() * 1e3:.2f} mrad "
+                f"({arm.names[int(err.argmax())]})")
+
+    return _session(args, config, start, arrived)
+
+
+def _checked_config(args: argparse.Namespace):
+    """The options every move checks before anything is enabled, and the robot."""
+    from ..errors import AkarmError
+    from .options import check_output
+
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if not args.hold >= 0:
         raise AkarmError(f"--hold {args.hold} must not be negative")
-    if (args.target is None) == (args.xyz is None):
-        raise AkarmError("give either a target (POSE|VALUES) or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
-    if args.xyz is None and (args.rpy is not None or args.linear):
-        raise AkarmError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
-    config = load_from_args(args)
-    move = _ToolMove(args) if args.xyz is not None else _JointMove(args, config)
-    return _session(args, config, move)
+    check_output(args.log, LOG_SUFFIXES, "telemetry")
+    return load_from_args(args)
 
 
-class _JointMove:
-    """POSE|VALUES: checked against the ranges before anything is enabled."""
-
-    def __init__(self, args: argparse.Namespace, config) -> None:
-        import numpy as np
-
-        from ..errors import AkarmError
-
-        target = parse_target(args.target, config.joint_names)
-        self.label = args.target
-        self.q = np.array(config.pose(target) if isinstance(target, str) else target)
-        for j, q in zip(config.joints, self.q, strict=True):  # say it before enabling anything
-            lo = j.limits
-            if not lo.lower <= q <= lo.upper:
-                raise AkarmError(f"target {q:+.4f} rad is outside [{lo.lower:+.4f}, {lo.upper:+.4f}] rad", joint=j.name,
-                                 fix="choose a target within the joint's limits")
-
-    def start(self, arm, speed: float):
-        from .common import format_q
-
-        motion = arm.move_to(self.q, speed=speed, wait=False)
-        print(f"moving to {self.label} {format_q(self.q)} in {motion.duration:.2f} s", flush=True)
-        return motion
-
-    def arrived(self, arm) -> str:
-        import numpy as np
-
-        from .common import format_q
-
-        q = arm.state().q
-        err = np.abs(q - self.q)
-        return f"arrived: {format_q(q)}, largest error {err.max() * 1e3:.2f} mrad ({arm.names[int(err.argmax())]})"
-
-
-class _ToolMove:
-    """--xyz [--rpy] [--linear]: solved and checked once the arm's pose is known (after enabling)."""
-
-    def __init__(self, args: argparse.Namespace) -> None:
-        import numpy as np
-
-        from ..ik import make_pose
-
-        self.xyz = np.array(args.xyz)
-        self.target = make_pose(args.xyz, rpy=args.rpy) if args.rpy is not None else None
-        self.linear = args.linear
-        self.start_pose = None
-
-    def start(self, arm, speed: float):
-        self.start_pose = arm.tool_pose()
-        pose = self.target if self.target is not None else self.xyz
-        move = arm.move_linear if self.linear else arm.move_to_pose
-        motion = move(pose, speed=speed, wait=False)
-        how = "in a straight line" if self.linear else "(joint-space move)"
-        print(f"moving the tool to {_xyz(self.xyz)} {how} in {motion.duration:.2f} s", flush=True)
-        return motion
-
-    def arrived(self, arm) -> str:
-        import numpy as np
-
-        from ..ik import pose_error
-
-        reached = arm.tool_pose()
-        text = (f"arrived: tool at {_xyz(reached[:3, 3])}, "
-                f"{np.linalg.norm(reached[:3, 3] - self.xyz) * 1e3:.2f} mm from the target")
-        if self.target is not None:
-            text += f", {pose_error(reached, self.target)[1] * 1e3:.1f} mrad from the target orientation"
-        elif arm.n >= 6:
-            text += f", {pose_error(reached, self.start_pose)[1] * 1e3:.1f} mrad from the orientation it had"
-        return text
-
-
-def _xyz(p) -> str:
-    return "(" + ", ".join(f"{x:+.4f}" for x in p) + ") m"
-
-
-def _session(args: argparse.Namespace, config, move: _JointMove | _ToolMove) -> int:
-    from .common import controlled, deferred_sigint, stop_smoothly
+def _session(args: argparse.Namespace, config, start, arrived) -> int:
+    """Enable, ``start(arm)`` a motion and wait for it (and hold), print ``arrived(arm)``, disable;
+    Ctrl-C stops smoothly. Always ends disabled; the telemetry saved with ``--log``."""
+    from .common import controlled, deferred_signals, interrupted, stop_smoothly
 
     code = 0
     with controlled(config) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()
-            move.start(arm, args.speed).wait()
+            start(arm).wait()
             if args.hold > 0:
                 arm.sleep(args.hold)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: stopped and disabled", file=sys.stderr)
-            code = 130
+            code = interrupted(e)
         else:
-            print(move.arrived(arm))
-            with deferred_sigint():
+            print(arrived(arm))
+            with deferred_signals():
                 arm.disable()
         if args.log:
             path = arm.telemetry(since=t0).save(args.log)
@@ -202,3 +221,44 @@ def _session(args: argparse.Namespace, config, move: _JointMove | _ToolMove) -> 
     if code == 0:
         print("disabled")
     return code
+
+
+def _move_tool(args: argparse.Namespace) -> int:
+    """--xyz [--rpy] [--linear]: solved and checked once the arm's pose is known (after enabling)."""
+    import numpy as np
+
+    from ..errors import StateError
+    from ..ik import make_pose, pose_error
+    from ..server.registry import any_server, find_server
+
+    config = _checked_config(args)
+    if any_server() and find_server(config) is not None:
+        raise StateError("akarm serve drives this robot: --xyz moves are not served yet",
+                         fix="stop the server, or move to joint positions")
+    xyz = np.array(args.xyz)
+    target = make_pose(args.xyz, rpy=args.rpy) if args.rpy is not None else None
+    start_pose = np.eye(4)
+
+    def _xyz(p) -> str:
+        return "(" + ", ".join(f"{x:+.4f}" for x in p) + ") m"
+
+    def start(arm):
+        nonlocal start_pose
+        start_pose = arm.tool_pose()
+        move = arm.move_linear if args.linear else arm.move_to_pose
+        motion = move(target if target is not None else xyz, speed=args.speed, wait=False)
+        how = "in a straight line" if args.linear else "(joint-space move)"
+        print(f"moving the tool to {_xyz(xyz)} {how} in {motion.duration:.2f} s", flush=True)
+        return motion
+
+    def arrived(arm) -> str:
+        reached = arm.tool_pose()
+        text = (f"arrived: tool at {_xyz(reached[:3, 3])}, {np.linalg.norm(reached[:3, 3] - xyz) * 1e3:.2f} mm "
+                "from the target")
+        if target is not None:
+            text += f", {pose_error(reached, target)[1] * 1e3:.1f} mrad from the target orientation"
+        elif arm.n >= 6:
+            text += f", {pose_error(reached, start_pose)[1] * 1e3:.1f} mrad from the orientation it had"
+        return text
+
+    return _session(args, config, start, arrived)

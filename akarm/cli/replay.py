@@ -36,15 +36,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load and check the recording, then enable, replay with progress, disable."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from tqdm import tqdm
 
     from ..arm import Arm
     from ..errors import AkarmError
     from ..recording import Keyframes, load
-    from .common import controlled, deferred_sigint, stop_smoothly
+    from .common import controlled, deferred_signals, interrupted, stop_smoothly
+    from .options import check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config)
@@ -65,15 +71,15 @@ def run(args: argparse.Namespace) -> int:
                     arm.sleep(0.1)
                     bar.n = round(min(arm.clock.now() - start, motion.duration), 2)
                     bar.refresh()
-                bar.n = bar.total
+                bar.n = motion.duration
             motion.wait()
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: stopped and disabled", file=sys.stderr)
-            code = 130
+            code = interrupted(e)
         else:
             rms = arm.telemetry(since=t0).rms_error()
-            with deferred_sigint():
+            with deferred_signals():
                 arm.disable()
             print("done; RMS tracking error " + ", ".join(f"{n} {e * 1e3:.2f} mrad"
                                                           for n, e in zip(arm.names, rms, strict=True)))

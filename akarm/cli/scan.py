@@ -19,8 +19,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from .common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from ..config import BusConfig
 
 
 def parse_ids(text: str) -> list[int]:
@@ -55,9 +59,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="seconds to wait for MIT replies after the last query (default 0.1)")
 
 
+def _bus_from_args(args: argparse.Namespace) -> BusConfig:
+    """Without a robot file: the bus of ``-i/-c/-b/--bus-kwargs``, completed from python-can's own
+    configuration (CAN_INTERFACE, CAN_CHANNEL, can.conf, ...), as python-can's tools do."""
+    from ..canconfig import python_can_settings, resolve_bus
+    from ..errors import AkarmError
+
+    if args.channel and "=" in args.channel:
+        raise AkarmError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
+    try:
+        settings = python_can_settings()
+    except ValueError as e:
+        raise AkarmError(str(e), fix="fix CAN_CONFIG or the can.conf/.canrc file, or give -i and -c") from None
+    given = {k: v for k, v in (("interface", args.interface), ("channel", args.channel), ("bitrate", args.bitrate))
+             if v is not None}
+    given.update(args.bus_kwargs)
+    if not given.get("interface", settings.get("interface")) or not given.get("channel", settings.get("channel")):
+        raise AkarmError("without a robot file, give the bus: -i INTERFACE -c CHANNEL (or configure python-can: "
+                         "CAN_INTERFACE and CAN_CHANNEL, or ~/can.conf)", fix="e.g. akarm scan -i socketcan -c can0")
+    bus, found = resolve_bus("bus", given, settings)
+    if bus is None:
+        raise AkarmError("; ".join(message for _, message, _ in found), fix=found[0][2])
+    return bus
+
+
 def run(args: argparse.Namespace) -> int:
     """Scan the bus(es); print a table of what answered."""
-    from ..config import BusConfig
     from ..errors import AkarmError
     from ..probe import scan
     from .common import format_table
@@ -65,18 +92,16 @@ def run(args: argparse.Namespace) -> int:
     if args.listen < 0 or args.timeout < 0:
         raise AkarmError("--listen and --timeout must not be negative")
     if args.robot is None:
-        if not args.interface or not args.channel:
-            raise AkarmError("without a robot file, give the bus: -i INTERFACE -c CHANNEL",
-                             fix="e.g. akarm scan -i socketcan -c can0")
-        if "=" in args.channel:
-            raise AkarmError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
-        buses = [BusConfig("bus", args.interface, args.channel, args.bitrate or 1_000_000)]
+        buses = [_bus_from_args(args)]
         joints = []
     else:
         config = load_from_args(args)
         buses = [config.buses[name] for name in config.buses if any(j.bus == name for j in config.joints)]
         joints = list(config.joints)
 
+    from ..server.registry import refuse_if_served
+
+    refuse_if_served(buses, "akarm scan")  # its EXIT frames would disable the arm a running server holds
     rows = [["bus", "CAN ID", "mode", "reply ID", "position (rad)", "temperature (°C)", "fault", "joint"]]
     answered: set[tuple[str, int]] = set()
     for bus in buses:
@@ -101,7 +126,10 @@ def run(args: argparse.Namespace) -> int:
     for j in lost:
         print(f"not found: joint {j.name!r} ({j.mode}, ID {j.can_id} on bus {j.bus!r})", file=sys.stderr)
     if len(rows) == 1:
-        raise AkarmError("no motor answered", fix="check power, CAN wiring and termination, the bit rate, and "
-                         "that servo motors have status frames on (or listen longer: --listen 1)")
+        from ..bus import no_answer_hint
+
+        hints = "; ".join(dict.fromkeys(no_answer_hint(b) for b in buses))
+        raise AkarmError("no motor answered", fix=f"{hints}; servo motors must have status frames on (or listen "
+                         "longer: --listen 1)")
     return 1 if lost else 0
 

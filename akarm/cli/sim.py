@@ -5,9 +5,10 @@ Point a controller (or ``candump``) at the bus exactly as at the hardware::
     akarm sim robots/planar2.yaml -i socketcan -c vcan0
     akarm sim robots/arm6.yaml -i socketcan -c vcan0 --fault elbow:drop:0.3 --fault wrist_roll:error:1
 
-Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--duration`` seconds, with a
-live status line (per joint position, torque, temperature, state): updated in place a few times a
-second on a terminal, one line a second otherwise.
+Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--seconds``, with a live status
+line (per joint position, torque, temperature, state): updated in place a few times a second on a
+terminal, one line a second otherwise. A status line wider than the terminal (80 columns when it
+cannot tell) is shown one joint per line.
 """
 
 from __future__ import annotations
@@ -24,13 +25,16 @@ if TYPE_CHECKING:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
     from ..sim.faults import KINDS  # light: no numpy, no python-can
+    from .options import renamed
 
     add_robot_arguments(parser)
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:KIND[:ARG]",
                         help="inject a fault at start (repeatable); KIND: " + "; ".join(KINDS.values()))
-    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
-    parser.add_argument("--rate", type=float, default=2000.0, metavar="HZ",
+    parser.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
+    parser.add_argument("--plant-rate", type=float, default=2000.0, metavar="HZ",
                         help="plant integration rate, Hz (default 2000)")
+    renamed(parser, "--duration", "--seconds")
+    renamed(parser, "--rate", "--plant-rate")
     parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
     parser.add_argument("--zero-silence", type=float, default=1.0, metavar="S",
                         help="MIT: seconds off-line after a ZERO frame (default 1.0)")
@@ -50,8 +54,17 @@ def _describe(config: RobotConfig) -> str:
     return "\n".join(lines)
 
 
+def status_block(line: str, width: int) -> list[str]:
+    """The simulator's status line as it fits ``width`` columns: as it is when it fits, else one line
+    for the time and one per joint (cut to the width if even that is too wide)."""
+    if len(line) < width:
+        return [line]
+    parts = line.split(" | ")
+    return [parts[0]] + ["  " + p[: width - 3] for p in parts[1:]]
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the simulator until SIGINT/SIGTERM or ``--duration``; 0 on a clean stop."""
+    """Run the simulator until SIGINT/SIGTERM or ``--seconds``; 0 on a clean stop."""
     import contextlib
     import shutil
     import signal
@@ -67,23 +80,26 @@ def run(args: argparse.Namespace) -> int:
     for joint, _ in injected:
         config.joint(joint)  # ConfigError naming the joints when there is no such joint
     q0 = config.pose(args.pose) if args.pose else None
-    if not args.rate > 0:
-        raise AkarmError(f"--rate {args.rate} must be positive", fix="e.g. --rate 2000")
-    sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.rate, q0=q0,
+    if not args.plant_rate > 0:
+        raise AkarmError(f"--plant-rate {args.plant_rate} must be positive", fix="e.g. --plant-rate 2000")
+    if args.seconds is not None and not args.seconds >= 0:
+        raise AkarmError(f"--seconds {args.seconds} must not be negative")
+    sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate, q0=q0,
                          zero_silence=args.zero_silence, servo_release=args.servo_release)
 
     stop = threading.Event()
-    previous: dict[int, object] = {}
+    previous: dict[int, signal._HANDLER] = {}
 
     def on_signal(signum: int, frame: object) -> None:
         stop.set()
 
     for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(ValueError):  # not the main thread (e.g. run from a test): rely on --duration
+        with contextlib.suppress(ValueError):  # not the main thread (e.g. run from a test): rely on --seconds
             previous[sig] = signal.signal(sig, on_signal)
 
     tty = sys.stdout.isatty()
     period = 1.0 / args.status_hz if tty and args.status_hz > 0 else 1.0
+    shown = 0  # lines of the status block on screen (a terminal redraws it in place)
     try:
         with sim:
             print(_describe(sim.config), flush=True)
@@ -92,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  fault on {joint}: {fault}", flush=True)
             print("running; Ctrl-C to stop", flush=True)
             start = time.monotonic()
-            end = start + args.duration if args.duration is not None else None
+            end = start + args.seconds if args.seconds is not None else None
             next_line = start + period
             while not stop.is_set():
                 now = time.monotonic()
@@ -109,19 +125,21 @@ def run(args: argparse.Namespace) -> int:
                 if now >= next_line:
                     next_line += period
                     if not args.quiet:
-                        line = sim.status_line()
-                        if tty:
-                            width = shutil.get_terminal_size((120, 20)).columns
-                            print("\r" + line[: width - 1].ljust(width - 1), end="", flush=True)
+                        width = shutil.get_terminal_size((80, 24)).columns if tty else 80
+                        block = status_block(sim.status_line(), width)
+                        if tty:  # back to the block's first line, then each line cleared and written
+                            up = f"\x1b[{shown - 1}F" if shown > 1 else "\r"
+                            print(up + "\n".join("\x1b[2K" + s for s in block), end="", flush=True)
+                            shown = len(block)
                         else:
-                            print(line, flush=True)
-            if tty and not args.quiet:
+                            print("\n".join(block), flush=True)
+            if tty and not args.quiet and shown:
                 print()
             print(f"akarm sim: stopped at t = {sim.t:.2f} s "
                   f"(frames in {sum(d.frames_received for d in sim.drivers)}, "
                   f"out {sum(d.frames_sent for d in sim.drivers)}"
                   f"{f', send errors {sim.send_errors}' if sim.send_errors else ''})", flush=True)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)  # type: ignore[arg-type]
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     return 0

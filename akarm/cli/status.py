@@ -72,6 +72,10 @@ def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO,
 
 def run(args: argparse.Namespace) -> int:
     """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+        return served
     from ..errors import AkarmError
     from ..probe import Probe
 
@@ -96,7 +100,11 @@ def run(args: argparse.Namespace) -> int:
             next_t += args.interval
             time.sleep(max(0.0, next_t - time.monotonic()))
     if missing:
-        print(f"akarm status: no answer from {', '.join(missing)} (check power, wiring, bit rate and CAN ID; "
-              "akarm scan lists what answers)", file=sys.stderr)
+        from ..bus import no_answer_hint
+
+        for bus in dict.fromkeys(config.joint(name).bus for name in missing):
+            names = [n for n in missing if config.joint(n).bus == bus]
+            print(f"akarm status: no answer from {', '.join(names)}: {no_answer_hint(config.buses[bus])}",
+                  file=sys.stderr)
         return 1
     return 0

@@ -5,25 +5,25 @@ The arm is enabled, then made hand-guidable with its weight carried (no stiffnes
 - **Keyframes** (``OUT.yaml``): each Enter stores the current pose; text typed before Enter names
   it (``pick`` + Enter); ``q`` + Enter, end of input or Ctrl-C finishes. Replay passes through the
   poses in one smooth move.
-- **A continuous path** (``OUT.csv``): the pose is recorded ``--rate`` times a second until Enter,
+- **A continuous path** (``OUT.csv``): the pose is recorded ``--sample-rate`` times a second until Enter,
   end of input, Ctrl-C or ``--seconds``. Replay follows it at its recorded timing.
 
 Input is read line by line from stdin, so a script can drive it (``printf 'pick\\nplace\\nq\\n' | akarm teach ...``).
-The file is written atomically, also after Ctrl-C (exit 130) or a safety stop (exit 1) with what
-was taught so far; then the arm is damped and disabled.
+The file is written atomically, also after Ctrl-C (exit 130), SIGTERM or SIGHUP (exit 143, 129) or a
+safety stop (exit 1) with what was taught so far; then the arm is damped and disabled, also when the
+file cannot be written (a path that cannot be written is refused before anything is enabled).
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import queue
 import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_robot_arguments, interrupted, load_from_args
 
 if TYPE_CHECKING:
     from ..arm import Arm
@@ -32,10 +32,13 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from .options import renamed
+
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ",
+    parser.add_argument("--sample-rate", type=float, default=50.0, metavar="HZ",
                         help="continuous path: samples per second (default 50, at most the loop rate)")
+    renamed(parser, "--rate", "--sample-rate")
     parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
@@ -74,17 +77,23 @@ def _next_line(arm: Arm, lines: queue.Queue[str | None], timed: bool = False) ->
 
 
 def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int:
+    from ..errors import RecordingError
     from ..recording import Keyframes
     from .common import format_q
 
     frames: list[Keyframe] = []
 
-    def save() -> None:
-        if frames:
-            path = Keyframes(arm.names, tuple(frames), arm.config.name).save(out)
-            print(f"wrote {len(frames)} keyframe{'s' if len(frames) != 1 else ''} to {path}", flush=True)
-        else:
+    def save() -> bool:  # never raises: a file that cannot be written must not hide why teaching ended
+        if not frames:
             print("akarm teach: no keyframe was taught; nothing written", file=sys.stderr)
+            return False
+        try:
+            path = Keyframes(arm.names, tuple(frames), arm.config.name).save(out)
+        except RecordingError as e:
+            print(f"akarm teach: error: {e}", file=sys.stderr)
+            return False
+        print(f"wrote {len(frames)} keyframe{'s' if len(frames) != 1 else ''} to {path}", flush=True)
+        return True
 
     print("teach: move the arm by hand; Enter stores the pose (type a name first to name it); q + Enter finishes",
           file=sys.stderr, flush=True)
@@ -98,14 +107,13 @@ def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int
             frames.append(frame)
             label = f" {name!r}" if name else ""
             print(f"stored keyframe {len(frames)}{label}: {format_q(frame.q)}", flush=True)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         save()
-        return 130
+        return interrupted(e)
     except BaseException:
         save()
         raise
-    save()
-    return 0 if frames else 1
+    return 0 if save() else 1
 
 
 def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
@@ -117,13 +125,15 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
     code = 0
     try:
         _next_line(arm, lines, timed=seconds is not None)
-    except KeyboardInterrupt:
-        code = 130
+    except KeyboardInterrupt as e:
+        code = interrupted(e)
     except AkarmError:  # a safety stop: keep what was recorded up to it, then report the stop
-        with contextlib.suppress(AkarmError):
+        try:
             rec = arm.stop_recording()
             print(f"wrote {len(rec.t)} samples over {rec.duration:.2f} s (up to the stop) to {rec.save(out)}",
                   flush=True)
+        except AkarmError as e:
+            print(f"akarm teach: nothing written: {e}", file=sys.stderr)
         raise
     try:
         rec = arm.stop_recording()
@@ -138,27 +148,33 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from ..errors import AkarmError
-    from .common import controlled, deferred_sigint
+    from ..telemetry import check_writable
+    from .common import controlled, deferred_signals
 
     out = Path(args.out)
     if out.suffix not in (".yaml", ".yml", ".csv"):
         raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
                          fix="name it .yaml (keyframes) or .csv (a continuous path)")
-    if not args.rate > 0 or (args.seconds is not None and not args.seconds > 0):
-        raise AkarmError("--rate and --seconds must be positive")
+    if not args.sample_rate > 0 or (args.seconds is not None and not args.seconds > 0):
+        raise AkarmError("--sample-rate and --seconds must be positive")
+    check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
+    from .served import via_server
+
+    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
+        return served
     config = load_from_args(args)
-    if out.suffix == ".csv" and args.rate > config.rate_hz:
-        raise AkarmError(f"--rate {args.rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
-                         fix=f"use at most --rate {config.rate_hz:g}")
+    if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
+        raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
+                         fix=f"use at most --sample-rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
     with controlled(config) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, args.rate, args.seconds)
+            code = _teach_path(arm, out, lines, args.sample_rate, args.seconds)
         else:
             code = _teach_keyframes(arm, out, lines)
-        with deferred_sigint():
+        with deferred_signals():
             arm.end_teach()
             arm.disable()
     return code

@@ -39,6 +39,9 @@ def run(args: argparse.Namespace) -> int:
     if args.wait < 0 or not args.timeout > 0:
         raise AkarmError("--wait must not be negative and --timeout must be positive")
     config = load_from_args(args)
+    from ..server.registry import refuse_if_served
+
+    refuse_if_served(config, "akarm zero")  # it would make a joint limp under a running server
     j = config.joint(args.joint)
     if args.permanent and j.mode == "mit":
         print("note: --permanent applies to servo joints; whether a MIT driver keeps its zero across power "

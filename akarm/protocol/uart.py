@@ -183,8 +183,8 @@ _SETUP_FIELDS: tuple[tuple[ValueField, struct.Struct, float | None], ...] = (
     (ValueField.MOTOR_ID, struct.Struct(">B"), None),
 )
 _SETUP_KNOWN = 0
-for _f, _, _ in _SETUP_FIELDS:
-    _SETUP_KNOWN |= int(_f)
+for _field, *_ in _SETUP_FIELDS:
+    _SETUP_KNOWN |= int(_field)
 
 
 # ---- framing -------------------------------------------------------------------------------

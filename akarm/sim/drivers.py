@@ -40,6 +40,10 @@ class DriverHost(Protocol):
         """Send a frame on ``bus`` at time ``due`` (s; now or later)."""
         ...
 
+    def set_blocked(self, name: str, blocked: bool) -> None:
+        """Hold joint ``name`` where it is (mechanically blocked), or let it move again."""
+        ...
+
 
 #: (motor position before the driver's zero, rad; motor velocity, rad/s): the plant's true state.
 StateGetter = Callable[[], tuple[float, float]]
@@ -91,6 +95,7 @@ class SimulatedDriver:
         self._powered = True
         self._error = 0
         self._fault_after: list[tuple[float, int]] = []
+        self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
         self._frozen_control = False
         self._next_timer = _INF
@@ -134,10 +139,19 @@ class SimulatedDriver:
         elif isinstance(fault, _f.FaultAfter):
             self._fault_after.append((t + fault.after, int(fault.code)))
             self._reschedule(t)
+        elif isinstance(fault, _f.ForgedReply):
+            self._forged.extend((t + k * fault.interval, float(fault.position)) for k in range(int(fault.count)))
+            self._forged.sort()
+            self._timers(t)
+            self._reschedule(t)
+        elif isinstance(fault, _f.RogueExit):
+            self._rogue_exit(t, fault.on_bus)
+        elif isinstance(fault, _f.Blocked):
+            self._host.set_blocked(self.name, True)
         else:
             raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
                              fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
-                                 "FrozenEncoder, FaultAfter")
+                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked")
         self._faults.append(fault)
 
     def clear_faults(self) -> None:
@@ -150,8 +164,10 @@ class SimulatedDriver:
         self._powered = True
         self._error = 0
         self._fault_after.clear()
+        self._forged.clear()
         self._frozen = None
         self._frozen_control = False
+        self._host.set_blocked(self.name, False)
         if was_off:
             self._power_on()
         self._reschedule(self._host.now())
@@ -203,9 +219,23 @@ class SimulatedDriver:
             if due:
                 self._error = due[-1]
                 self._fault_after = [(ta, c) for (ta, c) in self._fault_after if ta > t]
+        while self._forged and self._forged[0][0] <= t + 1e-9:
+            _, position = self._forged.pop(0)
+            aid, data, ext = self._forged_frame(position)
+            self._host.transmit(self.bus, aid, data, ext, t)  # another node's frame: no drops, no delay
 
     def _timer_deadlines(self) -> list[float]:
-        return [ta for ta, _ in self._fault_after]
+        return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]]
+
+    def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
+        """A reply (or status frame) in this driver's name at motor ``position`` (rad): (ID, data, extended)."""
+        aid, data = servo.encode_status(self.can_id, units.rad_to_servo_deg(self.motor, position), 0.0, 0.0,
+                                        self.temperature, 0)
+        return aid, data, True
+
+    def _rogue_exit(self, t: float, on_bus: bool) -> None:
+        """Another program makes the output limp now (see :class:`~akarm.sim.faults.RogueExit`)."""
+        raise NotImplementedError
 
     def _reschedule(self, t: float) -> None:
         self._next_timer = min(self._timer_deadlines(), default=_INF)
@@ -360,6 +390,24 @@ class MitDriver(SimulatedDriver):
 
     def _reported_position(self, p_raw: float) -> float:
         return _wrap(p_raw - self._zero, self._p_max)
+
+    def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
+        if self.v3:
+            return super()._forged_frame(position)
+        return 0, self._codec.encode_reply(self.can_id, position, 0.0, 0.0, self.temperature, 0), False
+
+    def _rogue_exit(self, t: float, on_bus: bool) -> None:
+        if self.v3:  # no EXIT frame: another controller's zero-gain command
+            frame = self._codec.encode_command(0.0, 0.0, 0.0, 0.0, 0.0, firmware="v3")
+        else:
+            frame = mit.EXIT
+        if on_bus:
+            self._host.transmit(self.bus, self._cmd_id, frame, self._cmd_ext, t)
+            self.receive(self._cmd_id, self._cmd_ext, frame, t)  # it reaches this driver too (and is answered)
+        elif self.v3:
+            self._cmd = mit.MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
+        else:
+            self.enabled = False
 
     # -- control
 
@@ -606,6 +654,14 @@ class ServoDriver(SimulatedDriver):
                 prof.max_velocity = 1e-9
             self.control = "position"
         self._reschedule(t)
+
+    def _rogue_exit(self, t: float, on_bus: bool) -> None:
+        aid, data = servo.encode_current(self.can_id, 0.0)  # another program's "limp": zero current
+        if on_bus:
+            self._host.transmit(self.bus, aid, data, True, t)
+            self.receive(aid, True, data, t)
+        else:
+            self.control = None
 
     def _status(self, t: float) -> None:
         p_raw, v = self._state()

@@ -22,12 +22,15 @@ from ..errors import AkarmError
 
 __all__ = [
     "KINDS",
+    "Blocked",
     "DelayReplies",
     "DropReplies",
     "ErrorCode",
     "Fault",
     "FaultAfter",
+    "ForgedReply",
     "FrozenEncoder",
+    "RogueExit",
     "Unplugged",
     "parse",
 ]
@@ -132,6 +135,48 @@ class FaultAfter(Fault):
             raise AkarmError(f"error code {self.code!r} is outside 0..255", fix="use a code 1-7 as the manual lists")
 
 
+@dataclass(frozen=True)
+class ForgedReply(Fault):
+    """Another node on the bus sends replies in this joint's name: ``count`` of them, one every
+    ``interval`` s from now, each claiming motor position ``position`` (rad at the output, before
+    the joint's direction and offset, as on the wire), velocity and torque 0. MIT V1/V2 joints get
+    standard-frame replies on ID 0; servo and V3 joints ``0x29xx`` status frames. The driver itself
+    goes on as before.
+
+    Attributes:
+        position: rad, motor side. count: how many (≥ 1). interval: s between them (≥ 0).
+    """
+
+    position: float
+    count: int = 1
+    interval: float = 0.0
+
+    def __post_init__(self) -> None:
+        if int(self.count) < 1 or not self.interval >= 0.0:
+            raise AkarmError(f"ForgedReply needs count ≥ 1 and interval ≥ 0, got {self.count!r}, {self.interval!r}",
+                             fix="e.g. ForgedReply(12.45) for one reply at +12.45 rad")
+
+
+@dataclass(frozen=True)
+class RogueExit(Fault):
+    """Another program disables the joint now: MIT, an EXIT frame; servo, a zero-current command.
+
+    Attributes:
+        on_bus: ``True`` (default): the frame is sent on the CAN bus, where a controller can see it
+            (the driver answers it, as it answers every frame). ``False``: the driver leaves motor
+            mode without anything on the bus (told over its serial port, a brown-out): a controller
+            sees only what follows.
+    """
+
+    on_bus: bool = True
+
+
+@dataclass(frozen=True)
+class Blocked(Fault):
+    """The joint is mechanically blocked where it is (an obstacle, a jammed gear): it stops at once and
+    moves no more, whatever torque its motor applies, until the fault is cleared."""
+
+
 #: The CLI's fault kinds: ``--fault JOINT:KIND[:ARG]``, with what ARG means.
 KINDS: dict[str, str] = {
     "drop": "drop:FRACTION[,SEED]   lose that share of the replies (e.g. drop:0.3)",
@@ -140,6 +185,9 @@ KINDS: dict[str, str] = {
     "error": "error:CODE             report that error code (1 over-temperature, 5 encoder, ...)",
     "frozen": "frozen[:control]       reported position stops changing; ':control' freezes the loops' too",
     "fault-after": "fault-after:SECONDS[,CODE]   report CODE (default 1) after that many seconds",
+    "forged": "forged:POS[,COUNT[,INTERVAL]]   another node sends COUNT replies at motor position POS rad",
+    "rogue-exit": "rogue-exit[:silent]    another program disables the joint (':silent': not seen on the bus)",
+    "blocked": "blocked                the joint is mechanically blocked where it is",
 }
 
 
@@ -152,7 +200,8 @@ def parse(spec: str) -> tuple[str, Fault]:
     """Parse a command-line fault ``JOINT:KIND[:ARG]`` into ``(joint name, fault)``.
 
     Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
-    ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``.
+    ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``,
+    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``.
 
     Raises:
         AkarmError: the text is not a fault; the message lists the kinds.
@@ -188,6 +237,19 @@ def parse(spec: str) -> tuple[str, Fault]:
             if not args:
                 raise _bad(spec, "fault-after needs a time in seconds")
             return joint, FaultAfter(float(args[0]), code=int(args[1]) if len(args) > 1 else 1)
+        if kind == "forged":
+            if not args:
+                raise _bad(spec, "forged needs a position in rad")
+            return joint, ForgedReply(float(args[0]), int(args[1]) if len(args) > 1 else 1,
+                                      float(args[2]) if len(args) > 2 else 0.0)
+        if kind == "rogue-exit":
+            if args and args[0] != "silent":
+                raise _bad(spec, f"rogue-exit takes nothing or 'silent', not {args[0]!r}")
+            return joint, RogueExit(on_bus=not args)
+        if kind == "blocked":
+            if args:
+                raise _bad(spec, "blocked takes no argument")
+            return joint, Blocked()
     except ValueError as e:
         raise _bad(spec, str(e)) from None
     raise _bad(spec, f"unknown kind {kind!r}")

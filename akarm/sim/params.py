@@ -49,15 +49,16 @@ def default_params(motor: MotorModel) -> MotorSimParams:
 
     - friction: Coulomb 2 % of the MIT torque range (AK80-9: 0.36 N·m, about what backdriving one
       takes), viscous 0.2 % of it per rad/s (AK80-9: 0.036 N·m·s/rad), smoothed over 0.02 rad/s;
-    - resistance: such that the rated current held forever warms the winding 60 K over ambient
-      with 1.5 K/W to ambient (AK80-9: 0.33 Ω; 0.3 Ω when the rated current is unknown);
+    - resistance: such that the rated current held forever warms the winding 50 K over ambient
+      with 1.5 K/W to ambient, to 75 °C: rated is what a motor holds for good, below the default
+      80 °C limit (AK80-9: 0.28 Ω; 0.3 Ω when the rated current is unknown);
     - heat capacity: 200 J/(kg·K) of the actuator's mass (AK80-9: 97 J/K, a time constant of
       about 2.5 min), 100 J/K when the mass is unknown;
     - supply 24 V, ambient 25 °C, hard stop 100 · t_max N·m/rad (the full torque presses 10 mrad in).
     """
     r_th = 1.5
     rated = motor.rated_current
-    resistance = 60.0 / (r_th * rated * rated) if rated else 0.3
+    resistance = 50.0 / (r_th * rated * rated) if rated else 0.3
     capacity = 200.0 * motor.mass if motor.mass else 100.0
     return MotorSimParams(
         viscous=0.002 * motor.t_max,

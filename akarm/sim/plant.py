@@ -94,6 +94,7 @@ class Plant:
         self._hi = [float(hi) if h else math.inf for hi, h in zip(self.model.upper, hard, strict=True)]
         self._clim = [0.0] * n
         self._external = [0.0] * n
+        self.blocked: dict[int, float] = {}  # joint index → the position it is held at (mechanically blocked)
         self._drivers: list[SimulatedDriver] = []
         # config order is Pinocchio's order and q/v hold nothing else: no mapping in the step
         self._identity = self.model.to_pin_q(self.q) is self.q and self.model.to_pin_v(self.dq) is self.dq
@@ -213,5 +214,8 @@ class Plant:
         dq = self.dq
         dq += dt * acc
         self.q += dt * dq
+        if self.blocked:
+            for i, qb in self.blocked.items():
+                self.q[i], dq[i], acc[i] = qb, 0.0, 0.0
         self.tau = np.array(motor)
         self.steps += 1

@@ -62,6 +62,8 @@ class SimulatedRobot:
         zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
         servo_release: s after the last command a servo driver releases its output (default 1.0).
         max_lag: real time only: s the plant may fall behind the wall clock before time slips.
+        faults: per joint name, faults in force from the start (e.g. a reply delay the controller
+            meets at its first frame): ``{"elbow": faults.DelayReplies(0.06)}``.
 
     Attributes:
         config: the configuration in force (with the bus override).
@@ -85,6 +87,7 @@ class SimulatedRobot:
         zero_silence: float = 1.0,
         servo_release: float = 1.0,
         max_lag: float = 0.05,
+        faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
@@ -103,7 +106,7 @@ class SimulatedRobot:
         self.dt = self.plant.dt
         self._k = 0                  # steps taken: simulated time is k·dt
         self._t = 0.0
-        q_init = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
+        q_init: np.ndarray = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
         self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
         inertia = self.plant.joint_inertia()
         drivers: list[SimulatedDriver] = []
@@ -137,6 +140,9 @@ class SimulatedRobot:
         self.slip = 0.0
         self.send_errors = 0
         self.thread_error: BaseException | None = None
+        for name, fs in (faults or {}).items():
+            for fault in (fs if isinstance(fs, Sequence) else [fs]):
+                self.joint(name).inject(fault)
         self.clock: SteppedClock | RealClock
         if realtime:
             self.clock = RealClock()
@@ -153,10 +159,14 @@ class SimulatedRobot:
         try:
             for name, bus_cfg in self.config.buses.items():
                 bus = self._buses[name] = open_bus(bus_cfg)
-                # take in only what the drivers listen to (in the kernel on socketcan): a simulator
-                # that read every frame of a busy bus could fall behind and lose the ones it needs
-                bus.set_filters([{"can_id": aid, "can_mask": 0x1FFFFFFF if ext else 0x7FF, "extended": ext}
-                                 for (aid, ext) in self._routes.get(name, {})])
+                # real time: take in only what the drivers listen to (in the kernel on socketcan): a
+                # simulator that read every frame of a busy bus could fall behind and lose the ones it
+                # needs. Not in lock step: python-can filters in software there, and recv(0) returns
+                # None at a frame it filters out with more behind it, which would leave commands
+                # waiting a cycle behind another node's traffic (_dispatch ignores frames for no one).
+                if self.realtime:
+                    bus.set_filters([{"can_id": aid, "can_mask": 0x1FFFFFFF if ext else 0x7FF, "extended": ext}
+                                     for (aid, ext) in self._routes.get(name, {})])
         except BaseException:
             self._shutdown_buses()
             raise
@@ -215,7 +225,7 @@ class SimulatedRobot:
         """Motor winding temperatures, °C, config order."""
         return np.array([d.temperature for d in self.drivers])
 
-    def set_state(self, q: Sequence[float], dq: Sequence[float] | None = None) -> None:
+    def set_state(self, q: Sequence[float] | np.ndarray, dq: Sequence[float] | np.ndarray | None = None) -> None:
         """Place the arm: joint positions ``q`` (rad) and velocities ``dq`` (rad/s, default 0), config order."""
         qa = np.asarray(q, dtype=float)
         va = np.zeros(self.plant.n) if dq is None else np.asarray(dq, dtype=float)
@@ -230,6 +240,16 @@ class SimulatedRobot:
         """Attach a payload at the tool frame now: ``mass`` kg at ``com`` (m, tool frame); 0 kg removes it."""
         with self._lock:
             self.plant.set_payload(mass, com)
+
+    def set_blocked(self, name: str, blocked: bool) -> None:
+        """Hold joint ``name`` where it is now, at rest, whatever its motor does (``False``: free it)."""
+        i = self.config.joint_names.index(name)
+        with self._lock:
+            if blocked:
+                self.plant.blocked[i] = float(self.plant.q[i])
+                self.plant.dq[i] = 0.0
+            else:
+                self.plant.blocked.pop(i, None)
 
     def set_external_torque(self, tau: Sequence[float] | np.ndarray | None) -> None:
         """Push the arm: joint torques ``tau`` (N·m, config order) from outside, on top of the motors,
@@ -287,8 +307,8 @@ class SimulatedRobot:
         return self._t
 
     def transmit(self, bus: str, arbitration_id: int, data: bytes, is_extended: bool, due: float) -> None:
-        """Send a frame on ``bus`` now, or queue it until simulated time ``due`` (s)."""
-        if due <= self._t + 1e-9:
+        """Send a frame on ``bus`` now, or queue it until simulated time ``due`` (s) (or until the buses open)."""
+        if due <= self._t + 1e-9 and self._buses:
             self._send_now(bus, arbitration_id, data, is_extended)
         else:
             heapq.heappush(self._outbox, (due, next(self._seq), bus, arbitration_id, data, is_extended))

@@ -1,0 +1,88 @@
+"""Option handling the verbs share: python-can keyword arguments, renamed options, output files checked
+before anything moves, and positional values that may be negative."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_bus_kwargs", "check_output", "negative_values_are_positional", "renamed"]
+
+
+class _BusKwargs(argparse.Action):
+    """``--bus-kwargs KEY=VALUE ...`` → a dict, values cast as python-can casts them."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: str | Sequence[Any] | None, option_string: str | None = None) -> None:
+        from can.util import cast_from_string
+
+        out = dict(getattr(namespace, self.dest, None) or {})
+        for item in values if isinstance(values, list) else [values]:
+            m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)=(.*)$", str(item))
+            if not m:
+                parser.error(f"{option_string}: {item!r} is not KEY=VALUE (e.g. app_name=akarm serial=1234)")
+            out[m.group(1)] = cast_from_string(m.group(2))
+        setattr(namespace, self.dest, out)
+
+
+def add_bus_kwargs(parser: argparse.ArgumentParser) -> None:
+    """``--bus-kwargs KEY=VALUE ...``: keyword arguments for python-can's bus, as python-can's own tools take them."""
+    parser.add_argument("--bus-kwargs", nargs="+", action=_BusKwargs, default={}, metavar="KEY=VALUE",
+                        help="more keyword arguments for python-can's bus, e.g. --bus-kwargs app_name=akarm "
+                             "serial=1234 (as python-can's tools take them; values are cast like python-can's)")
+
+
+class _Renamed(argparse.Action):
+    """A former option name: says the new one instead of 'unrecognized arguments'."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, new: str = "", **kwargs: Any) -> None:
+        super().__init__(option_strings, dest=argparse.SUPPRESS, nargs="?", default=argparse.SUPPRESS,
+                         help=argparse.SUPPRESS)
+        self.new = new
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: str | Sequence[Any] | None, option_string: str | None = None) -> None:
+        parser.error(f"{option_string} is now {self.new}")
+
+
+def renamed(parser: argparse.ArgumentParser, old: str, new: str, *more: str) -> None:
+    """Accept ``old`` (and ``more`` spellings) only to say that it is now ``new`` (exit status 2)."""
+    parser.add_argument(old, *more, action=_Renamed, new=new)
+
+
+def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], what: str) -> Path | None:
+    """An output file named on the command line, checked before anything moves: a known suffix, and a
+    place it can be written (:func:`akarm.telemetry.check_writable`). ``None`` passes through.
+
+    Raises:
+        RecordingError: naming the file, what is wrong and the fix.
+    """
+    from ..errors import RecordingError
+    from ..telemetry import check_writable
+
+    if path is None:
+        return None
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise RecordingError(f"cannot save {what} as {str(p)!r}: the name must end in {' or '.join(suffixes)}",
+                             fix=f"use a {' or '.join(suffixes)} file name")
+    return check_writable(p)
+
+
+#: a negative number, or comma-separated numbers starting with one ("-0.1", "-1e-3,0.2", "-.5,-.5")
+_NEGATIVE_VALUES = re.compile(r"^-\.?\d[\d.eE+-]*(,[-+]?\.?\d[\d.eE+-]*)*$")
+
+
+def negative_values_are_positional(parser: argparse.ArgumentParser) -> None:
+    """Let ``-0.1`` and ``-0.1,0.2`` be positional values: argparse otherwise takes them for options.
+
+    argparse treats a word that starts with ``-`` as an option unless it looks like a negative number
+    and the parser has no option that does; comma-separated numbers do not look like one to it. The
+    parser's options never look like numbers, so widening what counts as a number is safe.
+    """
+    if hasattr(parser, "_negative_number_matcher"):
+        parser._negative_number_matcher = _NEGATIVE_VALUES

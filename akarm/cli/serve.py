@@ -1,0 +1,65 @@
+"""``akarm serve ROBOT.yaml``: enable the arm, hold it, and serve it to the CLI and to ROS 2 until stopped.
+
+::
+
+    akarm serve robots/arm6.yaml                            # ROS 2 domain $ROS_DOMAIN_ID (or 0), no namespace
+    akarm serve robots/arm6.yaml --namespace left --domain 7
+    akarm move robots/arm6.yaml ready                       # another terminal: moves through the server
+
+While it runs, ``move``, ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` for this robot
+use it (the arm stays held between them), a second controller on its buses is refused, and ROS 2
+sees ``NS/joint_states``, ``NS/joint_trajectory``, ``NS/akarm/status`` and the
+``NS/akarm/enable|disable|hold`` services (``docs/ros2.md``). Ctrl-C or SIGTERM: the arm is damped,
+then disabled, and the exit status is 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from .common import add_robot_arguments, load_from_args
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    add_robot_arguments(parser)
+    parser.add_argument("--domain", type=int, metavar="N", help="DDS domain ID (default: $ROS_DOMAIN_ID, else 0)")
+    parser.add_argument("--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics and services")
+    parser.add_argument("--joint-states-hz", type=float, metavar="HZ",
+                        help="joint_states rate (default: the loop rate divided by round(rate/100), ~100 Hz)")
+    parser.add_argument("--feedback-timeout", type=float, metavar="S",
+                        help="watchdog: stop the arm when a joint's feedback is older (default 0.02; a joint's own "
+                             "feedback_timeout in the YAML wins)")
+    parser.add_argument("--no-ros", action="store_true",
+                        help="serve the local CLI only (no DDS; for machines without the ros extra)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until SIGINT/SIGTERM; then damp and disable the arm; exit 0."""
+    from ..arm import Arm
+    from ..server import ArmServer
+    from .common import format_q
+
+    config = load_from_args(args)
+    arm = Arm(config) if args.feedback_timeout is None else Arm(config, feedback_timeout=args.feedback_timeout)
+    server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
+                       joint_states_hz=args.joint_states_hz)
+    # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
+    previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
+                                                                                           signal.SIGTERM)}
+    try:
+        server.start()
+        ros = "ROS 2 off (--no-ros)" if args.no_ros else \
+            f"ROS 2 domain {server.domain}, namespace '/{server.namespace}'"
+        print(f"serving {config.name}: holding at {format_q(server.arm.state().q)}; {ros}; "
+              "Ctrl-C or SIGTERM stops (damped, then disabled)", flush=True)
+        server.wait(signals=False)
+        print("stopping: damping, then disabling", file=sys.stderr, flush=True)
+    finally:
+        server.stop()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    print("disabled", flush=True)
+    return 0

@@ -1,0 +1,234 @@
+"""ROS 2 on Cyclone DDS without ROS: names, QoS, and services laid out as rmw_cyclonedds_cpp does.
+
+- A ROS 2 topic ``/ns/name`` is the DDS topic ``rt/ns/name``; a service ``/ns/srv`` is the pair
+  ``rq/ns/srvRequest`` (client → service) and ``rr/ns/srvReply`` (service → client).
+- QoS: ROS 2's default profile as rmw_cyclonedds_cpp maps it: reliable, volatile, keep last 10,
+  automatic liveliness, no autodispose of unregistered instances (services use the same profile).
+- Service samples start with rmw_cyclonedds_cpp's request header (``guid``: the client's request
+  writer's instance handle, ``seq``: the request's number); a service copies both into its reply,
+  and each endpoint's USER_DATA says ``clientid=...;`` or ``serviceid=...;`` so that a service can
+  tell when a client's reply reader has been matched. The layout and its source: ``docs/ros2.md``.
+
+Which network Cyclone DDS uses, and whom it looks for, is Cyclone's own configuration: the
+``CYCLONEDDS_URI`` environment variable (:data:`LOOPBACK_CONFIG` keeps everything on this machine).
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import time
+from collections.abc import Callable
+from typing import Any, cast
+
+from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+from ..errors import AkarmError
+from . import msgs
+
+__all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "service_topics",
+           "topic_name"]
+
+#: Cyclone DDS configuration that keeps discovery and data on the loopback interface (no multicast,
+#: unicast discovery of the participants on 127.0.0.1): for tests and for trying things on one machine.
+#: Use it with ``export CYCLONEDDS_URI='<the string>'``.
+LOOPBACK_CONFIG = (
+    '<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
+    "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+    "<MaxAutoParticipantIndex>60</MaxAutoParticipantIndex><Peers><Peer address=\"127.0.0.1\"/></Peers>"
+    "</Discovery></Domain></CycloneDDS>"
+)
+
+_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+ANY = SampleState.Any | ViewState.Any | InstanceState.Any
+
+
+def ros_name(namespace: str, name: str) -> str:
+    """The fully qualified ROS 2 name of ``name`` in ``namespace``: ``("arm1", "joint_states")`` →
+    ``/arm1/joint_states``. Raises :class:`~akarm.AkarmError` for a name ROS 2 would refuse."""
+    parts = [p for p in f"{namespace}/{name}".split("/") if p]
+    for p in parts:
+        if not _TOKEN.match(p):
+            raise AkarmError(f"{namespace!r}/{name!r} is not a valid ROS 2 name ({p!r})",
+                             fix="use letters, digits and underscores, not starting with a digit, separated by /")
+    return "/" + "/".join(parts)
+
+
+def topic_name(namespace: str, name: str) -> str:
+    """The DDS topic of ROS 2 topic ``name`` in ``namespace``: ``rt/arm1/joint_states``."""
+    return "rt" + ros_name(namespace, name)
+
+
+def service_topics(namespace: str, name: str) -> tuple[str, str]:
+    """The DDS topics of ROS 2 service ``name``: ``(rq/NS/nameRequest, rr/NS/nameReply)``."""
+    full = ros_name(namespace, name)
+    return f"rq{full}Request", f"rr{full}Reply"
+
+
+def qos(depth: int = 10, user_data: bytes | None = None) -> Qos:
+    """ROS 2's default QoS profile (reliable, volatile, keep last ``depth``) as rmw_cyclonedds_cpp sets it."""
+    policies = [Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
+                Policy.Durability.Volatile, Policy.History.KeepLast(depth),
+                Policy.Liveliness.Automatic(lease_duration=duration(infinite=True)),
+                Policy.WriterDataLifecycle(autodispose=False)]
+    if user_data is not None:
+        policies.append(Policy.Userdata(data=user_data))
+    return Qos(*policies)
+
+
+def _info(sample: object) -> Any:
+    """The DDS sample info cyclonedds attaches to a sample it delivers."""
+    return cast(Any, sample).sample_info
+
+
+def _user_data_key(q: Qos | None, key: str) -> str | None:
+    """``value`` of ``key=value;`` in an endpoint's USER_DATA (as rmw_cyclonedds_cpp writes it)."""
+    if q is None:
+        return None
+    try:
+        data = q[Policy.Userdata].data
+    except (KeyError, AttributeError):
+        return None
+    for item in bytes(data).decode("utf-8", "replace").split(";"):
+        k, sep, v = item.partition("=")
+        if sep and k == key:
+            return v
+    return None
+
+
+class Node:
+    """One DDS participant in ``domain`` with ROS 2 naming under ``namespace``."""
+
+    def __init__(self, domain: int = 0, namespace: str = "") -> None:
+        if not 0 <= domain <= 232:
+            raise AkarmError(f"DDS domain {domain} is out of range",
+                             fix="use a domain ID from 0 to 232 (ROS_DOMAIN_ID)")
+        self.domain = domain
+        self.namespace = namespace.strip("/")
+        ros_name(self.namespace, "x")  # validates the namespace
+        self.participant = DomainParticipant(domain)
+        self._closed = False
+        self._ids = itertools.count(1)
+        self._prefix = self.participant.get_guid().bytes[:12]
+
+    def unique_id(self, kind: str) -> bytes:
+        """USER_DATA ``clientid=...;`` / ``serviceid=...;``: the participant's GUID prefix and a counter,
+        printed as rmw_cyclonedds_cpp prints it (hex bytes separated by dots)."""
+        raw = self._prefix + next(self._ids).to_bytes(4, "big")
+        return f"{kind}={raw[0]:02x}{''.join(f'.{b:x}' for b in raw[1:])};".encode()
+
+    def topic(self, name: str, data_type: Any, ros: bool = True) -> Topic:
+        """The DDS topic of ROS 2 topic ``name`` (or of the raw DDS topic ``name`` with ``ros=False``)."""
+        return Topic(self.participant, topic_name(self.namespace, name) if ros else name, data_type, qos=qos())
+
+    def publisher(self, name: str, data_type: Any) -> DataWriter:
+        return DataWriter(self.participant, self.topic(name, data_type), qos=qos())
+
+    def subscription(self, name: str, data_type: Any, depth: int = 10) -> DataReader:
+        return DataReader(self.participant, self.topic(name, data_type), qos=qos(depth))
+
+    def close(self) -> None:
+        """Delete the participant and everything in it (other participants see it leave at once)."""
+        if not self._closed:
+            self._closed = True
+            self.participant.__del__()  # explicit: left to the garbage collector, a ghost stays for a lease
+
+
+class TriggerServer:
+    """A ``std_srvs/Trigger`` service, answered by ``handler() -> (success, message)``.
+
+    Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
+    """
+
+    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
+        self.name = ros_name(node.namespace, name)
+        rq, rr = service_topics(node.namespace, name)
+        q = qos(user_data=node.unique_id("serviceid"))
+        self._reader = DataReader(node.participant, Topic(node.participant, rq, msgs.TriggerRequest, qos=qos()), qos=q)
+        self._writer = DataWriter(node.participant, Topic(node.participant, rr, msgs.TriggerResponse, qos=qos()), qos=q)
+        self.handler = handler
+        self.condition = ReadCondition(self._reader, ANY)
+
+    def _client_ready(self, request_writer: int) -> str:
+        """``yes`` when the requesting client's reply reader is matched, ``maybe``, or ``gone``
+        (rmw_cyclonedds_cpp's check_for_response_reader)."""
+        wr = self._reader.get_matched_publication_data(request_writer)
+        if wr is None:
+            return "gone"
+        cid = _user_data_key(wr.qos, "clientid")
+        if cid is None:
+            return "yes"  # a client that does not say who it is: assume its reader is there
+        for h in self._writer.get_matched_subscriptions():
+            rd = self._writer.get_matched_subscription_data(h)
+            if rd is not None and _user_data_key(rd.qos, "clientid") == cid:
+                return "yes"
+        return "maybe"
+
+    def take(self) -> list[msgs.TriggerRequest]:
+        """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
+        return [r for r in self._reader.take(16) if _info(r).valid_data]
+
+    def answer(self, req: msgs.TriggerRequest) -> bool:
+        """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
+        try:
+            ok, text = self.handler()
+        except AkarmError as e:
+            ok, text = False, str(e)
+        handle = _info(req).publication_handle
+        end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
+        state = self._client_ready(handle)
+        while state == "maybe" and time.monotonic() < end:
+            time.sleep(0.005)
+            state = self._client_ready(handle)
+        if state != "yes":
+            return False
+        self._writer.write(msgs.TriggerResponse(req.guid, req.seq, bool(ok), text))
+        return True
+
+    def poll(self) -> int:
+        """Answer every waiting request, one after the other; returns how many were answered."""
+        return sum(self.answer(req) for req in self.take())
+
+
+class TriggerClient:
+    """Calls a ``std_srvs/Trigger`` service as an rmw_cyclonedds_cpp client does."""
+
+    def __init__(self, node: Node, name: str) -> None:
+        rq, rr = service_topics(node.namespace, name)
+        q = qos(user_data=node.unique_id("clientid"))
+        self._writer = DataWriter(node.participant, Topic(node.participant, rq, msgs.TriggerRequest, qos=qos()), qos=q)
+        self._reader = DataReader(node.participant, Topic(node.participant, rr, msgs.TriggerResponse, qos=qos()), qos=q)
+        self._guid = self._writer.get_instance_handle() & 0xFFFF_FFFF_FFFF_FFFF  # the binding gives it signed
+        self._seq = 0
+        self.name = name
+
+    def ready(self) -> bool:
+        """True once the service's request reader and reply writer are both matched."""
+        return bool(self._writer.get_matched_subscriptions()) and bool(self._reader.get_matched_publications())
+
+    def call(self, timeout: float = 5.0) -> msgs.TriggerResponse:
+        """Send a request and wait for its reply.
+
+        Raises:
+            AkarmError: no service answered within ``timeout`` s.
+        """
+        end = time.monotonic() + timeout
+        while not self.ready():
+            if time.monotonic() > end:
+                raise AkarmError(f"no service {self.name!r} found", fix="is akarm serve running, in this domain "
+                                 "and namespace, and can Cyclone DDS reach it (CYCLONEDDS_URI)?")
+            time.sleep(0.01)
+        self._seq += 1
+        self._writer.write(msgs.TriggerRequest(self._guid, self._seq, 0))
+        while time.monotonic() < end:
+            for rep in self._reader.take(16):
+                if _info(rep).valid_data and rep.guid == self._guid and rep.seq == self._seq:
+                    return rep
+            time.sleep(0.002)
+        raise AkarmError(f"service {self.name!r} did not answer within {timeout:g} s")

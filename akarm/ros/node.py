@@ -1,0 +1,152 @@
+"""The ROS 2 face of an :class:`~akarm.server.ArmServer`, over Cyclone DDS.
+
+With ``NS`` the namespace:
+
+- ``NS/joint_states`` (sensor_msgs/JointState), out: the configured joint names, measured
+  positions (rad), velocities (rad/s) and torques (N·m), stamped with the wall clock;
+- ``NS/joint_trajectory`` (trajectory_msgs/JointTrajectory), in: executed with the semantics of
+  ros2_control's JointTrajectoryController topic (:meth:`ArmServer.follow`);
+- ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, fault text, loop statistics,
+  the last refused trajectory;
+- ``NS/akarm/enable``, ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
+
+One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
+service requests are answered in threads of their own (enabling and disabling take a while).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from typing import TYPE_CHECKING
+
+from cyclonedds.core import GuardCondition, ReadCondition, WaitSet
+
+from ..errors import AkarmError
+from . import msgs
+from .dds import ANY, Node, TriggerServer, _info
+
+if TYPE_CHECKING:
+    from ..server.server import ArmServer
+
+__all__ = ["RosNode", "trajectory_arrays"]
+
+_LEVEL = {"holding": 0, "moving": 0, "teach": 0, "disabled": 1, "fault": 2}
+
+
+def trajectory_arrays(msg: msgs.JointTrajectory, now: float | None = None) -> tuple[list[float], list[list[float]],
+                                                                                    list[list[float]] | None]:
+    """Times (s from now), positions and velocities of a JointTrajectory's points.
+
+    A zero ``header.stamp`` means "start now"; a later one shifts every point by the wait until
+    then; points whose time has already passed are dropped (as JointTrajectoryController does).
+    """
+    now = time.time() if now is None else now
+    stamp = msg.header.stamp.seconds()
+    offset = stamp - now if stamp > 0 else 0.0
+    times, positions, velocities = [], [], []
+    for p in msg.points:
+        t = p.time_from_start.seconds() + offset
+        if t < 0.0:
+            continue
+        times.append(t)
+        positions.append(list(p.positions))
+        velocities.append(list(p.velocities))
+    return times, positions, (velocities if any(velocities) else None)
+
+
+class RosNode:
+    """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own."""
+
+    def __init__(self, server: ArmServer, domain: int, namespace: str, joint_states_hz: float,
+                 status_hz: float) -> None:
+        self.server = server
+        self.node = Node(domain, namespace)
+        n = self.node
+        self._js = n.publisher("joint_states", msgs.JointState)
+        self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
+        self._traj = n.subscription("joint_trajectory", msgs.JointTrajectory)
+        self._services = [TriggerServer(n, "akarm/enable", self._enable), TriggerServer(n, "akarm/disable",
+                                                                                         self._disable),
+                          TriggerServer(n, "akarm/hold", self._hold)]
+        self._traj_cond = ReadCondition(self._traj, ANY)
+        self._wake = GuardCondition(n.participant)
+        self._waitset = WaitSet(n.participant)
+        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services)):
+            self._waitset.attach(c)
+        self.js_period = 1.0 / joint_states_hz
+        self.status_period = 1.0 / status_hz
+        self._running = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.names = list(server.arm.names)
+        self.published = 0
+
+    # -- services ------------------------------------------------------------------------------
+    def _enable(self) -> tuple[bool, str]:
+        self.server.enable()
+        return True, "enabled: holding where it is"
+
+    def _disable(self) -> tuple[bool, str]:
+        self.server.disable()
+        return True, "disabled: damped, then motor mode exited (the arm is limp)"
+
+    def _hold(self) -> tuple[bool, str]:
+        self.server.hold()
+        return True, f"holding ({self.server.mode})"
+
+    # -- the thread ----------------------------------------------------------------------------
+    def start(self) -> None:
+        self._running.set()
+        self._thread = threading.Thread(target=self._run, name="akarm-ros", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._running.clear()
+        with contextlib.suppress(Exception):
+            self._wake.set(True)
+        if self._thread is not None:
+            self._thread.join(5.0)
+        self.node.close()
+
+    def _run(self) -> None:
+        next_js = next_status = time.monotonic()
+        while self._running.is_set():
+            wait = max(0.0, min(next_js, next_status) - time.monotonic())
+            self._waitset.wait(int(wait * 1e9))
+            if not self._running.is_set():
+                break
+            for msg in self._traj.take(16):
+                if _info(msg).valid_data:
+                    with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
+                        times, positions, velocities = trajectory_arrays(msg)
+                        if msg.points and not times:
+                            self.server.refuse("every point of the trajectory is already in the past "
+                                               "(header.stamp + time_from_start)",
+                                               fix="stamp it with the current time, or leave the stamp zero")
+                        self.server.follow(list(msg.joint_names), times, positions, velocities)
+            for s in self._services:  # answered in threads of their own: enabling takes a while, and
+                for req in s.take():  # joint_states must go on meanwhile
+                    threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
+            now = time.monotonic()
+            if now >= next_js:
+                self.publish_joint_states()
+                next_js += self.js_period * (1 + int((now - next_js) / self.js_period))  # skip, never burst
+            if now >= next_status:
+                self.publish_status()
+                next_status = now + self.status_period
+
+    def publish_joint_states(self) -> None:
+        s = self.server.arm.state()
+        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(time.time()), ""), self.names,
+                                       s.q.tolist(), s.dq.tolist(), s.tau.tolist()))
+        self.published += 1
+
+    def publish_status(self) -> None:
+        doc = self.server.status()
+        mode = doc["mode"]
+        text = doc["fault"] if mode == "fault" else mode
+        values = [msgs.KeyValue(k, str(v)) for k, v in doc.items()]
+        cfg = self.server.arm.config
+        st = msgs.DiagnosticStatus(_LEVEL.get(mode, 1), f"akarm: {cfg.name}", text, cfg.name, values)
+        self._status.write(msgs.DiagnosticArray(msgs.Header(msgs.Time.from_seconds(time.time()), ""), [st]))

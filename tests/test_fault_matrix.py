@@ -1,0 +1,631 @@
+"""The fault matrix: every way a real arm goes wrong, and every way out of a program, against the simulator.
+
+Each row injects one fault (or ends the program one way) and asserts:
+
+- the named error (a :class:`~akarm.SafetyStop` subclass with the joint, the value and the limit);
+- the time to stop: from the fault to the supervisor's decision (``error.at``), within the bound;
+- that the simulated drivers ended damped and then disabled, as the motors saw it on the wire
+  (:mod:`tests.wire`): damping frames for the stop's damping time, then the exit frames, nothing after;
+- where a file is written, that it is whole (or absent) and no temporary file is left.
+
+Lock-step rows run on planar2 and arm6 where the issue gives detection times. Rows about signals
+and the interpreter's exit run real processes (`akarm` verbs, scripts) against the simulator in a
+process of its own, on akarm_local.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+import yaml
+
+import akarm
+from akarm import (
+    BusLost,
+    FeedbackTimeout,
+    ForeignTraffic,
+    LimitError,
+    MotorFault,
+    NotSettled,
+    OverTemperature,
+    StaleFeedback,
+    TrackingError,
+)
+from akarm.config import RobotConfig
+from akarm.control import UnsafeExitWarning
+from akarm.modes import Mode
+from akarm.protocol import mit
+from akarm.recording import load as load_recording
+from akarm.sim import SimulatedRobot, faults
+from akarm.sim.process import SimulatorProcess
+from akarm.telemetry import load as load_telemetry
+
+from .conftest import ROBOTS, wait_until
+from .wire import Wire, damping_then_exit, never_held
+
+HOLD = {"planar2": "home", "arm6": "reach"}            # poses held against gravity
+MOVE = {"planar2": ([-1.0, 0.0], "up"), "arm6": ("ready", "reach")}  # (from, to): a move of every big joint
+
+
+@contextmanager
+def rig(robot: str, channel: str, *, q0=None, sim_faults=None, config_edit=None,
+        **arm_kwargs) -> Iterator[tuple[akarm.Arm, SimulatedRobot, Wire]]:
+    """A lock-step simulator, a spy on its buses and an Arm, all on this test's channel."""
+    cfg = akarm.load_robot(ROBOTS / f"{robot}.yaml").with_bus(interface="virtual", channel=channel)
+    if config_edit is not None:
+        cfg = config_edit(cfg)
+    with SimulatedRobot(cfg, realtime=False, faults=sim_faults) as sim, Wire(cfg) as wire:
+        if q0 is not None:
+            sim.set_state(np.asarray(q0, float))
+        with akarm.Arm(cfg, clock=sim.clock, **arm_kwargs) as arm:
+            yield arm, sim, wire
+
+
+def stopped(arm: akarm.Arm, sim: SimulatedRobot, exc_type: type, joint: str | None, run) -> BaseException:
+    """Run ``run``; it must raise ``exc_type`` naming ``joint``, with the arm and every driver disabled."""
+    with pytest.raises(exc_type) as info:
+        run()
+    e = info.value
+    if joint is not None:
+        assert e.joint == joint, e
+    assert not arm.enabled and arm.mode in (Mode.DISABLED, Mode.FAULT)
+    assert not any(d.enabled for d in sim.drivers if not any(isinstance(f, faults.Unplugged) for f in d.faults))
+    return e
+
+
+def moving(arm: akarm.Arm, robot: str) -> float:
+    """Enable, go to the start of the robot's test move, start it; return the clock time 50 ms into it."""
+    start, target = MOVE[robot]
+    arm.enable()
+    arm.move_to(start)
+    arm.move_to(target, wait=False)
+    arm.sleep(0.05)
+    return arm.clock.now()
+
+
+# ------------------------------------------------------------------------------------------------
+# feedback: dropped, delayed, missing, late from the start, frozen, forged
+# ------------------------------------------------------------------------------------------------
+def test_dropped_replies_are_tolerated_and_the_move_arrives(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        sim.inject("elbow", faults.DropReplies(0.3, seed=1))
+        arm.move_to("up")
+        arm.sleep(0.3)
+        assert np.max(np.abs(arm.state().q - np.array(arm.config.pose("up")))) < 2e-3
+        assert arm.fault is None
+        arm.disable()
+        damping_then_exit(wire, arm.config)
+
+
+def test_replies_that_start_arriving_late_stop_the_arm_within_the_timeout(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        t = arm.clock.now()
+        sim.inject("shoulder", faults.DelayReplies(0.05))
+        e = stopped(arm, sim, FeedbackTimeout, "shoulder", lambda: arm.sleep(0.5))
+        assert e.limit == 0.02 and e.at - t <= 0.026  # the gap a delay opens is caught by feedback age
+        damping_then_exit(wire, arm.config)
+
+
+def test_an_unplugged_motor_stops_the_arm(channel: str) -> None:
+    with rig("arm6", channel) as (arm, sim, wire):
+        t = moving(arm, "arm6")
+        sim.inject("elbow", faults.Unplugged())
+        e = stopped(arm, sim, FeedbackTimeout, "elbow", lambda: arm.sleep(1.0))
+        assert 0.02 < e.at - t <= 0.026
+        with pytest.raises(FeedbackTimeout):
+            arm.move_to("home")  # the fault stays until enable() again
+        cfg = replace(arm.config, joints=tuple(j for j in arm.config.joints if j.name != "elbow"))
+        damping_then_exit(wire, cfg)  # the unplugged one hears nothing, the others are disabled
+
+
+@pytest.mark.parametrize("robot, joint", [("planar2", "elbow"), ("arm6", "wrist_pitch")])
+def test_a_constant_reply_delay_from_the_start_refuses_the_enable(robot: str, joint: str, channel: str) -> None:
+    with rig(robot, channel, sim_faults={joint: faults.DelayReplies(0.06)}) as (arm, sim, wire):
+        t = arm.clock.now()
+        e = stopped(arm, sim, StaleFeedback, joint, arm.enable)
+        assert e.at - t <= 0.2 and e.age == pytest.approx(0.06, abs=0.0025) and e.limit == 0.02
+        never_held(wire, arm.config)
+        assert "60 ms after the first frame (limit 20 ms)" in str(e)
+
+
+@pytest.mark.parametrize("robot", ["planar2", "arm6"])
+@pytest.mark.parametrize("joint_index", [0, 1])
+def test_a_frozen_encoder_during_a_move_stops_it_within_0_3_s(robot: str, joint_index: int, channel: str) -> None:
+    with rig(robot, channel) as (arm, sim, wire):
+        joint = arm.names[joint_index] if robot == "planar2" else ["elbow", "shoulder_lift"][joint_index]
+        t = moving(arm, robot)
+        sim.inject(joint, faults.FrozenEncoder())
+        e = stopped(arm, sim, TrackingError, joint, lambda: arm.sleep(1.0))
+        assert e.at - t <= 0.3, e
+        assert "frozen encoder or a blocked joint" in str(e) and abs(e.error) > e.limit
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot", ["planar2", "arm6"])
+def test_one_forged_reply_moves_no_commanded_position_by_1_mrad(robot: str, channel: str) -> None:
+    def positions(forge: bool) -> tuple[np.ndarray, int]:
+        with rig(robot, f"{channel}-{forge}") as (arm, sim, wire):
+            arm.enable()
+            motion = arm.move_to(list(arm.config.poses)[1], wait=False)
+            arm.sleep(0.2)
+            if forge:
+                sim.inject(arm.names[1], faults.ForgedReply(12.45))
+            motion.wait()
+            arm.sleep(0.2)
+            assert arm.fault is None
+            rejected = arm.joints[1].rejected
+            arm.disable()
+            frames = [(name, m) for name, m in wire.drain() if not m.is_extended_id and m.arbitration_id != 0
+                      and mit.special_frame(m.data) is None]
+            q = np.array([mit.decode_command(arm.config.joints[m.arbitration_id - 1].motor, m.data).position
+                          for _, m in frames])
+        return q, rejected
+
+    clean, _ = positions(False)
+    forged, rejected = positions(True)
+    assert rejected == 1 and clean.shape == forged.shape and clean.size > 500
+    assert np.max(np.abs(clean - forged)) <= 1e-3
+
+
+def test_forged_replies_in_a_row_stop_the_arm(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        t = arm.clock.now()
+        sim.inject("elbow", faults.ForgedReply(12.45, count=3))  # three at once, between two good ones
+        e = stopped(arm, sim, akarm.ImplausibleFeedback, "elbow", lambda: arm.sleep(0.5))
+        assert e.count == 3 and e.at - t <= 0.004 and e.value == pytest.approx(12.45, abs=1e-3)
+        assert e.limit == 1.5 * arm.config.joints[1].motor.v_max  # the motor cannot turn faster
+        damping_then_exit(wire, arm.config)
+
+
+def test_forged_replies_between_good_ones_stop_the_arm_too(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        t = arm.clock.now()
+        sim.inject("elbow", faults.ForgedReply(12.45, count=12, interval=0.05))  # each one alone
+        e = stopped(arm, sim, akarm.ImplausibleFeedback, "elbow", lambda: arm.sleep(2.0))
+        assert e.count >= 10 and e.at - t <= 1.01 + 0.05
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot", ["planar2", "arm6"])
+def test_forged_replies_during_enable_are_not_held_or_driven(robot: str, channel: str) -> None:
+    q0 = [0.3, -0.2] if robot == "planar2" else [0.1, 0.2, 0.5, 0.1, 0.2, 0.1]
+    with rig(robot, channel, q0=q0) as (arm, sim, wire):
+        sim.inject(arm.names[0], faults.ForgedReply(12.45, count=3, interval=0.002))  # before and during contact
+        arm.enable()
+        arm.sleep(0.3)
+        held = arm.state().q_des
+        assert np.max(np.abs(held - sim.q)) < 2e-3            # the pose it really has, not +12.45
+        assert np.max(np.abs(held - np.array(q0))) < 0.03      # (where it was, less what it sank meanwhile)
+        assert arm.joints[0].rejected >= 2
+
+
+# ------------------------------------------------------------------------------------------------
+# the motor: error codes, temperature, blocked, undersized, disabled by someone else
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("code, words", [(1, "over-temperature"), (2, "over-current"), (3, "over-voltage"),
+                                         (4, "under-voltage"), (5, "encoder"), (6, "mosfet"), (7, "stall")])
+def test_each_motor_error_code_stops_the_arm(code: int, words: str, channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        t = moving(arm, "planar2")
+        sim.inject("elbow", faults.ErrorCode(code))
+        e = stopped(arm, sim, MotorFault, "elbow", lambda: arm.sleep(0.5))
+        assert e.code == code and words in str(e).lower() and e.at - t <= 0.004
+        damping_then_exit(wire, arm.config)
+
+
+def test_over_temperature_stops_the_arm(channel: str) -> None:
+    def low_limit(cfg):
+        return replace(cfg, joints=tuple(replace(j, max_temperature=30.0) if j.name == "shoulder" else j
+                                         for j in cfg.joints))
+
+    with rig("planar2", channel, q0=[0.0, 0.0], config_edit=low_limit) as (arm, sim, wire):
+        arm.enable()
+        t = arm.clock.now()
+        sim.joint("shoulder").temperature = 45.0
+        e = stopped(arm, sim, OverTemperature, "shoulder", lambda: arm.sleep(0.5))
+        assert e.temperature > 30.0 and e.limit == 30.0 and e.at - t <= 0.004
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot, joint", [("planar2", "elbow"), ("arm6", "shoulder_lift")])
+def test_a_blocked_joint_stops_the_move(robot: str, joint: str, channel: str) -> None:
+    with rig(robot, channel) as (arm, sim, wire):
+        t = moving(arm, robot)
+        sim.inject(joint, faults.Blocked())
+        e = stopped(arm, sim, TrackingError, joint, lambda: arm.sleep(1.0))
+        assert e.at - t <= 0.3
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot, mass", [("planar2", 4.0), ("arm6", 6.0)])
+def test_an_undersized_motor_does_not_return_off_target(robot: str, mass: float, channel: str) -> None:
+    q0 = [-1.5, 0.0] if robot == "planar2" else None
+    with rig(robot, channel, q0=q0) as (arm, sim, wire):
+        sim.set_payload(mass)
+        arm.set_payload(mass)  # even known, the motor has not the torque: it must not "arrive" sagging
+        arm.enable()
+        target = "home" if robot == "planar2" else "reach"
+        motion = arm.move_to(target, wait=False)
+        e = stopped(arm, sim, TrackingError, None, lambda: (motion.wait(), arm.sleep(2.0)))
+        assert abs(e.error) > e.limit and e.at - motion.plan.t0 <= motion.duration + 0.6  # stopped, not "arrived"
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot", ["planar2", "arm6"])
+def test_a_joint_disabled_by_another_program_on_the_bus_stops_the_arm_at_once(robot: str, channel: str) -> None:
+    with rig(robot, channel) as (arm, sim, wire):
+        arm.enable()
+        arm.move_to(HOLD[robot])
+        arm.sleep(0.3)
+        joint = arm.names[1]
+        t = arm.clock.now()
+        sim.inject(joint, faults.RogueExit())
+        e = stopped(arm, sim, ForeignTraffic, joint, lambda: arm.sleep(1.0))
+        assert e.kind == "exit" and e.at - t <= 0.5 and e.at - t <= 0.004
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("robot, joint", [("planar2", "shoulder"), ("arm6", "shoulder_lift"), ("arm6", "elbow")])
+def test_a_joint_disabled_unseen_while_holding_against_gravity_stops_within_0_5_s(robot: str, joint: str,
+                                                                                  channel: str) -> None:
+    with rig(robot, channel) as (arm, sim, wire):
+        arm.enable()
+        arm.move_to(HOLD[robot])
+        arm.sleep(0.3)
+        t = arm.clock.now()
+        sim.inject(joint, faults.RogueExit(on_bus=False))  # over its serial port: nothing on the bus
+        e = stopped(arm, sim, TrackingError, joint, lambda: arm.sleep(1.0))
+        assert e.at - t <= 0.5, e
+        damping_then_exit(wire, arm.config)
+
+
+def test_a_second_controller_on_the_bus_stops_the_arm(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire), \
+            can.Bus(interface="virtual", channel=channel) as other:
+        arm.enable()
+        t = arm.clock.now()
+        other.send(can.Message(arbitration_id=2, data=mit.encode_command(arm.config.joints[1].motor, 0.5, 0.0, 30.0,
+                                                                         1.0, 0.0), is_extended_id=False))
+        e = stopped(arm, sim, ForeignTraffic, "elbow", lambda: arm.sleep(0.5))
+        assert e.kind == "command" and e.at - t <= 0.004
+        damping_then_exit(wire, arm.config)
+
+
+def test_enable_is_refused_while_another_controller_drives_the_motors(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire), \
+            can.Bus(interface="virtual", channel=channel) as other:
+        other.send(can.Message(arbitration_id=1, data=mit.ENTER, is_extended_id=False))
+        with pytest.raises(ForeignTraffic, match="two controllers on one bus") as info:
+            arm.enable()
+        assert info.value.joint == "shoulder" and info.value.kind == "enter"
+        assert wire.sent_to(arm.config.joints[1]) == []  # nothing was sent: the other's arm is not dropped
+
+
+def test_a_second_motor_with_the_same_id_is_found_by_its_surplus_replies(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        twin = SimulatedRobot(arm.config, realtime=False, q0=[0.0, 0.0])  # the same IDs on the same bus
+        with twin:
+            sim.clock.attach(twin.advance_to)
+            arm.enable()
+            t = arm.clock.now()
+            e = stopped(arm, sim, ForeignTraffic, None, lambda: arm.sleep(2.0))
+            sim.clock.detach(twin.advance_to)
+        assert e.kind == "replies" and "second motor with the same CAN ID" in str(e) and e.at - t <= 1.01
+
+
+# ------------------------------------------------------------------------------------------------
+# enable and recovery
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("robot, q0, dq", [("planar2", [-1.2, 0.0], [8.0, 0.0]),
+                                           ("arm6", [0.0, -0.6, 0.5, 0.0, 0.5, 0.0], [0.0, 8.0, 0.0, 0.0, 0.0, 0.0])])
+def test_enabling_a_swinging_arm_waits_for_it_to_come_to_rest(robot: str, q0, dq, channel: str) -> None:
+    with rig(robot, channel) as (arm, sim, wire):
+        sim.set_state(q0, dq)
+        arm.enable()
+        t = arm.clock.now()
+        arm.sleep(0.5)
+        log = arm.telemetry(since=t)
+        assert np.abs(log.q_des - log.q).max() < 5e-3                   # was 0.7-1.1 rad
+        tmax = np.array([j.motor.t_max for j in arm.config.joints])
+        assert not np.any(np.abs(log.tau) >= 0.99 * tmax)               # no saturated torque
+        damped = [s for s in wire.sent_to(arm.config.joints[1]) if s.kind == "command" and s.kp == 0 and s.kd > 0]
+        assert len(damped) > 20                                          # it was damped first
+
+
+def test_an_arm_that_keeps_moving_is_not_enabled(channel: str) -> None:
+    with rig("planar2", channel, q0=[-1.5, 0.0], settle_timeout=0.3) as (arm, sim, wire):
+        sim.set_external_torque([0.0, 2.0])  # somebody keeps pushing the elbow
+        e = stopped(arm, sim, NotSettled, "elbow", arm.enable)
+        assert e.speed > e.limit == 0.1
+        never_held(wire, arm.config)
+
+
+def test_an_arm_resting_past_a_limit_can_be_moved_back(channel: str) -> None:
+    """Limp, arm6's shoulder_lift sags onto its hard stop (the URDF's ±1.75 rad), past the YAML's ±1.7:
+    from there (and a few mrad into the stop) it may be moved back in, never further out."""
+    with rig("arm6", channel) as (arm, sim, wire):
+        upper, stop = arm.limits.upper[1], arm.model.upper[1]
+        assert (upper, stop) == (1.7, 1.75)
+        q0 = np.array(arm.config.pose("reach"))
+        for start in (upper + 0.003, stop + 0.004):           # between the limits; pressed into the stop
+            q0[1] = start
+            sim.set_state(q0)
+            arm.enable()
+            assert arm.state().q_des[1] > upper
+            with pytest.raises(LimitError, match="outside"):
+                arm.move_to({"shoulder_lift": upper + 0.001})  # a target outside stays refused
+            arm.move_to("reach")
+            arm.sleep(0.3)
+            assert abs(arm.state().q[1] - arm.config.pose("reach")[1]) < 2e-3
+            arm.disable()
+    with rig("arm6", channel + "b", range_margin=0.001) as (arm, sim, wire):
+        q0[1] = arm.model.upper[1] + 0.004
+        sim.set_state(q0)
+        arm.enable()
+        with pytest.raises(LimitError, match=r"by more than the 0\.001 rad") as info:
+            arm.move_to("reach")
+        assert info.value.joint == "shoulder_lift"
+
+
+# ------------------------------------------------------------------------------------------------
+# the bus
+# ------------------------------------------------------------------------------------------------
+def test_a_bus_shut_down_under_the_arm_is_a_bus_error_and_close_still_works(channel: str) -> None:
+    def with_can_timeout(cfg):  # the drivers' own CAN timeout is all that can make them limp
+        return replace(cfg, joints=tuple(replace(j, can_timeout=0.2) for j in cfg.joints))
+
+    with rig("planar2", channel, q0=[0.0, 0.0], config_edit=with_can_timeout) as (arm, sim, wire):
+        t = moving(arm, "planar2")
+        arm._ctl.buses["arm"].shutdown()
+        with pytest.raises(BusLost) as info:
+            arm.sleep(0.5)
+        e = info.value
+        assert isinstance(e, akarm.BusError) and e.bus == "arm" and e.at - t <= 0.004
+        assert arm.mode is Mode.FAULT and "could not" not in str(e) and "may not have been damped" in str(e)
+        with pytest.raises(BusLost):
+            arm.enable()
+        arm.close()
+        assert arm.mode is Mode.CLOSED
+        sim.run_for(0.3)
+        assert not any(d.enabled for d in sim.drivers)  # their CAN timeout, not us
+
+
+def test_a_lost_bus_of_two_leaves_the_other_arm_damped_and_disabled(channel: str) -> None:
+    with rig("biarm", channel) as (arm, sim, wire):
+        arm.enable()
+        arm.sleep(0.1)
+        lost = arm.config.joints[0].bus
+        arm._ctl.buses[lost].shutdown()
+        with pytest.raises(BusLost):
+            arm.sleep(0.5)
+        other = replace(arm.config, joints=tuple(j for j in arm.config.joints if j.bus != lost))
+        damping_then_exit(wire, other)
+        assert not any(d.enabled for d in sim.drivers if d.bus != lost)
+        assert arm.mode is Mode.FAULT
+
+
+def test_frames_the_bus_refuses_stop_the_arm_and_the_exit_goes_out_when_it_takes_them_again(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        bus = arm._ctl.buses["arm"]
+        real_send, refused = bus.send, []
+
+        def full_queue(msg, timeout=None):
+            if len(refused) < 25:
+                refused.append(msg)
+                raise can.CanOperationError("Transmit buffer full")
+            return real_send(msg, timeout)
+
+        bus.send = full_queue
+        t = arm.clock.now()
+        e = stopped(arm, sim, BusLost, None, lambda: arm.sleep(0.5))
+        assert "Transmit buffer full" in str(e) and e.at - t <= 0.024  # 20 frames: 10 cycles of 2 joints
+        assert arm.mode is Mode.FAULT
+        damping_then_exit(wire, arm.config, damping_time=0.28)
+    assert arm.mode is Mode.CLOSED
+
+
+# ------------------------------------------------------------------------------------------------
+# ways out of a program (in process)
+# ------------------------------------------------------------------------------------------------
+def test_an_exception_in_teach_mode_leaves_the_arm_damped_and_disabled(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        with pytest.raises(RuntimeError), arm:
+            arm.enable()
+            arm.teach()
+            arm.sleep(0.1)
+            raise RuntimeError("the user's code failed")
+        assert arm.mode is Mode.CLOSED
+        assert not any(d.enabled for d in sim.drivers)
+        damping_then_exit(wire, arm.config)
+
+
+def test_an_arm_dropped_while_enabled_is_disabled_with_a_warning(channel: str) -> None:
+    cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(cfg, realtime=False, q0=[0.0, 0.0]) as sim, Wire(cfg) as wire:
+        arm = akarm.Arm(cfg, clock=sim.clock)
+        arm.open()
+        arm.enable()
+        assert all(d.enabled for d in sim.drivers)
+        with pytest.warns(UnsafeExitWarning, match="garbage-collected while enabled"):
+            del arm
+            gc.collect()
+        assert not any(d.enabled for d in sim.drivers)
+        damping_then_exit(wire, cfg)
+
+
+# ------------------------------------------------------------------------------------------------
+# ways out of a program (real processes: signals, the interpreter's exit)
+# ------------------------------------------------------------------------------------------------
+@pytest.fixture
+def local_robot(tmp_path: Path) -> Path:
+    """planar2 with a 0.25 s feedback watchdog: real processes on a machine that may be busy."""
+    doc = yaml.safe_load((ROBOTS / "planar2.yaml").read_text())
+    doc["urdf"] = str(ROBOTS / doc["urdf"])
+    doc["defaults"]["feedback_timeout"] = 0.25
+    path = tmp_path / "planar2.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@contextmanager
+def on_akarm_local(robot: Path, channel: str) -> Iterator[tuple[RobotConfig, Wire]]:
+    with SimulatorProcess(robot, channel=channel, pose="down"):
+        cfg = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)
+        with Wire(cfg, background=True) as wire:
+            yield cfg, wire
+
+
+def _exit_seen(wire: Wire, cfg) -> bool:
+    return all(s and s[-1].kind == "exit" for s in (wire.sent_to(j) for j in cfg.joints))
+
+
+def _start(argv: list[str], **kwargs) -> subprocess.Popen[str]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.Popen([sys.executable, "-m", "akarm", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, **kwargs)
+
+
+def _wait_for_line(stream, word: str, timeout: float = 60.0) -> str:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = stream.readline()
+        if word in line:
+            return line
+        if not line:
+            break
+    raise AssertionError(f"{word!r} never appeared")
+
+
+SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+
+
+def _interrupt(proc: subprocess.Popen[str], ready: str, sig: int, wire: Wire, cfg: RobotConfig,
+               after: float) -> tuple[str, str, float]:
+    """Once ``ready`` is printed (stdout, or stderr when stdout is not the verb's), wait ``after`` s,
+    send ``sig``, wait for the process and for EXIT to every joint. Returns (stdout, stderr, s from
+    the signal to the last EXIT)."""
+    _wait_for_line(proc.stdout if ready != "recording at" else proc.stderr, ready)
+    time.sleep(after)
+    t = time.time()
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=30)
+    assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+    return out, err, max(s.t for j in cfg.joints for s in wire.sent_to(j) if s.kind == "exit") - t
+
+
+@pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_a_signal_during_a_move_damps_exits_and_ends_with_its_status(sig: int, local_robot: Path, channel: str,
+                                                                      tmp_path: Path) -> None:
+    log = tmp_path / "move.npz"
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        proc = _start(["move", str(local_robot), "up", "-i", "akarm_local", "-c", channel, "--speed", "0.3",
+                       "--log", str(log)])
+        _, err, to_exit = _interrupt(proc, "moving to", sig, wire, cfg, after=0.3)
+    assert proc.returncode == 128 + sig, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert to_exit < 2.0                           # the stop: jerk-limited brake, 0.3 s damping, exit
+    damping_then_exit(wire, cfg)
+    assert load_telemetry(log).t.size > 100  # the log is whole
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_a_signal_while_teaching_keeps_the_recording_damps_and_exits(sig: int, local_robot: Path, channel: str,
+                                                                      tmp_path: Path) -> None:
+    out = tmp_path / "path.csv"
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        proc = _start(["teach", str(local_robot), str(out), "-i", "akarm_local", "-c", channel],
+                      stdin=subprocess.PIPE)
+        stdout, err, to_exit = _interrupt(proc, "recording at", sig, wire, cfg, after=0.5)
+    assert proc.returncode == 128 + sig, err
+    assert "wrote" in stdout and "Traceback" not in err
+    assert to_exit < 2.0
+    damping_then_exit(wire, cfg)
+    rec = load_recording(out, cfg.joint_names)
+    assert rec.duration > 0.3                      # what was recorded, whole
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name)
+def test_a_signal_to_enable_damps_and_exits(sig: int, local_robot: Path, channel: str) -> None:
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        proc = _start(["enable", str(local_robot), "-i", "akarm_local", "-c", channel])
+        _, err, to_exit = _interrupt(proc, "enabled planar2", sig, wire, cfg, after=0.2)
+    assert proc.returncode in (0, 128 + sig), err  # 0 once Ctrl-C (and its kin) is enable's documented end
+    assert "Traceback" not in err and to_exit < 2.0
+    damping_then_exit(wire, cfg)
+
+
+def test_teach_into_a_directory_is_refused_before_anything_is_enabled(local_robot: Path, channel: str,
+                                                                      tmp_path: Path) -> None:
+    out = tmp_path / "path.csv"
+    out.mkdir()
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        r = subprocess.run([sys.executable, "-m", "akarm", "teach", str(local_robot), str(out), "-i",
+                            "akarm_local", "-c", channel], capture_output=True, text=True, timeout=60, input="")
+        time.sleep(0.1)
+        assert all(wire.sent_to(j) == [] for j in cfg.joints)
+    assert r.returncode == 1 and "is a directory" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_script_that_ends_without_disabling_leaves_the_arm_damped_and_disabled(local_robot: Path, channel: str,
+                                                                                  tmp_path: Path) -> None:
+    script = tmp_path / "forgetful.py"
+    script.write_text(
+        "import akarm\n"
+        f"cfg = akarm.load_robot({str(local_robot)!r}).with_bus(interface='akarm_local', channel={channel!r})\n"
+        "arm = akarm.Arm(cfg)\n"
+        "arm.open()\n"
+        "arm.enable()\n"
+        "print('enabled', flush=True)\n")
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+        assert wait_until(lambda: _exit_seen(wire, cfg), 5.0)
+    assert r.returncode == 0 and "enabled" in r.stdout, r.stderr
+    assert "UnsafeExitWarning" in r.stderr and "still enabled when the program ended" in r.stderr
+    damping_then_exit(wire, cfg)
+
+
+def test_sigterm_to_a_script_unwinds_its_with_block(local_robot: Path, channel: str, tmp_path: Path) -> None:
+    script = tmp_path / "holder.py"
+    script.write_text(
+        "import akarm\n"
+        f"cfg = akarm.load_robot({str(local_robot)!r}).with_bus(interface='akarm_local', channel={channel!r})\n"
+        "with akarm.Arm(cfg) as arm:\n"
+        "    arm.enable()\n"
+        "    print('enabled', flush=True)\n"
+        "    while True:\n"
+        "        arm.sleep(1.0)\n")
+    with on_akarm_local(local_robot, channel) as (cfg, wire):
+        proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        _, err, to_exit = _interrupt(proc, "enabled", signal.SIGTERM, wire, cfg, after=0.0)
+    assert to_exit < 2.0
+    assert proc.returncode == 1 and "Terminated: terminated by SIGTERM" in err  # Python's KeyboardInterrupt exit
+    damping_then_exit(wire, cfg)
+
+
+def test_enable_with_nothing_on_the_channel_says_no_simulator_is_there(channel: str) -> None:
+    cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="akarm_local", channel=channel)
+    with akarm.Arm(cfg) as arm:
+        with pytest.raises(FeedbackTimeout, match="no answer within 500 ms") as info:
+            arm.enable()
+        assert arm.mode is Mode.DISABLED
+    assert "no simulator or motor is on akarm_local channel" in info.value.fix

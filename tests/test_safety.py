@@ -1,0 +1,280 @@
+"""The supervisor, the feedback gate and the mode machine alone: no bus, no loop, no simulator.
+
+Joints are fed the bytes a motor would send (through the codecs), the supervisor is asked as the
+control loop asks it every cycle, and each check must fire exactly when its limit is passed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from akarm import (
+    FeedbackTimeout,
+    ForeignTraffic,
+    ImplausibleFeedback,
+    MotorFault,
+    OverTemperature,
+    StateError,
+    TrackingError,
+)
+from akarm.config import RobotConfig
+from akarm.joints import MitJoint, make_joint
+from akarm.modes import Mode, ModeMachine
+from akarm.safety import (
+    FOLLOWING_CYCLES,
+    IMPLAUSIBLE_PER_WINDOW,
+    REPLY_WINDOW,
+    SATURATION_TIME,
+    Guard,
+    Supervisor,
+    default_following_error,
+    default_stuck_travel,
+)
+
+DT = 0.002  # a 500 Hz loop
+
+
+def joints_of(config: RobotConfig, max_speed: float | None = None) -> list[MitJoint]:
+    js = [make_joint(i, j) for i, j in enumerate(config.joints)]
+    for j in js:
+        j.set_gate(max_speed if max_speed is not None else 1.5 * j.motor.v_max, DT)
+    return js  # type: ignore[return-value]
+
+
+def reply(j: MitJoint, position: float, now: float, *, velocity: float = 0.0, temperature: float = 30.0,
+          error: int = 0) -> None:
+    """The joint receives a reply from its motor saying ``position`` (rad, motor side)."""
+    j.handle_reply(j.codec.encode_reply(j.can_id, position, velocity, 0.0, temperature, error), now)
+
+
+def fresh(js: list[MitJoint], now: float, positions: list[float] | None = None) -> None:
+    for k, j in enumerate(js):
+        reply(j, positions[k] if positions else 0.0, now)
+
+
+@pytest.fixture
+def rig(planar2: RobotConfig) -> tuple[list[MitJoint], Supervisor]:
+    js = joints_of(planar2)
+    guards = [Guard(0.02, 80.0, 0.2, 0.03), Guard(0.02, 80.0, 0.2, 0.03)]
+    sup = Supervisor(js, guards)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    return js, sup
+
+
+def test_all_quiet_means_no_stop(rig) -> None:
+    js, sup = rig
+    for k in range(1, 200):
+        t = k * DT
+        fresh(js, t)
+        assert sup.check(t, [0.0, 0.0], [True, True], [False, False]) is None
+
+
+def test_feedback_age_over_the_timeout_stops_naming_the_joint_age_and_limit(rig) -> None:
+    js, sup = rig
+    reply(js[0], 0.0, 0.010)
+    assert sup.check(0.020) is None                            # the elbow's is 20 ms old: at the limit
+    e = sup.check(0.0201)
+    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow" and e.limit == 0.02
+    assert e.age == pytest.approx(0.0201) and e.at == 0.0201
+
+
+def test_a_motor_error_code_and_a_temperature_stop(rig) -> None:
+    js, sup = rig
+    reply(js[1], 0.0, 0.002, error=7)
+    e = sup.check(0.002)
+    assert isinstance(e, MotorFault) and e.code == 7 and e.joint == "elbow" and "stall" in str(e)
+    reply(js[1], 0.0, 0.004)
+    reply(js[0], 0.0, 0.004, temperature=81.0)
+    e = sup.check(0.004)
+    assert isinstance(e, OverTemperature) and e.temperature == 81.0 and e.limit == 80.0 and e.joint == "shoulder"
+
+
+def test_the_gate_rejects_a_step_the_motor_cannot_make_and_keeps_the_turns(planar2: RobotConfig) -> None:
+    (j, _) = joints_of(planar2)
+    p_max = j.motor.p_max
+    reply(j, p_max - 0.02, 0.0)
+    reply(j, -p_max + 0.02, DT)                    # through the wrap: 0.04 rad on, a turn counted
+    assert j.state.position == pytest.approx(p_max + 0.02, abs=1e-3) and j.rejected == 0
+    reply(j, 12.45 - 25.0 + 5.0, 2 * DT)           # 5 rad away in 2 ms: rejected
+    assert j.rejected == j.rejected_run == 1 and j.last_rejected == pytest.approx(p_max + 5.0 - 0.05, abs=2e-3)
+    assert j.state.position == pytest.approx(p_max + 0.02, abs=1e-3) and j.state.stamp == DT
+    reply(j, -p_max + 0.03, 3 * DT)                # the true one: accepted, still a turn up
+    assert j.state.position == pytest.approx(p_max + 0.03, abs=1e-3) and j.rejected_run == 0
+    # a step the motor can make in the time since: accepted (50 rad/s · 1.5 · 0.1 s = 7.5 rad)
+    reply(j, -p_max + 3.0, 3 * DT + 0.1)
+    assert j.rejected == 1
+
+
+def test_a_forged_first_reply_at_contact_is_dropped_with_its_turn(planar2: RobotConfig) -> None:
+    (j, _) = joints_of(planar2)
+    reply(j, -0.5, 0.0)
+    j.begin_contact()                              # enable: the next reply is taken as it comes ...
+    reply(j, 12.45, 1.0)                           # ... and it is a forgery, 12.95 rad "through the wrap"
+    assert j.state.position == pytest.approx(12.45 - 25.0, abs=1e-3)
+    reply(j, -0.5, 1.0 + DT)
+    reply(j, -0.5, 1.0 + 2 * DT)
+    assert j.rejected_run == 2                     # every true reply disagrees with it: it was the odd one
+    j.rebase()
+    reply(j, -0.5, 1.0 + 3 * DT)
+    assert j.state.position == pytest.approx(-0.5, abs=1e-3)  # no turn left behind
+
+
+def test_implausible_replies_in_a_row_stop_even_with_a_good_one_after_them(rig) -> None:
+    js, sup = rig
+    t = DT
+    fresh(js, t)
+    for _ in range(3):
+        reply(js[1], 12.0, t)
+    reply(js[1], 0.0, t)                           # drained in the same cycle: the run is over ...
+    e = sup.check(t)                               # ... but the supervisor still sees it
+    assert isinstance(e, ImplausibleFeedback) and e.count == 3 and e.joint == "elbow"
+    assert e.value == pytest.approx(12.0, abs=1e-3) and e.limit == js[1].max_speed
+
+
+def test_two_implausible_replies_are_dropped_and_forgotten(rig) -> None:
+    js, sup = rig
+    fresh(js, DT)
+    reply(js[1], 12.0, DT)
+    reply(js[1], 12.0, DT)
+    fresh(js, 2 * DT)
+    assert sup.check(2 * DT) is None and js[1].state.position == pytest.approx(0.0, abs=1e-3)
+
+
+def test_many_implausible_replies_between_good_ones_stop_at_the_window(rig) -> None:
+    js, sup = rig
+    t = 0.0
+    for k in range(IMPLAUSIBLE_PER_WINDOW):
+        t = (k + 1) * 0.05
+        fresh(js, t)
+        reply(js[1], 12.0, t)
+        fresh(js, t)
+        if t < REPLY_WINDOW:
+            assert sup.check(t) is None
+    fresh(js, REPLY_WINDOW)
+    e = sup.check(REPLY_WINDOW)
+    assert isinstance(e, ImplausibleFeedback) and e.count == IMPLAUSIBLE_PER_WINDOW
+
+
+def test_following_error_over_the_limit_for_three_cycles(rig) -> None:
+    js, sup = rig
+    for k in range(1, FOLLOWING_CYCLES + 2):
+        t = k * DT
+        fresh(js, t, [0.0, 0.001 * k])              # the elbow 0.21 rad and more behind its command
+        e = sup.check(t, [0.0, 0.21 + 0.002 * k], [True, True])
+        if k < FOLLOWING_CYCLES:
+            assert e is None
+        else:
+            assert isinstance(e, TrackingError) and e.joint == "elbow" and e.limit == 0.2
+            assert e.error == pytest.approx(0.21 + 0.001 * k, abs=1e-3) and e.at == t
+            return
+
+
+def test_a_joint_that_does_not_track_is_not_checked(rig) -> None:
+    js, sup = rig
+    for k in range(1, 10):
+        fresh(js, k * DT)
+        assert sup.check(k * DT, [0.0, 1.0], [True, False]) is None  # elbow with kp = 0: limp on purpose
+
+
+def test_a_reading_that_repeats_while_the_command_moves_is_a_frozen_encoder(rig) -> None:
+    js, sup = rig
+    for k in range(1, 100):
+        t = k * DT
+        fresh(js, t, [0.0, 0.0])                   # new replies, always the same value
+        q_des = 0.001 * k                          # commanded on at 0.5 rad/s
+        e = sup.check(t, [0.0, q_des], [True, True])
+        if e is not None:
+            assert isinstance(e, TrackingError) and "frozen encoder" in str(e) and e.joint == "elbow"
+            assert e.error > e.limit == 0.03 and q_des < 0.035
+            return
+    pytest.fail("a frozen reading was not found")
+
+
+def test_a_reading_that_moves_with_the_command_is_fine(rig) -> None:
+    js, sup = rig
+    for k in range(1, 300):
+        t = k * DT
+        fresh(js, t, [0.0, 0.001 * k - 0.005])
+        assert sup.check(t, [0.0, 0.001 * k], [True, True]) is None
+
+
+def test_a_saturated_command_off_target_for_a_while_is_a_motor_too_small(rig) -> None:
+    js, sup = rig
+    t = 0.0
+    while t < SATURATION_TIME + 3 * DT:
+        t += DT
+        fresh(js, t, [-0.1, 0.0])                  # sagged under a load it cannot hold
+        e = sup.check(t, [0.0, 0.0], [True, True], [True, False])
+        if e is not None:
+            assert isinstance(e, TrackingError) and e.joint == "shoulder" and "torque range" in str(e)
+            assert t >= SATURATION_TIME
+            return
+    pytest.fail("saturation was not found")
+
+
+def test_a_stalled_motor_at_its_limit_is_not_taken_for_a_frozen_encoder(rig) -> None:
+    js, sup = rig
+    for k in range(1, int(0.4 / DT)):              # stalled against its load: the reading repeats while
+        fresh(js, k * DT, [-0.1, 0.0])             # the command moves on 40 mrad (stuck_travel 30)
+        assert sup.check(k * DT, [0.0002 * k - 0.1, 0.0], [True, True], [True, False]) is None
+
+
+def test_saturated_but_on_target_is_not_a_stop(rig) -> None:
+    js, sup = rig
+    for k in range(1, 200):
+        fresh(js, k * DT, [-0.01, 0.0])            # within stuck_travel of its command
+        assert sup.check(k * DT, [0.0, 0.0], [True, True], [True, True]) is None
+
+
+def test_a_foreign_frame_stops_only_once_the_arm_is_armed(rig) -> None:
+    js, sup = rig
+    js[0].note_foreign("exit", -0.5)               # before the enable: not this arm's business
+    assert sup.check(0.0) is None
+    js[0].note_foreign("exit", 0.001)
+    e = sup.check(0.001)
+    assert isinstance(e, ForeignTraffic) and e.kind == "exit" and e.joint == "shoulder" and "EXIT" in str(e)
+
+
+def test_more_replies_than_frames_sent_is_a_second_motor_on_the_id(rig) -> None:
+    js, sup = rig
+    t = 0.0
+    while t < REPLY_WINDOW:
+        t += DT
+        for j in js:
+            j.frames_sent += 1
+            reply(j, 0.0, t)
+        reply(js[1], 0.0, t)                       # the elbow's twin answers too
+        e = sup.check(t)
+        if e is not None:
+            break
+    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+    assert t == pytest.approx(REPLY_WINDOW, abs=DT)
+
+
+def test_default_following_errors(planar2: RobotConfig) -> None:
+    sh, el = planar2.joints
+    assert default_following_error(sh, 40.0) == pytest.approx(sh.limits.torque / 40.0)  # PD alone saturates
+    assert default_following_error(sh, 0.0) == math.inf
+    assert default_following_error(replace(sh, following_error=0.1), 40.0) == 0.1
+    servo = replace(el, mode="servo", status_rate_hz=100.0)
+    v, a = servo.limits.velocity, servo.limits.acceleration
+    assert default_following_error(servo, 0.0) == pytest.approx(v * v / (2 * a) + 3 * v / 100.0 + 0.1)
+    assert default_stuck_travel(sh, 40.0, 0.45) == pytest.approx(max(0.02, 3 * sh.friction_model().coulomb / 40))
+    assert default_stuck_travel(replace(sh, stuck_travel=0.05), 40.0, 0.45) == 0.05
+
+
+def test_the_mode_machine_refuses_what_its_table_does_not_allow() -> None:
+    m = ModeMachine()
+    for mode in (Mode.DISABLED, Mode.ENABLING, Mode.ACTIVE, Mode.TEACH, Mode.ACTIVE, Mode.STOPPING, Mode.DISABLED):
+        m.go(mode)
+    with pytest.raises(StateError, match="cannot go from disabled to active"):
+        m.go(Mode.ACTIVE)                          # never powered without the enable's checks
+    m.go(Mode.FAULT)
+    with pytest.raises(StateError, match="from fault to disabled"):
+        m.go(Mode.DISABLED)                        # a lost bus is only left by closing
+    m.go(Mode.CLOSED)
+    assert [x for x in Mode if x.powered] == [Mode.ENABLING, Mode.ACTIVE, Mode.TEACH, Mode.STOPPING, Mode.FAULT]

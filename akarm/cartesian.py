@@ -26,13 +26,13 @@ R0·exp(s·log(R0ᵀR1))``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
 
 from .errors import LimitError, SingularityError, UnreachableError
 from .ik import ROTATION_WEIGHT, IKSolver
+from .model import ArrayLike
 from .trajectory import JointLimits, Planner, Segment, Timed
 
 __all__ = ["SINGULAR_GAIN", "LinearPlan", "plan_linear"]
@@ -121,10 +121,10 @@ class _Where:
         return f"{self.s * self.length:.3f} m along the line, at (" + ", ".join(f"{x:+.3f}" for x in p) + ") m"
 
 
-def plan_linear(solver: IKSolver, limits: JointLimits, q0: Sequence[float], target: np.ndarray, *,
+def plan_linear(solver: IKSolver, limits: JointLimits, q_start: ArrayLike, target: np.ndarray, *,
                 speed: float = 1.0, position_only: bool = False, max_velocity: float | None = None,
                 max_acceleration: float | None = None) -> LinearPlan:
-    """Plan a straight-line tool motion from rest at ``q0`` to the pose ``target`` (4×4), starting at t = 0.
+    """Plan a straight-line tool motion from rest at ``q_start`` to the pose ``target`` (4×4), starting at t = 0.
 
     Args:
         solver: the IK solver (its model is used here; not thread-safe).
@@ -143,7 +143,7 @@ def plan_linear(solver: IKSolver, limits: JointLimits, q0: Sequence[float], targ
     for name, cap in (("max_velocity", max_velocity), ("max_acceleration", max_acceleration)):
         if cap is not None and not (isinstance(cap, int | float) and cap > 0 and math.isfinite(cap)):
             raise LimitError(f"{name} must be a positive number, got {cap!r}", fix="m/s or m/s²")
-    q0 = np.asarray(q0, dtype=float)
+    q0 = np.asarray(q_start, dtype=float)
     model = solver.model
     T0 = model.tool_pose(q0)
     p0, p1 = T0[:3, 3], target[:3, 3]

@@ -34,7 +34,7 @@ import numpy as np
 
 from .config import JointConfig
 from .errors import CollisionError, StateError
-from .model import RobotModel
+from .model import ArrayLike, RobotModel
 from .protocol import mit
 from .units import erpm_to_rad_s
 
@@ -252,7 +252,7 @@ class CollisionReflex:
 
     def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
              kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
-             stamps: Sequence[float] | None = None, v_des: Sequence[float] | None = None) -> CollisionError | None:
+             stamps: Sequence[float] | None = None, v_des: ArrayLike | None = None) -> CollisionError | None:
         """Update the estimate with the feedback of this cycle (and the MIT gains in force: see
         :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s;
         ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with

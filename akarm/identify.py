@@ -42,7 +42,7 @@ import numpy as np
 
 from .collision import MomentumObserver, velocity_resolution
 from .errors import LimitError, StateError
-from .model import RobotModel
+from .model import ArrayLike, RobotModel
 from .recording import PathRecording
 from .telemetry import TelemetryLog
 from .trajectory import JointLimits
@@ -157,7 +157,7 @@ def _envelope(t: np.ndarray, duration: float) -> np.ndarray:
     return x**4 * (35 - 84 * x + 70 * x**2 - 20 * x**3)
 
 
-def excitation(limits: JointLimits, center: Sequence[float], *, amplitude: float = 0.5, duration: float = 30.0,
+def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5, duration: float = 30.0,
                rate_hz: float = 500.0) -> PathRecording:
     """The excitation path around ``center`` (rad): see the module's docstring.
 
@@ -444,9 +444,9 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
             while not motion.done:
                 arm.sleep(min(GAIN_BLOCK, max(motion.plan.t_end - arm.clock.now(), 0.0) + 1e-3))
                 if not motion.done:
-                    factor = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
-                    arm.set_gains(kp=kp0 * factor, kd=kd0 * factor)
-                    switches.append((arm.clock.now(), factor))
+                    f = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
+                    arm.set_gains(kp=kp0 * f, kd=kd0 * f)
+                    switches.append((arm.clock.now(), f))
             motion.wait()
         finally:
             arm.set_gains(kp=kp0, kd=kd0)
@@ -497,12 +497,12 @@ def apply_identification(arm: Arm, result: Identification) -> None:
         ctl.reflex.restart()  # type: ignore[union-attr]
 
 
-def payload_poses(limits: JointLimits, q0: Sequence[float], step: float = 0.9) -> list[np.ndarray]:
+def payload_poses(limits: JointLimits, center: ArrayLike, step: float = 0.9) -> list[np.ndarray]:
     """Poses for :func:`estimate_payload`: ``q0``; each of the three joints nearest the tool moved by
     ±``step``, and the one before them by ±``step``/2 (clipped 0.05 rad inside the ranges): gravity
     then acts on the payload from several sides, and at several distances from the joints, so its
     mass and where it sits along the tool are told apart."""
-    q0 = np.asarray(q0, dtype=float)
+    q0 = np.asarray(center, dtype=float)
     lo, hi = limits.lower + 0.05, limits.upper - 0.05
     n = len(q0)
     poses = [q0.copy()]
@@ -558,7 +558,7 @@ def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: 
                 if before is None:
                     arm.clear_payload()
                 else:
-                    arm.set_payload(*before)
+                    arm.set_payload(before[0], before[1].tolist())
     assert result is not None
     return result
 

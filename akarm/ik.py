@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import LimitError, SingularityError, UnreachableError
-from .model import RobotModel
+from .model import ArrayLike, RobotModel
 
 __all__ = ["ROTATION_WEIGHT", "IKSolver", "as_pose", "make_pose", "pose_error", "quaternion"]
 
@@ -131,7 +131,7 @@ class IKSolver:
         starts: how many other starting points to try when the current position does not converge.
     """
 
-    def __init__(self, model: RobotModel, lower: Sequence[float], upper: Sequence[float], *,
+    def __init__(self, model: RobotModel, lower: ArrayLike, upper: ArrayLike, *,
                  tolerance: float = 1e-6, starts: int = 32, max_iterations: int = 100) -> None:
         self.model = model
         self.names = model.joint_names
@@ -203,7 +203,7 @@ class IKSolver:
         return q, e, self._converged(e)
 
     # ------------------------------------------------------------------------------------------
-    def solve(self, target: np.ndarray, seed: Sequence[float], position_only: bool = False,
+    def solve(self, target: np.ndarray, seed: ArrayLike, position_only: bool = False,
               check_singular: bool = True) -> np.ndarray:
         """Joint positions (rad, config order, within the ranges) putting the tool at ``target``.
 
@@ -216,11 +216,11 @@ class IKSolver:
             UnreachableError: no joint positions put the tool there (says how close it gets).
             SingularityError: the only solution found is at a singularity.
         """
-        seed = np.asarray(seed, dtype=float)
-        q, _, ok = self.iterate(seed, target, position_only)
+        start = np.asarray(seed, dtype=float)
+        q, _, ok = self.iterate(start, target, position_only)
         if not ok:  # the other starts, nearest the seed first; three solutions are enough to choose from
             found = []
-            order = np.argsort(np.max(np.abs(self._starts - seed), axis=1))
+            order = np.argsort(np.max(np.abs(self._starts - start), axis=1))
             for start in self._starts[order]:
                 qs, _, oks = self.iterate(start, target, position_only)
                 if oks:
@@ -228,10 +228,10 @@ class IKSolver:
                     if len(found) == 3:
                         break
             if found:
-                q = min(found, key=lambda x: float(np.max(np.abs(x - seed))))
+                q = min(found, key=lambda x: float(np.max(np.abs(x - start))))
                 ok = True
         if not ok:
-            q, failure = self._without_ranges(target, seed, position_only)
+            q, failure = self._without_ranges(target, start, position_only)
             if failure is not None:
                 raise failure
         if check_singular:

@@ -98,7 +98,7 @@ class TelemetryLog:
     dq: np.ndarray
     tau: np.ndarray
     tau_ff: np.ndarray
-    tau_ext: np.ndarray | None = None
+    tau_ext: np.ndarray = None  # type: ignore[assignment]  # None: not recorded, NaN (see __post_init__)
 
     def __post_init__(self) -> None:
         if self.tau_ext is None:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, controlled, deferred_sigint, load_from_args, stop_smoothly
+from .common import add_robot_arguments, controlled, deferred_signals, interrupted, load_from_args, stop_smoothly
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,11 +71,11 @@ def run(args: argparse.Namespace) -> int:
                 print()
                 print("fit quality: RMS residual torque per joint (N·m) above; thresholds: three times the largest "
                       "external-torque estimate seen while nothing touched the arm, at least 6 % of the torque limit")
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: the arm is disabled", file=sys.stderr)
-            return 130
-        with deferred_sigint():
+            return interrupted(e)
+        with deferred_signals():
             arm.disable()
     if args.save:
         path, backup = save_identification(args.robot, result)

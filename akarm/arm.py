@@ -33,6 +33,7 @@ from .config import RobotConfig
 from .control import Controller, Motion, PathRecorder, track_arm
 from .errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
 from .feedforward import FeedForwardKind
+from .gravity import GravityPeak
 from .identify import Identification, PayloadFit
 from .ik import IKSolver, as_pose
 from .joints import Joint, make_joint
@@ -616,12 +617,36 @@ class Arm:
 
         The feed-forward carries it and the collision reflex expects it (its external torque
         estimate uses the same model, and starts over: the arm's inertia changed), from the next
-        cycle on.
+        cycle on. A :class:`~akarm.ConfigWarning` says so when the motors cannot hold the arm with it
+        everywhere in the joint ranges (:meth:`gravity_check`, as ``akarm check`` does for the file).
         """
         with self._ctl.lock:
             self.model.set_payload(mass, com)
             self._ctl.ff.reset_integral()  # it made up for the load the model missed: now the model has it
             self._ctl.reflex.restart()  # type: ignore[union-attr]
+        over = [(p, j) for p, j in zip(self.gravity_check(), self.config.joints, strict=True)
+                if p.torque > j.limits.torque]
+        if over:
+            import warnings
+
+            from .errors import ConfigWarning
+
+            text = "; ".join(f"{j.name} needs up to {p.torque:.1f} N·m (limit {j.limits.torque:g}) at {p.pose()}"
+                             for p, j in over)
+            warnings.warn(ConfigWarning(f"with a payload of {float(mass):g} kg the motors cannot hold the arm "
+                                        f"everywhere in its ranges: {text}"), stacklevel=2)
+
+    def gravity_check(self) -> list[GravityPeak]:
+        """``akarm check``'s gravity check with the payload the arm carries now: per joint, the largest
+        gravity torque over the joint ranges and where (:func:`akarm.gravity.gravity_peaks`)."""
+        from dataclasses import replace
+
+        from .config import Payload
+        from .gravity import gravity_peaks
+
+        p = self.model.payload
+        payload = None if p is None else Payload(p[0], (float(p[1][0]), float(p[1][1]), float(p[1][2])))
+        return gravity_peaks(replace(self.config, payload=payload))
 
     def clear_payload(self) -> None:
         """Remove the payload from the model (the feed-forward's and the collision reflex's)."""

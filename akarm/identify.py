@@ -24,7 +24,10 @@ the tool frame. The RMS residual per joint says how well the model fits.
 identified values; its largest output per joint while nothing touched the arm, times
 :data:`THRESHOLD_MARGIN` (the arm's other motions are faster than the excitation, and the
 estimate's error grows with acceleration), and at least :data:`MIN_SHARE` of the joint's torque
-limit, is the suggested ``collision: {threshold: ...}``.
+limit and :data:`STEP_MARGIN` times the estimate's jump for one step of the velocity feedback
+(``K·M·step``, with the joint's largest inertia ``M`` over its range: where the arm does not track
+its command closely, as with a gravity-only feed-forward, the estimate sees those steps), is the
+suggested ``collision: {threshold: ...}``.
 
 :func:`estimate_payload_at_rest` fits mass and centre of mass alone from the torques held at rest in
 several poses (gravity only: four parameters).
@@ -50,14 +53,31 @@ from .trajectory import JointLimits
 if TYPE_CHECKING:
     from .arm import Arm
 
-__all__ = ["MIN_SHARE", "THRESHOLD_MARGIN", "Identification", "JointFit", "PayloadFit", "apply_identification",
-           "estimate_payload", "estimate_payload_at_rest", "excitation", "fit", "identify", "payload_poses",
-           "suggest_thresholds", "torque_speed"]
+__all__ = [
+    "MIN_SHARE",
+    "STEP_MARGIN",
+    "THRESHOLD_MARGIN",
+    "Identification",
+    "JointFit",
+    "PayloadFit",
+    "apply_identification",
+    "estimate_payload",
+    "estimate_payload_at_rest",
+    "excitation",
+    "fit",
+    "identify",
+    "largest_inertia",
+    "payload_poses",
+    "suggest_thresholds",
+    "torque_speed",
+]
 
 #: The threshold suggested is this many times the largest estimate seen without contact ...
 THRESHOLD_MARGIN = 3.0
-#: ... and at least this share of the joint's torque limit.
+#: ... and at least this share of the joint's torque limit ...
 MIN_SHARE = 0.06
+#: ... and this many times the estimate's jump for one step of the velocity feedback.
+STEP_MARGIN = 1.5
 _SMOOTHING = 0.02  # rad/s: tanh smoothing of the Coulomb term (the feed-forward's and the observer's)
 _HARMONIC = 2.63
 _WEIGHTS = (0.6, 0.4)
@@ -381,7 +401,8 @@ def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[Join
     """Run the collision observer over ``log`` with the identified friction and ``model`` (its
     payload set; ``kp``, ``kd`` as for :func:`fit`; ``use``: the samples judged): the largest
     estimate per joint times :data:`THRESHOLD_MARGIN`, at least :data:`MIN_SHARE` of
-    ``torque_limit`` (N·m per joint), rounded up to 0.05 N·m."""
+    ``torque_limit`` (N·m per joint) and :data:`STEP_MARGIN` times ``K·M·step`` (``deadband`` is the
+    step), rounded up to 0.05 N·m."""
     obs = MomentumObserver(model, [f.coulomb for f in fits], [f.viscous for f in fits], [f.offset for f in fits],
                            gain, deadband, [j.motor.t_max for j in model.config.joints])
     peak = np.zeros(model.n)
@@ -397,8 +418,18 @@ def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[Join
         r = obs.update(q, dq, tau, float(log.t[k] - log.t[k - 1]), kp_t[k - 1], kd_t[k - 1], log.dq_des[k - 1])
         if log.t[k] - log.t[0] > settle and (use is None or use[k]):
             np.maximum(peak, np.abs(r), out=peak)
-    return [math.ceil(max(THRESHOLD_MARGIN * p, MIN_SHARE * lim) / 0.05 - 1e-9) * 0.05
-            for p, lim in zip(peak, torque_limit, strict=True)]
+    inertia = largest_inertia(model)
+    return [math.ceil(max(THRESHOLD_MARGIN * p, MIN_SHARE * lim, STEP_MARGIN * gain * m * step) / 0.05 - 1e-9) * 0.05
+            for p, lim, m, step in zip(peak, torque_limit, inertia, deadband, strict=True)]
+
+
+def largest_inertia(model: RobotModel, samples: int = 64) -> np.ndarray:
+    """Each joint's largest inertia (the mass matrix's diagonal, kg·m²) over the joint ranges, sampled."""
+    lim = [j.limits for j in model.config.joints]
+    lo, hi = np.array([x.lower for x in lim]), np.array([x.upper for x in lim])
+    rng = np.random.default_rng(2)
+    qs = np.vstack([(lo + hi) / 2, lo + rng.random((samples, model.n)) * (hi - lo)])
+    return np.max([np.diag(model.mass_matrix(q)) for q in qs], axis=0)
 
 
 # ----------------------------------------------------------------------------------------------

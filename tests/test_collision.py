@@ -9,6 +9,7 @@ may not be told about.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -255,3 +256,18 @@ def test_collision_error_is_a_safety_stop_naming_joint_and_torque() -> None:
     assert isinstance(e, akarm.SafetyStop) and isinstance(e, akarm.AkarmError)
     assert str(e).startswith("joint 'elbow': collision: an external torque of +2.50 N·m")
     assert e.torque == 2.5 and e.threshold == 1.1 and e.reaction == "disable"
+
+
+def test_the_gravity_check_follows_the_payload_set_at_run_time() -> None:
+    arm = Arm(ARM6)
+    empty = {p.joint: p.torque for p in arm.gravity_check()}
+    assert empty["shoulder_lift"] == pytest.approx(14.7, abs=0.1)  # akarm check's number for the file
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", akarm.ConfigWarning)
+        arm.set_payload(0.5, (0.0, 0.0, 0.05))  # the motors hold this everywhere: no warning
+    loaded = {p.joint: p.torque for p in arm.gravity_check()}
+    assert loaded["shoulder_lift"] > empty["shoulder_lift"] + 4.0  # 0.5 kg about a metre out
+    with pytest.warns(akarm.ConfigWarning, match="shoulder_lift needs up to"):
+        arm.set_payload(5.0, (0.0, 0.0, 0.05))
+    arm.clear_payload()
+    assert {p.joint: p.torque for p in arm.gravity_check()} == empty

@@ -201,7 +201,8 @@ class Arm:
                  for j in config.joints]
         self._ctl.reflex = CollisionReflex(self.names, observer, [j.collision_threshold for j in config.joints],
                                            collision_reaction, fresh, 1.0 / config.rate_hz)  # type: ignore[arg-type]
-        self._ctl.stop_plan = lambda start, now: Plan([self.planner.stop(start, now)])
+        planner = self.planner  # not self: the loop thread must not keep the Arm alive (its finalizer)
+        self._ctl.stop_plan = lambda start, now: Plan([planner.stop(start, now)])
         self._finalizer = track_arm(self, self._ctl)
 
     @classmethod

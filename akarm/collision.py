@@ -192,6 +192,7 @@ class CollisionReflex:
         self.reset_gap = RESET_GAP * period
         self.late = 1.5 * period
         self._q_last = np.zeros(len(self.names))
+        self._v_last = np.zeros(len(self.names))
         self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
         self.observer = observer
         self.set_thresholds(thresholds)
@@ -232,15 +233,17 @@ class CollisionReflex:
 
     def _on_time(self, q: np.ndarray, v: np.ndarray, dt: float) -> bool:
         """Whether the feedback's motion fits the time assumed between the two samples: the fastest
-        joint's travel over its mean speed gives the time that really passed (a simulator or adapter
-        that answered late shows here; the estimate would take the difference for a push)."""
-        v_mean = 0.5 * (v + self.observer._last[1])
+        joint's travel over its mean measured speed gives the time that really passed (a simulator or
+        adapter that answered late shows here; the estimate would take the difference for a push).
+        Within a period the motion is not exactly of constant acceleration (the commands' steps):
+        a millisecond or two position steps of slack."""
+        v_mean = 0.5 * (v + self._v_last)
         i = int(np.argmax(np.abs(v_mean)))
         speed = abs(float(v_mean[i]))
         if speed < 0.3:  # too slow to time (and a timing error matters little then)
             return True
         passed = float(q[i] - self._q_last[i]) / float(v_mean[i])
-        return abs(passed - dt) <= max(0.5e-3, _POSITION_STEP / speed)
+        return abs(passed - dt) <= max(1e-3, 2.0 * _POSITION_STEP / speed)
 
     def restart(self) -> None:
         """Start the estimate over at the next step (the model changed: a payload, friction): the
@@ -273,12 +276,12 @@ class CollisionReflex:
         self._sample_last = sample
         if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
             obs.reset(qa, va, ta, v_then)
-            self._q_last = qa
+            self._q_last, self._v_last = qa, va
             r = obs.estimate
         else:
             r = obs.update(qa, va, ta, dt, None if kp is None else np.asarray(kp, dtype=float),
                            None if kd is None else np.asarray(kd, dtype=float), v_then)
-            self._q_last = qa
+            self._q_last, self._v_last = qa, va
         if not check:
             self.armed = False
             return None

@@ -31,7 +31,7 @@ from akarm.robotfile import save_identification
 from akarm.sim import SimulatedRobot
 from akarm.sim.params import default_params
 
-from .conftest import ROBOTS, wait_until
+from .conftest import ROBOTS, relaxed_robot, wait_until
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
 PAYLOAD = (0.5, (0.01, -0.02, 0.05))  # kg, m in the tool frame
@@ -220,24 +220,14 @@ def test_save_refuses_a_result_for_other_joints(identified: Identified, tmp_path
     assert not list(tmp_path.glob("*.bak"))
 
 
-@pytest.fixture
-def relaxed_planar2(tmp_path: Path) -> Path:
-    """planar2.yaml with a 0.25 s watchdog (the real-time simulator shares this process)."""
-    doc = yaml.safe_load((ROBOTS / "planar2.yaml").read_text())
-    doc["urdf"] = str(ROBOTS / doc["urdf"])
-    doc["defaults"]["feedback_timeout"] = 0.25
-    path = tmp_path / "planar2.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    return path
-
-
-def test_cli_identify_saves_into_the_robot_file(relaxed_planar2: Path, channel: str,
+def test_cli_identify_saves_into_the_robot_file(tmp_path: Path, channel: str,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    relaxed_planar2 = relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)  # the simulator shares this process
     cfg = akarm.load_robot(relaxed_planar2).with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(cfg, realtime=True, q0=[-math.pi / 2 + 0.6, 0.3]) as sim:
         result: list[int] = []
         th = threading.Thread(target=lambda: result.append(main(
-            ["identify", str(relaxed_planar2), "-i", "virtual", "-c", channel, "--duration", "10", "--no-payload",
+            ["identify", str(relaxed_planar2), "-i", "virtual", "-c", channel, "--seconds", "10", "--no-payload",
              "--amplitude", "0.4", "--save"])), daemon=True)
         th.start()
         th.join(60.0)
@@ -247,4 +237,4 @@ def test_cli_identify_saves_into_the_robot_file(relaxed_planar2: Path, channel: 
     assert "RMS Nm" in out and "saved into" in out and out.rstrip().endswith("disabled")
     config = akarm.load_robot(relaxed_planar2)
     assert all(j.friction is not None and j.collision_threshold is not None for j in config.joints)
-    assert len(list(relaxed_planar2.parent.glob("planar2.yaml.*.bak"))) == 1
+    assert len(list(relaxed_planar2.parent.glob(f"{relaxed_planar2.name}.*.bak"))) == 1

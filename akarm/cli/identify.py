@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--speed", type=float, metavar="F", help="time scaling of the excitation, 0 < F <= 1 "
                         "(default: as fast as the joint limits and half the torque limits allow)")
-    parser.add_argument("--duration", type=float, default=30.0, metavar="S", help="excitation length, s (default 30)")
+    parser.add_argument("--seconds", type=float, default=30.0, metavar="S", help="excitation length, s (default 30)")
     parser.add_argument("--amplitude", type=float, default=0.5, metavar="RAD",
                         help="largest excursion of each joint from where it starts, rad (default 0.5)")
     parser.add_argument("--no-payload", action="store_true", help="do not identify a payload (use the file's)")
@@ -59,9 +59,9 @@ def run(args: argparse.Namespace) -> int:
                 result = Identification((), payload, 0, 0.0)
                 print(yaml_payload(payload) + f"   # RMS residual {max(payload.rms):.3f} N·m")
             else:
-                print(f"identifying {config.name}: a {args.duration:g} s excitation around where it is; every joint "
+                print(f"identifying {config.name}: a {args.seconds:g} s excitation around where it is; every joint "
                       "moves", flush=True)
-                result = arm.identify(args.duration, args.speed, amplitude=args.amplitude,
+                result = arm.identify(args.seconds, args.speed, amplitude=args.amplitude,
                                       payload=not args.no_payload, offsets=not args.no_offsets)
                 print(f"excited at speed {result.speed:g} for {result.duration:.1f} s ({result.samples} samples)")
                 print()

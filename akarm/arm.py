@@ -41,14 +41,13 @@ from .loop import StatsSummary
 from .model import RobotModel
 from .modes import Mode
 from .telemetry import TelemetryLog
+from .timing import TimingProfile, get_profile
 from .trajectory import Chain, JointLimits, Plan, Planner
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
 
 FeedForward = FeedForwardKind
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
-
-_DEFAULT_FEEDBACK_TIMEOUT = 0.020
 
 
 @dataclass(frozen=True)
@@ -116,8 +115,13 @@ class Arm:
             catalogue's typical values) at the *desired* velocity: ``c·tanh(v/0.02) + b·v``. Off
             with ``feedforward="none"``.
         feedback_timeout: s; the supervisor stops the arm when a joint's feedback is older, and
-            refuses an enable whose first reply comes later (default 20 ms; servo joints at least 3
-            status periods; a joint's own setting wins).
+            refuses an enable whose first reply comes later (default: the timing profile's, 20 ms
+            normally; servo joints at least 3 status periods; a joint's own setting wins; none below
+            the profile's ``min_feedback_timeout``).
+        timing: a timing profile (:mod:`akarm.timing`): ``"normal"`` (default) or ``"slow"`` for
+            slow or shared machines, or a :class:`~akarm.timing.TimingProfile`. It caps the loop rate
+            (:attr:`config` then says the rate in force) and gives the watchdog's and
+            :meth:`enable`'s defaults. Kept as :attr:`timing`.
         enable_ramp: s over which MIT stiffness (kp) rises from zero once the arm is held.
         stop_damping_time: s of damping (kp = 0) before exit when disabling or stopping for safety.
         settle_speed: rad/s; ``enable()`` damps the arm until every joint is slower than this.
@@ -155,19 +159,25 @@ class Arm:
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
-                 feedback_timeout: float = _DEFAULT_FEEDBACK_TIMEOUT, enable_ramp: float = 0.3,
+                 feedback_timeout: float | None = None, enable_ramp: float = 0.3,
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
                  loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
-                 range_margin: float = 0.05, implausible_limit: int = 3, collision_reaction: str = "disable",
+                 range_margin: float = 0.05, implausible_limit: int = 3,
+                 timing: str | TimingProfile | None = None, collision_reaction: str = "disable",
                  collision_gain: float = DEFAULT_GAIN) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
+        self.timing = get_profile(timing)
+        config = self.timing.apply(config)
+        if feedback_timeout is None:
+            feedback_timeout = self.timing.feedback_timeout
         for name, value in (("feedback_timeout", feedback_timeout), ("settle_speed", settle_speed),
                             ("settle_timeout", settle_timeout)):
             if not (isinstance(value, int | float) and value > 0):
                 raise StateError(f"{name} must be a positive number, got {value!r}")
+        feedback_timeout = max(feedback_timeout, self.timing.min_feedback_timeout)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
         self.feedforward: FeedForward = feedforward
@@ -188,7 +198,7 @@ class Arm:
             feedback_timeout=feedback_timeout, enable_ramp=enable_ramp, stop_damping_time=stop_damping_time,
             telemetry_seconds=telemetry_seconds, can_log=can_log, realtime_priority=realtime_priority,
             loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
-            implausible_limit=implausible_limit)
+            implausible_limit=implausible_limit, lag=self.timing.lag)
         self.telemetry_ring = self._ctl.telemetry
         self._friction_compensated = friction_feedforward and feedforward != "none"
         fr = [j.friction_model() for j in config.joints]
@@ -247,7 +257,7 @@ class Arm:
     # ------------------------------------------------------------------------------------------
     # enable / disable
     # ------------------------------------------------------------------------------------------
-    def enable(self, timeout: float = 0.5) -> None:
+    def enable(self, timeout: float | None = None) -> None:
         """Power the joints without a kick, wait for the arm to be at rest, and hold it where it is.
 
         1. Listen to the buses briefly: another controller driving these motors refuses the enable
@@ -262,13 +272,13 @@ class Arm:
         4. The measured pose becomes the commanded one; kp ramps up from zero over ``enable_ramp`` s.
 
         Args:
-            timeout: s to wait for every joint's replies.
+            timeout: s to wait for every joint's replies (default: the timing profile's, 0.5 s normally).
 
         Raises:
             FeedbackTimeout: a joint did not answer (it names the joint; nothing is left enabled).
             SafetyStop: what else refused it (the arm is left disabled).
         """
-        self._ctl.enable(timeout)
+        self._ctl.enable(self.timing.enable_timeout if timeout is None else timeout)
 
     def disable(self) -> None:
         """Damp every joint (kp = 0) for ``stop_damping_time`` s, then exit motor mode. Blocks."""

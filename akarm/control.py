@@ -184,8 +184,9 @@ class Controller:
                  feedforward: FeedForwardKind, friction_feedforward: bool, hold_integral: float,
                  feedback_timeout: float, enable_ramp: float, stop_damping_time: float, telemetry_seconds: float,
                  can_log: str | PathLike[str] | None, realtime_priority: bool, loop_cpu: int | None,
-                 settle_speed: float, settle_timeout: float, implausible_limit: int) -> None:
+                 settle_speed: float, settle_timeout: float, implausible_limit: int, lag: float = 0.0) -> None:
         self.config = config
+        self.lag = lag  # s a reading may trail on this machine (akarm.timing): widens the tracking limits
         self.joints = joints
         self.n = n = len(joints)
         self.model = model
@@ -263,7 +264,9 @@ class Controller:
         out = []
         for j, kp, timeout in zip(self.config.joints, self.kp.tolist(), self._timeouts, strict=True):
             following = default_following_error(j, kp)
-            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following)))
+            slack = j.limits.velocity * self.lag  # how far a reading that trails by `lag` can be behind
+            out.append(Guard(timeout, j.max_temperature, following + slack,
+                             default_stuck_travel(j, kp, following) + slack))
         return out
 
     def _gains_changed(self) -> None:

@@ -121,9 +121,12 @@ def main() -> int:
                     try:
                         arm.enable()
                         break
-                    except akarm.SafetyStop as again:  # e.g. still too hot: wait
+                    except akarm.SafetyStop as again:  # e.g. still too hot: wait (simulated time goes on)
                         print(f"  enable refused: {again}", flush=True)
-                        arm.sleep(5.0)
+                        if args.lockstep:
+                            sim.run_for(5.0)
+                        else:
+                            time.sleep(5.0)
                 since = arm.clock.now()  # the stop's damping is not following: leave it out
                 continue
             log = arm.telemetry(since=since)

@@ -21,7 +21,7 @@ import pytest
 from akarm import AkarmError, BusError, StateError, load_robot
 from akarm.config import BusConfig, RobotConfig
 from akarm.probe import Probe, read_state, release, scan, zero
-from akarm.protocol import mit
+from akarm.protocol import mit, servo
 from akarm.sim import SimulatedRobot, faults
 
 from .conftest import ROBOTS, drain, missing_socketcan_fix, wait_until
@@ -240,9 +240,15 @@ def test_release_disables_mit_joints_and_clears_their_stored_command(channel: st
 def test_release_servo_sends_zero_current(channel: str) -> None:
     cfg = config_of("servo3", channel)
     with simulated(cfg) as sim:
-        states = release(cfg)
+        with can.Bus(interface="virtual", channel=channel) as bus:  # the drivers holding a position first
+            for motor_id in (1, 2, 3):
+                bus.send(can.Message(arbitration_id=(6 << 8) | motor_id, is_extended_id=True,
+                                     data=servo.encode_position_speed(motor_id, 0.0, 1000.0, 10000.0)[1]))
         # (the simulator takes in frames on its own threads)
-        assert wait_until(lambda: [d.control for d in sim.drivers] == ["current"] * 3, 2.0)
+        assert wait_until(lambda: [d.control for d in sim.drivers] == ["position"] * 3, 2.0)
+        states = release(cfg)
+        # zero current releases them, as a VESC-derived driver does below its minimum current
+        assert wait_until(lambda: [d.control for d in sim.drivers] == [None] * 3, 2.0)
         assert np.allclose(sim.tau, 0.0, atol=1e-9)
     assert all(not s.missing for s in states)
 

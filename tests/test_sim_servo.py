@@ -94,6 +94,20 @@ def test_current_gives_torque_kt_gr_and_is_limited_to_peak(rig: tuple[SimulatedR
     assert sim.tau[0] == pytest.approx(-m.peak_current * m.kt * m.gear_ratio)  # 20.2 A peak: 24.8 N·m
 
 
+def test_zero_current_or_brake_releases_the_output(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
+    sim, bus = rig
+    drv = sim.joint("pan")
+    assert isinstance(drv, ServoDriver)
+    steps = [(servo.encode_current(PAN, 1.0), "current"), (servo.encode_current(PAN, 0.0), None),
+             (servo.encode_current_brake(PAN, 0.5), "brake"), (servo.encode_current_brake(PAN, 0.04), None),
+             (servo.encode_current(PAN, -0.05), "current"), (servo.encode_current(PAN, 0.049), None)]
+    for frame, control in steps:
+        send(bus, frame)
+        sim.run_for(0.01)
+        assert drv.control == control and drv.enabled == (control is not None), frame
+    assert sim.tau[0] == 0.0
+
+
 def test_release_about_one_second_after_the_last_command(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
     sim, bus = rig
     drv = sim.joint("pan")

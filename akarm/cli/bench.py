@@ -28,6 +28,8 @@ import os
 import threading
 import time
 
+from .common import add_profile_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
@@ -43,6 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--realtime-priority", action="store_true", help="ask for SCHED_FIFO and locked memory")
     parser.add_argument("--in-process", action="store_true",
                         help="run the simulator in this process, on a virtual bus, instead of in its own")
+    add_profile_argument(parser)
 
 
 def _thread_cpu() -> dict[str, float]:
@@ -74,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import AkarmError
     from ..sim import SimulatedRobot
     from ..sim.process import SimulatorProcess
+    from ..timing import get_profile
     from .common import controlled, parse_channel
 
     if not args.seconds > 0:
@@ -88,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     config = replace(config, joints=tuple(replace(j, feedback_timeout=None) for j in config.joints))
     if args.loop_rate is not None:
         config = replace(config, rate_hz=float(args.loop_rate))
+    config = get_profile(args.profile).apply(config)
     lower = np.array([j.limits.lower for j in config.joints])
     upper = np.array([j.limits.upper for j in config.joints])
     if config.poses:
@@ -102,16 +107,16 @@ def run(args: argparse.Namespace) -> int:
     with contextlib.ExitStack() as stack:
         sim: SimulatedRobot | SimulatorProcess
         if args.in_process:
-            sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start))
+            sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start, timing=args.profile))
         else:
             first = next(iter(config.poses), None)
             more = ["-b", str(args.bitrate)] if args.bitrate else []
             if args.bus_kwargs:
                 more += ["--bus-kwargs", *(f"{k}={v}" for k, v in args.bus_kwargs.items())]
             sim = stack.enter_context(SimulatorProcess(args.robot, interface=interface, channel=channel, pose=first,
-                                                       args=more))
+                                                       args=more, timing=args.profile))
         arm = stack.enter_context(controlled(Arm(config, feedback_timeout=0.5, busy_wait=args.busy_wait,
-                                                 realtime_priority=args.realtime_priority)))
+                                                 realtime_priority=args.realtime_priority, timing=args.profile)))
         arm.enable()
         cpu0, wall0, th0 = time.process_time(), time.monotonic(), _thread_cpu()
         sim0 = sim.cpu_seconds() if isinstance(sim, SimulatorProcess) else 0.0

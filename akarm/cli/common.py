@@ -8,7 +8,7 @@ import argparse
 import contextlib
 import sys
 from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import numpy as np
@@ -27,6 +27,14 @@ def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = 
     parser.add_argument("-c", "--channel", help="channel (one bus), or NAME=CHANNEL[,NAME=CHANNEL...] per bus")
     parser.add_argument("-b", "--bitrate", type=int, help="bit rate, bit/s")
     add_bus_kwargs(parser)
+
+
+def add_profile_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a simulator."""
+    from ..timing import PROFILES
+
+    parser.add_argument("--profile", default="normal", choices=list(PROFILES), metavar="NAME",
+                        help="timing profile: " + "; ".join(f"{p.name}: {p.description}" for p in PROFILES.values()))
 
 
 def parse_channel(text: str | None) -> str | dict[str, str] | None:
@@ -86,13 +94,13 @@ def deferred_signals(message: str = "stopping the arm safely; please wait") -> c
 
 
 @contextlib.contextmanager
-def controlled(arm: Arm | RobotConfig) -> Iterator[Arm]:
-    """``arm`` (or a new :class:`~akarm.Arm` for a config), opened; on leaving (error and Ctrl-C
-    included) it is damped, disabled and closed, and a Ctrl-C meanwhile does not cut that short."""
+def controlled(arm: Arm | RobotConfig, **options: Any) -> Iterator[Arm]:
+    """``arm`` (or a new :class:`~akarm.Arm` for a config, with ``options``), opened; on leaving (error
+    and Ctrl-C included) it is damped, disabled and closed, and a Ctrl-C meanwhile does not cut that short."""
     from ..arm import Arm
 
     if not isinstance(arm, Arm):
-        arm = Arm(arm)
+        arm = Arm(arm, **options)
     arm.open()
     try:
         yield arm

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import AkarmError, RecordingError
+from .common import add_profile_argument
 
 if TYPE_CHECKING:
     from ..arm import Arm
@@ -68,6 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv or .npz)")
     parser.add_argument("--fast", action="store_true",
                         help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
+    add_profile_argument(parser)
 
 
 def _arm6_yaml() -> Path:
@@ -151,27 +153,29 @@ def run(args: argparse.Namespace) -> int:
     from ..arm import Arm
     from ..config_loader import load_robot
     from ..sim import SimulatedRobot
+    from ..timing import get_profile
 
     _check_outputs(args)
     if not DEMO_PATH.is_file():
         raise RecordingError(f"the demo recording {DEMO_PATH} is missing",
                              fix="reinstall akarm, or regenerate it with docs/make_demo_path.py")
     channel = f"akarm-demo-{os.getpid()}-{next(_channels)}"
-    config = load_robot(_arm6_yaml()).with_bus(interface="virtual", channel=channel)
+    config = get_profile(args.profile).apply(load_robot(_arm6_yaml()).with_bus(interface="virtual", channel=channel))
     mode = "lock step (--fast)" if args.fast else "real time"
     print(f"akarm demo: simulated {config.name} ({len(config.joints)} MIT joints, {config.rate_hz:g} Hz loop) "
           f"on a virtual CAN bus, {mode}", flush=True)
     wall0 = time.perf_counter()
-    with SimulatedRobot(config, realtime=not args.fast) as sim:
+    with SimulatedRobot(config, realtime=not args.fast, timing=args.profile) as sim:
         if args.fast:
-            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0)
+            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, timing=args.profile)
         else:
-            arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0)
+            arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
+                      timing=args.profile)
             arm.set_collision(thresholds={n: t * REALTIME_COLLISION_SCALE
                                           for n, t in arm.collision_thresholds.items() if t is not None})
-            print(f"  (watchdog: {REALTIME_FEEDBACK_TIMEOUT * 1e3:.0f} ms and collision thresholds doubled, as the "
-                  "simulator shares this process; on hardware the default is 20 ms and the file's thresholds)",
-                  flush=True)
+            watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none
+            print(f"  (watchdog: {watchdog * 1e3:.0f} ms and collision thresholds doubled, as the simulator shares "
+                  "this process; on hardware the default is 20 ms and the file's thresholds)", flush=True)
         with arm:
             t_session = arm.clock.now()
             events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot

@@ -16,6 +16,7 @@ import argparse
 import sys
 
 from .common import (
+    add_profile_argument,
     add_robot_arguments,
     controlled,
     deferred_signals,
@@ -31,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--seconds", type=float, metavar="S", help="hold for S seconds, then disable "
                         "(default: until Ctrl-C)")
+    add_profile_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None and not args.seconds >= 0:
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
     config = load_from_args(args)
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         try:
             arm.enable()
             until = f"for {args.seconds:g} s" if args.seconds is not None else "until Ctrl-C"

@@ -25,7 +25,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 #: telemetry files akarm writes
 LOG_SUFFIXES = (".csv", ".npz")
@@ -53,6 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    add_profile_argument(parser)
 
 
 def _intermixed(parser: argparse.ArgumentParser) -> None:
@@ -200,7 +201,7 @@ def _session(args: argparse.Namespace, config, start, arrived) -> int:
     from .common import controlled, deferred_signals, interrupted, stop_smoothly
 
     code = 0
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()

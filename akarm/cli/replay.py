@@ -18,7 +18,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
     pass
@@ -32,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="paths: recorded speed × F (any F > 0); keyframes: fraction of the joint limits, "
                              "at most 1 (default 1)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    add_profile_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
-    arm = Arm(config)
+    arm = Arm(config, timing=args.profile)
     arm.check_replay(rec, args.speed)  # the whole path, before anything is enabled
     kind = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
     code = 0

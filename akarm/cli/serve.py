@@ -19,7 +19,7 @@ import argparse
 import signal
 import sys
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,8 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--joint-states-hz", type=float, metavar="HZ",
                         help="joint_states rate (default: the loop rate divided by round(rate/100), ~100 Hz)")
     parser.add_argument("--feedback-timeout", type=float, metavar="S",
-                        help="watchdog: stop the arm when a joint's feedback is older (default 0.02; a joint's own "
-                             "feedback_timeout in the YAML wins)")
+                        help="watchdog: stop the arm when a joint's feedback is older (default: the profile's, 0.02 "
+                             "normally; a joint's own feedback_timeout in the YAML wins)")
+    add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
 
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from .common import format_q
 
     config = load_from_args(args)
-    arm = Arm(config) if args.feedback_timeout is None else Arm(config, feedback_timeout=args.feedback_timeout)
+    arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
                        joint_states_hz=args.joint_states_hz)
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short

@@ -4,6 +4,12 @@ Point a controller (or ``candump``) at the bus exactly as at the hardware::
 
     akarm sim robots/planar2.yaml -i socketcan -c vcan0
     akarm sim robots/arm6.yaml -i socketcan -c vcan0 --fault elbow:drop:0.3 --fault wrist_roll:error:1
+    akarm sim robots/arm6.yaml -i socketcan -c vcan0 --profile slow --control /tmp/arm6.sock
+
+``--profile slow`` integrates at a rate a slow or shared machine keeps up with (see
+:mod:`akarm.timing`). ``--control PATH`` serves a control channel on that Unix-domain socket, through
+which another program injects and clears faults, reads the drivers and disables them while the
+simulator runs (:class:`akarm.sim.control.SimulatorControl`).
 
 Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--seconds``, with a live status
 line (per joint position, torque, temperature, state): updated in place a few times a second on a
@@ -16,7 +22,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from .common import add_robot_arguments, load_from_args
+from .common import add_profile_argument, add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
     from ..config import RobotConfig
@@ -31,10 +37,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:KIND[:ARG]",
                         help="inject a fault at start (repeatable); KIND: " + "; ".join(KINDS.values()))
     parser.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
-    parser.add_argument("--plant-rate", type=float, default=2000.0, metavar="HZ",
-                        help="plant integration rate, Hz (default 2000)")
+    parser.add_argument("--plant-rate", type=float, metavar="HZ",
+                        help="plant integration rate, Hz (default: the timing profile's; 2000 normally)")
     renamed(parser, "--duration", "--seconds")
     renamed(parser, "--rate", "--plant-rate")
+    add_profile_argument(parser)
+    parser.add_argument("--control", metavar="PATH",
+                        help="serve a control channel on this Unix-domain socket: inject and clear faults, read "
+                             "and disable the drivers from another program (akarm.sim.control)")
     parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
     parser.add_argument("--zero-silence", type=float, default=1.0, metavar="S",
                         help="MIT: seconds off-line after a ZERO frame (default 1.0)")
@@ -74,18 +84,19 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import AkarmError
     from ..sim import SimulatedRobot, faults
+    from ..sim.control import ControlServer
 
     config = load_from_args(args)
     injected = [faults.parse(spec) for spec in args.fault]
     for joint, _ in injected:
         config.joint(joint)  # ConfigError naming the joints when there is no such joint
     q0 = config.pose(args.pose) if args.pose else None
-    if not args.plant_rate > 0:
+    if args.plant_rate is not None and not args.plant_rate > 0:
         raise AkarmError(f"--plant-rate {args.plant_rate} must be positive", fix="e.g. --plant-rate 2000")
     if args.seconds is not None and not args.seconds >= 0:
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
-    sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate, q0=q0,
-                         zero_silence=args.zero_silence, servo_release=args.servo_release)
+    sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate if args.plant_rate else None, q0=q0,
+                         zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile)
 
     stop = threading.Event()
     previous: dict[int, signal._HANDLER] = {}
@@ -101,11 +112,15 @@ def run(args: argparse.Namespace) -> int:
     period = 1.0 / args.status_hz if tty and args.status_hz > 0 else 1.0
     shown = 0  # lines of the status block on screen (a terminal redraws it in place)
     try:
-        with sim:
+        with sim, contextlib.ExitStack() as stack:
             print(_describe(sim.config), flush=True)
+            print(f"  integrating at {1.0 / sim.dt:g} Hz (timing profile {sim.timing.name})", flush=True)
             for joint, fault in injected:
                 sim.inject(joint, fault)
                 print(f"  fault on {joint}: {fault}", flush=True)
+            if args.control:
+                stack.enter_context(ControlServer(sim, args.control))
+                print(f"  control channel: {args.control}", flush=True)
             print("running; Ctrl-C to stop", flush=True)
             start = time.monotonic()
             end = start + args.seconds if args.seconds is not None else None

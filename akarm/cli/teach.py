@@ -23,7 +23,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, interrupted, load_from_args
+from .common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
 
 if TYPE_CHECKING:
     from ..arm import Arm
@@ -36,12 +36,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
-    parser.add_argument("--sample-rate", type=float, default=50.0, metavar="HZ",
-                        help="continuous path: samples per second (default 50, at most the loop rate)")
+    parser.add_argument("--sample-rate", type=float, metavar="HZ",
+                        help="continuous path: samples per second (default 50, or half the loop rate if lower; "
+                             "at most the loop rate)")
     renamed(parser, "--rate", "--sample-rate")
     parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
+    add_profile_argument(parser)
 
 
 def _reader(stream: TextIO) -> queue.Queue[str | None]:
@@ -149,25 +151,29 @@ def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from ..errors import AkarmError
     from ..telemetry import check_writable
+    from ..timing import get_profile
     from .common import controlled, deferred_signals
 
     out = Path(args.out)
     if out.suffix not in (".yaml", ".yml", ".csv"):
         raise AkarmError(f"{out}: unknown recording type {out.suffix!r}",
                          fix="name it .yaml (keyframes) or .csv (a continuous path)")
-    if not args.sample_rate > 0 or (args.seconds is not None and not args.seconds > 0):
+    if (args.sample_rate is not None and not args.sample_rate > 0) or (args.seconds is not None
+                                                                       and not args.seconds > 0):
         raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
+    config = get_profile(args.profile).apply(load_from_args(args))
+    if args.sample_rate is None:  # half the loop rate at most: at the loop's own rate, an early cycle misses its sample
+        args.sample_rate = min(50.0, config.rate_hz / 2)
     from .served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
         return served
-    config = load_from_args(args)
     if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
         raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --sample-rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
-    with controlled(config) as arm:
+    with controlled(config, timing=args.profile) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":

@@ -27,6 +27,9 @@ from .params import MotorSimParams
 __all__ = ["MitDriver", "ServoDriver", "SimulatedDriver", "TrapezoidProfile", "make_driver"]
 
 _INF = math.inf
+#: A, servo mode: a current or brake current command below this releases the output, as VESC's firmware
+#: does below its ``cc_min_current`` (0.05 A by default): zero current is how a controller lets go.
+MIN_CURRENT = 0.05
 
 
 class DriverHost(Protocol):
@@ -526,7 +529,8 @@ class ServoDriver(SimulatedDriver):
     :attr:`position_speed_erpm` and :attr:`position_accel_erpm_s`), position-speed (a trapezoidal
     move at the commanded speed and acceleration) and origin (0 temporary, 1 permanent, 2 restore
     default). Position moves are tracked by a stiff PID position loop with acceleration feed-forward.
-    Servo commands get no reply: the driver sends ``0x2900 | id`` status frames at
+    A current or brake command below :data:`MIN_CURRENT` releases the output (zero current is how
+    the protocol lets go). Servo commands get no reply: the driver sends ``0x2900 | id`` status frames at
     ``joint.status_rate_hz`` instead, whatever its state, and releases the output (limp)
     :attr:`release_after` seconds after the last command.
 
@@ -628,9 +632,10 @@ class ServoDriver(SimulatedDriver):
         if pk is servo.ServoPacket.SET_DUTY:
             self.control, self._duty = "duty", cmd.values[0]
         elif pk is servo.ServoPacket.SET_CURRENT:
-            self.control, self._amps = "current", cmd.values[0]
+            # below the firmware's minimum current (VESC: cc_min_current) the output is released
+            self.control, self._amps = "current" if abs(cmd.values[0]) >= MIN_CURRENT else None, cmd.values[0]
         elif pk is servo.ServoPacket.SET_CURRENT_BRAKE:
-            self.control, self._amps = "brake", cmd.values[0]
+            self.control, self._amps = "brake" if abs(cmd.values[0]) >= MIN_CURRENT else None, cmd.values[0]
         elif pk is servo.ServoPacket.SET_RPM:
             if previous != "speed":
                 self._integral = 0.0

@@ -11,23 +11,33 @@
             ...
         print(sim.cpu_seconds())
 
-It runs ``akarm sim`` (real time) and waits until the simulated drivers are on the bus. An
+It runs ``akarm sim`` (real time) and waits until the simulated drivers are on the bus. With
+``control=True`` it opens the simulator's control channel (:attr:`SimulatorProcess.control`, a
+:class:`~akarm.sim.control.SimulatorControl`) to inject faults and read the drivers while it runs. An
 in-process :class:`~akarm.sim.SimulatedRobot` shares the controller's interpreter lock, so each
 delays the other; in its own process the simulator costs the controller nothing but the bus.
 """
 
 from __future__ import annotations
 
+import collections
+import contextlib
+import itertools
 import os
 import subprocess
 import sys
+import tempfile
 import threading
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from ..errors import StateError
+from ..timing import PROFILES, TimingProfile, get_profile
+from .control import SimulatorControl
 
 __all__ = ["SimulatorProcess", "stat_cpu_seconds"]
+
+_sockets = itertools.count()
 
 
 def stat_cpu_seconds(stat_file: str | os.PathLike[str]) -> float:
@@ -50,6 +60,12 @@ class SimulatorProcess:
         cpus: pin the simulator to these CPUs (Linux), e.g. to keep it off the control loop's core.
         args: more ``akarm sim`` arguments (``["--fault", "elbow:drop:0.3"]``).
         start_timeout: s to wait for the simulator to come up.
+        timing: the simulator's timing profile (:mod:`akarm.timing`; default ``normal``).
+        control: ``True`` to open its control channel on a socket of its own (:attr:`control`), or
+            the socket's path.
+
+    Attributes:
+        control: the :class:`~akarm.sim.control.SimulatorControl` (``None`` without ``control``).
 
     Raises:
         StateError: the simulator did not start (with what it printed).
@@ -57,15 +73,28 @@ class SimulatorProcess:
 
     def __init__(self, robot: str | os.PathLike[str], *, interface: str = "akarm_local", channel: str = "can0",
                  pose: str | None = None, cpus: Iterable[int] | None = None, args: Sequence[str] = (),
-                 start_timeout: float = 60.0) -> None:
+                 start_timeout: float = 60.0, timing: str | TimingProfile | None = None,
+                 control: bool | str | os.PathLike[str] = False) -> None:
         self.robot = Path(robot)
         self.interface = interface
         self.channel = channel
+        self.timing = get_profile(timing)
+        registered = PROFILES.get(self.timing.name) == self.timing
+        timing_args = ["--profile", self.timing.name] if registered else ["--plant-rate", str(self.timing.sim_rate_hz)]
+        self.control: SimulatorControl | None = None
+        control_args: list[str] = []
+        if control:
+            path = Path(tempfile.gettempdir()) / f"akarm-sim-{os.getpid()}-{next(_sockets)}.sock" if control is True \
+                else Path(control)
+            self.control = SimulatorControl(path)
+            control_args = ["--control", str(path)]
         self.command = [sys.executable, "-m", "akarm", "sim", str(self.robot), "-i", interface, "-c", channel, "-q",
-                        *(["--pose", pose] if pose else []), *args]
+                        *(["--pose", pose] if pose else []), *timing_args, *control_args, *args]
         self.cpus = set(cpus) if cpus is not None else None
         self.start_timeout = start_timeout
         self.proc: subprocess.Popen[str] | None = None
+        self._output: collections.deque[str] = collections.deque(maxlen=50)
+        self._reader: threading.Thread | None = None
 
     @property
     def pid(self) -> int:
@@ -79,26 +108,31 @@ class SimulatorProcess:
         if self.cpus and hasattr(os, "sched_setaffinity"):
             # at once, while the child is still starting Python: the threads it starts later inherit it
             os.sched_setaffinity(self.proc.pid, self.cpus)
-        seen: list[str] = []
+        seen = self._output = collections.deque(maxlen=50)
         done = threading.Event()  # "running" was printed, or the output ended without it
         running = [False]
 
-        def read() -> None:  # until "running" (and afterwards, so a full pipe never blocks it)
+        def read() -> None:  # to the end, so a full pipe never blocks the simulator
             for line in self.proc.stdout:  # type: ignore[union-attr]
-                if not done.is_set():
-                    seen.append(line)
-                    if line.startswith("running"):
-                        running[0] = True
-                        done.set()
+                seen.append(line)
+                if not done.is_set() and line.startswith("running"):
+                    running[0] = True
+                    done.set()
             done.set()
 
-        threading.Thread(target=read, name="akarm-sim-output", daemon=True).start()
+        self._reader = threading.Thread(target=read, name="akarm-sim-output", daemon=True)
+        self._reader.start()
         # started only on its own word: a child that closed its output may not have exited yet
         if not done.wait(self.start_timeout) or not running[0] or self.proc.poll() is not None:
             self.__exit__()
-            raise StateError(f"the simulator did not start: {' '.join(self.command)}\n{''.join(seen[-20:])}",
+            raise StateError(f"the simulator did not start: {' '.join(self.command)}\n{self.output}",
                              fix="run that command yourself to see what is wrong")
         return self
+
+    @property
+    def output(self) -> str:
+        """The last 50 lines the simulator printed (what it says when it stops, or why it did not start)."""
+        return "".join(self._output)
 
     def cpu_seconds(self) -> float:
         """CPU time the simulator has used so far, s (Linux; NaN elsewhere)."""
@@ -110,7 +144,12 @@ class SimulatorProcess:
             return
         proc.terminate()
         try:
-            proc.wait(10)
+            proc.wait(30)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if self._reader is not None:
+            self._reader.join(5.0)  # its last words (or a traceback) into output
+        if self.control is not None:  # the simulator removes it on a clean stop, not when killed
+            with contextlib.suppress(OSError):
+                self.control.path.unlink()

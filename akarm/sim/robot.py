@@ -20,6 +20,7 @@ slower than the wall clock) rather than bursting: :attr:`SimulatedRobot.slip` sa
 
 from __future__ import annotations
 
+import collections
 import heapq
 import itertools
 import math
@@ -33,7 +34,9 @@ import numpy as np
 from ..bus import close_buses, open_bus
 from ..clock import RealClock, SteppedClock
 from ..errors import ConfigError, ConfigProblem, StateError
+from ..timing import TimingProfile, get_profile
 from . import faults as _faults
+from .control import DriverState, Frame
 from .drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
 from .params import MotorSimParams, default_params
 from .plant import Plant
@@ -43,7 +46,15 @@ if TYPE_CHECKING:
 
     from ..config import RobotConfig
 
-__all__ = ["SimulatedRobot"]
+__all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
+
+#: How many of the frames its drivers took in and sent a simulator keeps (:meth:`SimulatedRobot.logged_frames`).
+FRAME_LOG_SIZE = 200_000
+
+
+def _driving(d: SimulatedDriver) -> bool:
+    """Whether a driver drives its output now (MIT: motor mode; servo: a control mode, not released)."""
+    return bool(d.enabled) if isinstance(d, MitDriver | ServoDriver) else False
 
 
 class SimulatedRobot:
@@ -56,7 +67,9 @@ class SimulatedRobot:
         interface, channel: bus override (e.g. ``"virtual"`` and a channel name unique to a test).
         realtime: ``True`` (default): threads answer frames as they come and the plant follows the wall
             clock. ``False``: lock step through :meth:`advance_to` / :attr:`clock`.
-        dt: integration step, s (default 0.0005: 2 kHz).
+        dt: integration step, s (default: the timing profile's, 0.0005 s (2 kHz) normally).
+        timing: a timing profile (:mod:`akarm.timing`), ``"normal"`` (default) or ``"slow"``: the
+            integration rate when ``dt`` is not given. Kept as :attr:`timing`.
         params: per joint name, simulation constants replacing :func:`~akarm.sim.params.default_params`.
         q0: initial joint positions (rad, config order); default 0 (clipped into the URDF limits).
         zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
@@ -72,6 +85,7 @@ class SimulatedRobot:
         clock: a :class:`~akarm.clock.SteppedClock` driving :meth:`advance_to` (lock step), or a
             :class:`~akarm.clock.RealClock` (real time).
         send_errors: frames the bus refused to send (a full socketcan queue, ...).
+        timing: the :class:`~akarm.timing.TimingProfile` in force.
     """
 
     def __init__(
@@ -81,17 +95,21 @@ class SimulatedRobot:
         channel: str | Mapping[str, str] | None = None,
         *,
         realtime: bool = True,
-        dt: float = 0.0005,
+        dt: float | None = None,
         params: Mapping[str, MotorSimParams] | None = None,
         q0: Sequence[float] | None = None,
         zero_silence: float = 1.0,
         servo_release: float = 1.0,
         max_lag: float = 0.05,
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
+        timing: str | TimingProfile | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
         self.config = config
+        self.timing = get_profile(timing)
+        if dt is None:
+            dt = 1.0 / self.timing.sim_rate_hz
         self.realtime = realtime
         self._lock = threading.RLock()
         params = dict(params or {})
@@ -127,6 +145,17 @@ class SimulatedRobot:
                         f"joints {other.name!r} and {d.name!r} both listen to CAN ID 0x{key[0]:X} on bus {d.bus!r}",
                         "give each motor on a bus its own can_id")])
                 table[key] = d
+        # who sent a frame (for the frame log): MIT replies by (bus, reply ID, driver ID in byte 0),
+        # extended status frames by (bus, whole ID)
+        self._senders: dict[tuple[str, int, int], str] = {}
+        for d in drivers:
+            if isinstance(d, MitDriver) and not d.v3:
+                self._senders[(d.bus, d.joint.reply_id, d.can_id)] = d.name
+            else:
+                self._senders[(d.bus, (0x29 << 8) | d.can_id, -1)] = d.name
+        self._frame_log: collections.deque[Frame] = collections.deque(maxlen=FRAME_LOG_SIZE)
+        self._frames_logged = 0
+        self._rx_empty: dict[str, float] = {}
         self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
         self._seq = itertools.count()
         self._buses: dict[str, can.BusABC] = {}
@@ -135,8 +164,8 @@ class SimulatedRobot:
         self._t0 = 0.0
         self.max_lag = max_lag
         #: real time: s between the ticker's catch-ups with the wall clock (time-driven frames are at most
-        #: this late; frames received are answered at once regardless)
-        self.tick_interval = 0.002
+        #: this late; frames received are answered at once regardless): 2 ms, or one step if longer
+        self.tick_interval = max(0.002, self.dt)
         self.slip = 0.0
         self.send_errors = 0
         self.thread_error: BaseException | None = None
@@ -172,6 +201,7 @@ class SimulatedRobot:
             raise
         if self.realtime:
             self._stop.clear()
+            self._rx_empty = dict.fromkeys(self._buses, -math.inf)
             self._t0 = time.perf_counter() - self._t
             for name, bus in self._buses.items():
                 th = threading.Thread(target=self._rx_loop, args=(name, bus), name=f"akarm-sim-rx-{name}", daemon=True)
@@ -276,11 +306,29 @@ class SimulatedRobot:
         with self._lock:
             self.joint(joint).inject(fault)
 
-    def clear_faults(self) -> None:
-        """End every fault on every joint."""
+    def clear_faults(self, joint: str | None = None) -> None:
+        """End every fault of ``joint`` (default: of every joint)."""
         with self._lock:
-            for d in self.drivers:
+            for d in self.drivers if joint is None else [self.joint(joint)]:
                 d.clear_faults()
+
+    def driver_states(self) -> list[DriverState]:
+        """Every driver as it is now (enabled, position, torque, error, faults ...), config order."""
+        with self._lock:
+            q, dq, tau = self.plant.q.tolist(), self.plant.dq.tolist(), self.plant.tau.tolist()
+            return [DriverState(d.name, _driving(d), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
+                                tuple(repr(f) for f in d.faults), d.frames_received, d.frames_sent)
+                    for i, d in enumerate(self.drivers)]
+
+    def disable_drivers(self) -> list[str]:
+        """Take every driver out of motor mode (MIT) or release it (servo) at once, as if it had received
+        EXIT or a zero-current frame, even one that cannot hear the bus (a fault): the outputs go limp.
+        Returns the joints that were enabled."""
+        with self._lock:
+            was = [d for d in self.drivers if _driving(d)]
+            for d in was:
+                d._power_off()  # the output off; the driver stays powered and on the bus
+            return [d.name for d in was]
 
     def status_line(self) -> str:
         """One line: time and, per joint, position (rad), torque (N·m), temperature (°C), mode, fault."""
@@ -325,6 +373,40 @@ class SimulatedRobot:
                                  timestamp=self._t))
         except can.CanError:
             self.send_errors += 1
+            return
+        key = (bus_name, arbitration_id, -1) if is_extended else (bus_name, arbitration_id, data[0] if data else -2)
+        self._log(bus_name, arbitration_id, is_extended, bytes(data), self._senders.get(key), False)
+
+    def _log(self, bus: str, arbitration_id: int, is_extended: bool, data: bytes, joint: str | None,
+             to_motor: bool) -> None:
+        self._frame_log.append(Frame(self._t, bus, arbitration_id, is_extended, data, joint, to_motor))
+        self._frames_logged += 1
+
+    def logged_frames(self, since: int = 0) -> tuple[list[Frame], int]:
+        """The frames the simulated drivers took in from the bus (commands, ``to_motor``; also those a
+        fault kept from the driver) and sent (replies, status frames), oldest first, from the
+        ``since``-th one on (of the last :data:`FRAME_LOG_SIZE`), and the number to ask from next time.
+
+        In real time, call :meth:`wait_received` first to have every frame sent to the drivers so far.
+        """
+        with self._lock:
+            first = self._frames_logged - len(self._frame_log)
+            frames = list(itertools.islice(self._frame_log, max(0, since - first), None))
+            return frames, self._frames_logged
+
+    def wait_received(self, timeout: float = 2.0) -> bool:
+        """Take in every frame already sent to the simulator: in lock step at once; in real time wait
+        until each bus's queue has been found empty since the call (at most ``timeout`` s, False then)."""
+        if not self.realtime:
+            with self._lock:
+                self._poll()
+            return True
+        asked, end = time.monotonic(), time.monotonic() + timeout
+        while any(t < asked for t in self._rx_empty.values()):
+            if time.monotonic() > end or self._stop.is_set():
+                return False
+            time.sleep(0.002)
+        return True
 
     def _state_getter(self, i: int) -> Callable[[], tuple[float, float]]:
         plant = self.plant
@@ -363,14 +445,16 @@ class SimulatedRobot:
                 msg = bus.recv(timeout=0.0)
                 if msg is None:
                     break
-                self._dispatch(routes, msg)
+                self._dispatch(name, routes, msg)
 
-    def _dispatch(self, routes: Mapping[tuple[int, bool], SimulatedDriver], msg: can.Message) -> None:
+    def _dispatch(self, name: str, routes: Mapping[tuple[int, bool], SimulatedDriver], msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
             return
         drv = routes.get((msg.arbitration_id, msg.is_extended_id))
+        data = bytes(msg.data)
+        self._log(name, msg.arbitration_id, msg.is_extended_id, data, drv.name if drv is not None else None, True)
         if drv is not None:
-            drv.receive(msg.arbitration_id, msg.is_extended_id, bytes(msg.data), self._t)
+            drv.receive(msg.arbitration_id, msg.is_extended_id, data, self._t)
 
     def _integrate_to(self, t: float) -> None:
         dt = self.dt
@@ -420,16 +504,17 @@ class SimulatedRobot:
             while not self._stop.is_set():
                 try:
                     msg = bus.recv(timeout=0.02)
+                    while msg is not None:  # every frame waiting, then note that the queue was empty
+                        with self._lock:
+                            self._integrate_to(self._wall())
+                            self._dispatch(name, routes, msg)
+                        msg = bus.recv(timeout=0.0)
                 except can.CanError:
                     if self._stop.is_set():
                         return
                     time.sleep(0.01)
                     continue
-                if msg is None:
-                    continue
-                with self._lock:
-                    self._integrate_to(self._wall())
-                    self._dispatch(routes, msg)
+                self._rx_empty[name] = time.monotonic()
         except BaseException as e:  # reported through thread_error
             if not self._stop.is_set():
                 self.thread_error = e

@@ -134,7 +134,8 @@ class Arm:
             passes its YAML ``collision: {threshold: ...}``: ``"disable"`` (damp, then disable; the
             default) or ``"hold"`` (come to rest, jerk-limited, and hold). See :mod:`akarm.collision`.
         collision_gain: 1/s, the bandwidth of the external torque estimate (default 50: a 20 ms
-            time constant).
+            time constant; at most a quarter of the loop rate). With a ``timing`` profile for machines
+            that cannot keep time (``slow``), the reflex only watches: no thresholds.
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread, freeze the
@@ -202,14 +203,18 @@ class Arm:
         self.telemetry_ring = self._ctl.telemetry
         self._friction_compensated = friction_feedforward and feedforward != "none"
         fr = [j.friction_model() for j in config.joints]
+        # the observer's discrete loop gain K·dt stays at most 0.25 (a slow loop gets a slower estimate)
         observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
-                                    [f.offset for f in fr], collision_gain,
+                                    [f.offset for f in fr], min(collision_gain, 0.25 * config.rate_hz),
                                     [velocity_resolution(j) for j in config.joints],
                                     [j.motor.t_max for j in config.joints])
         # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
         fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
                  for j in config.joints]
-        self._ctl.reflex = CollisionReflex(self.names, observer, [j.collision_threshold for j in config.joints],
+        # a timing profile for machines that cannot keep time (lag > 0: replies late, then in bursts) leaves
+        # the reflex watching only: the estimate would take the time it does not see for a push
+        thresholds = [None if self.timing.lag > 0 else j.collision_threshold for j in config.joints]
+        self._ctl.reflex = CollisionReflex(self.names, observer, thresholds,
                                            collision_reaction, fresh, 1.0 / config.rate_hz)  # type: ignore[arg-type]
         planner = self.planner  # not self: the loop thread must not keep the Arm alive (its finalizer)
         self._ctl.stop_plan = lambda start, now: Plan([planner.stop(start, now)])

@@ -26,11 +26,16 @@ from os import PathLike
 import numpy as np
 
 from . import recording as rec_mod
+from .cartesian import plan_linear
 from .clock import Clock, RealClock
+from .collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
 from .config import RobotConfig
 from .control import Controller, Motion, PathRecorder, track_arm
-from .errors import ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
+from .errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
 from .feedforward import FeedForwardKind
+from .gravity import GravityPeak
+from .identify import Identification, PayloadFit
+from .ik import IKSolver, as_pose
 from .joints import Joint, make_joint
 from .loop import StatsSummary
 from .model import RobotModel
@@ -48,7 +53,8 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 @dataclass(frozen=True)
 class JointReport:
     """One joint's latest feedback (joint side, SI): position rad, velocity rad/s, torque N·m,
-    temperature °C (None if not reported), fault code (0 none), age s (time since the feedback)."""
+    temperature °C (None if not reported), fault code (0 none), age s (time since the feedback),
+    and the collision observer's estimate of the external torque on it, N·m (:mod:`akarm.collision`)."""
 
     name: str
     position: float
@@ -57,6 +63,7 @@ class JointReport:
     temperature: float | None
     fault: int
     age: float
+    external_torque: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,7 @@ class ArmState:
         q_des: the commanded position (rad) this cycle.
         enabled: True while the arm is powered and tracking. moving: True while a motion runs.
         mode: the arm's :class:`~akarm.modes.Mode`.
+        tau_ext: the external torque estimate per joint, N·m (:mod:`akarm.collision`).
     """
 
     time: float
@@ -81,14 +89,16 @@ class ArmState:
     enabled: bool
     moving: bool
     mode: Mode = Mode.DISABLED
+    tau_ext: np.ndarray | None = None
 
     def __str__(self) -> str:
-        head = f"{'joint':<16}{'pos rad':>10}{'vel rad/s':>11}{'torque Nm':>11}{'temp C':>8}{'fault':>7}{'age ms':>9}"
+        head = (f"{'joint':<16}{'pos rad':>10}{'vel rad/s':>11}{'torque Nm':>11}{'temp C':>8}{'fault':>7}{'age ms':>9}"
+                f"{'ext Nm':>9}")
         rows = [head]
         for j in self.joints:
             temp = f"{j.temperature:8.1f}" if j.temperature is not None else f"{'-':>8}"
             rows.append(f"{j.name:<16}{j.position:10.4f}{j.velocity:11.4f}{j.torque:11.3f}{temp}{j.fault:7d}"
-                        f"{j.age * 1e3:9.1f}")
+                        f"{j.age * 1e3:9.1f}{j.external_torque:9.2f}")
         return "\n".join(rows)
 
 
@@ -120,6 +130,12 @@ class Arm:
         range_margin: rad; a move may start outside a joint's range (an arm resting on its hard stop),
             up to this far past its mechanical range (the URDF's limits), and come back into it.
         implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
+        collision_reaction: what the collision reflex does when a joint's external torque estimate
+            passes its YAML ``collision: {threshold: ...}``: ``"disable"`` (damp, then disable; the
+            default) or ``"hold"`` (come to rest, jerk-limited, and hold). See :mod:`akarm.collision`.
+        collision_gain: 1/s, the bandwidth of the external torque estimate (default 50: a 20 ms
+            time constant; at most a quarter of the loop rate). With a ``timing`` profile for machines
+            that cannot keep time (``slow``), the reflex only watches: no thresholds.
         telemetry_seconds: how much history the telemetry ring keeps, s.
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread, freeze the
@@ -150,7 +166,8 @@ class Arm:
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
                  loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
                  range_margin: float = 0.05, implausible_limit: int = 3,
-                 timing: str | TimingProfile | None = None) -> None:
+                 timing: str | TimingProfile | None = None, collision_reaction: str = "disable",
+                 collision_gain: float = DEFAULT_GAIN) -> None:
         if feedforward not in ("full", "gravity", "none"):
             raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         self.timing = get_profile(timing)
@@ -175,6 +192,7 @@ class Arm:
             np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
+        self._ik_solver: IKSolver | None = None
         self._ctl = Controller(
             config, self.joints, self.model, self.clock, feedforward=feedforward,
             friction_feedforward=friction_feedforward, hold_integral=hold_integral,
@@ -183,6 +201,23 @@ class Arm:
             loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
             implausible_limit=implausible_limit, lag=self.timing.lag)
         self.telemetry_ring = self._ctl.telemetry
+        self._friction_compensated = friction_feedforward and feedforward != "none"
+        fr = [j.friction_model() for j in config.joints]
+        # the observer's discrete loop gain K·dt stays at most 0.25 (a slow loop gets a slower estimate)
+        observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
+                                    [f.offset for f in fr], min(collision_gain, 0.25 * config.rate_hz),
+                                    [velocity_resolution(j) for j in config.joints],
+                                    [j.motor.t_max for j in config.joints])
+        # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
+        fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
+                 for j in config.joints]
+        # a timing profile for machines that cannot keep time (lag > 0: replies late, then in bursts) leaves
+        # the reflex watching only: the estimate would take the time it does not see for a push
+        thresholds = [None if self.timing.lag > 0 else j.collision_threshold for j in config.joints]
+        self._ctl.reflex = CollisionReflex(self.names, observer, thresholds,
+                                           collision_reaction, fresh, 1.0 / config.rate_hz)  # type: ignore[arg-type]
+        planner = self.planner  # not self: the loop thread must not keep the Arm alive (its finalizer)
+        self._ctl.stop_plan = lambda start, now: Plan([planner.stop(start, now)])
         self._finalizer = track_arm(self, self._ctl)
 
     @classmethod
@@ -369,6 +404,78 @@ class Arm:
     def _run(self, motion: Motion, wait: bool) -> Motion:
         return motion.wait() if wait else motion
 
+    # ------------------------------------------------------------------------------------------
+    # Cartesian: the tool frame's pose (akarm.ik, akarm.cartesian)
+    # ------------------------------------------------------------------------------------------
+    def _ik(self) -> IKSolver:
+        """The IK solver, on a model of its own (the loop thread's is not shared)."""
+        if self._ik_solver is None:
+            self._ik_solver = IKSolver(RobotModel(self.config), self.limits.lower, self.limits.upper)
+        return self._ik_solver
+
+    def tool_pose(self, q: Sequence[float] | None = None) -> np.ndarray:
+        """The 4×4 pose of the YAML's ``tool_frame`` in the base frame (translation in m), at the
+        measured joint positions (or at ``q``, rad)."""
+        if q is None:
+            with self._ctl.lock:
+                q = [j.state.position for j in self.joints]
+        return self._ik().model.tool_pose(q)
+
+    def _pose_target(self, pose: object) -> tuple[np.ndarray, np.ndarray, bool]:
+        """(start q: the commanded position, the target 4×4, position only?) for a Cartesian move."""
+        self._ctl.require_enabled()
+        q0 = self._ctl.desired_now()[0]
+        target, oriented = as_pose(pose, self._ik().model.tool_pose(q0))
+        return q0, target, self._ik().position_only(oriented)
+
+    def move_to_pose(self, pose: object, speed: float = 1.0, wait: bool = True) -> Motion:
+        """Move the tool to ``pose`` by a joint-space move (jerk-limited, joints arriving together).
+
+        ``pose``: a 4×4 transform of the tool frame in the base frame (m), ``(xyz, quaternion xyzw)``,
+        or a position ``(x, y, z)`` alone: the tool keeps its orientation (arms with fewer than six
+        joints cannot, and go to the position whatever their orientation). The joint positions are
+        solved (:class:`akarm.ik.IKSolver`) nearest the commanded ones; ``speed`` as in :meth:`move_to`.
+
+        Raises:
+            UnreachableError: out of reach (says how close the tool gets).
+            LimitError: the pose needs a joint past its range (names it), or the path does.
+            SingularityError: the pose is reached only at a singularity.
+        """
+        q0, target, position_only = self._pose_target(pose)
+        q = self._ik().solve(target, q0, position_only)
+        return self.move_to(q, speed=speed, wait=wait)
+
+    def move_linear(self, pose: object, speed: float = 1.0, wait: bool = True, *, max_velocity: float | None = None,
+                    max_acceleration: float | None = None) -> Motion:
+        """Move the tool in a straight line to ``pose`` (``pose`` as in :meth:`move_to_pose`), its
+        orientation turning about one axis on the way (slerp), from rest to rest.
+
+        The timing is jerk-limited along the line; every joint's velocity, acceleration and jerk stay
+        within its limits times ``speed``, ``speed²``, ``speed³``, and ``max_velocity`` (m/s) /
+        ``max_acceleration`` (m/s²) cap the tool's. The whole joint path is solved and checked
+        before anything moves (:mod:`akarm.cartesian`).
+
+        Raises:
+            StateError: the arm is moving (a line starts from rest: wait for the motion, or stop()).
+            UnreachableError, LimitError, SingularityError: a point of the line the tool cannot
+                reach, one past a joint's range (names the joint), a singularity on the way; each
+                says where on the line. Nothing moved.
+        """
+        q0, target, position_only = self._pose_target(pose)
+        if self._ctl.plan is not None:
+            raise StateError("move_linear starts from rest and the arm is moving",
+                             fix="wait for the motion to end (motion.wait()), or call arm.stop() first")
+        plan = plan_linear(self._ik(), self.limits, q0, target, speed=speed, position_only=position_only,
+                           max_velocity=max_velocity, max_acceleration=max_acceleration)
+
+        def make(start, now):
+            if self._ctl.plan is not None or not np.array_equal(start[0], q0):
+                raise StateError("the arm moved while the line was planned",
+                                 fix="start one motion at a time (wait for each)")
+            return plan.at(now)
+
+        return self._run(self._start(make), wait)
+
     @property
     def moving(self) -> bool:
         """True while a motion is being executed."""
@@ -511,23 +618,134 @@ class Arm:
         now = self.clock.now()
         ctl = self._ctl
         with ctl.lock:
+            ext = self._ctl.reflex.estimate.copy()  # type: ignore[union-attr]
             reps = tuple(JointReport(j.name, j.state.position, j.state.velocity, j.state.torque,
-                                     j.state.temperature, j.state.error, j.state.age(now)) for j in self.joints)
+                                     j.state.temperature, j.state.error, j.state.age(now), float(x))
+                         for j, x in zip(self.joints, ext, strict=True))
             q_des = ctl.des[0].copy()
             mode = ctl.mode
             moving = ctl.plan is not None
         return ArmState(now, reps, np.array([r.position for r in reps]), np.array([r.velocity for r in reps]),
-                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode)
+                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode, ext)
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
-        """Tell the feed-forward about a payload at the tool frame: kg, centre of mass in the tool frame (m)."""
+        """Tell the arm about a payload at the tool frame: kg, centre of mass in the tool frame (m).
+
+        The feed-forward carries it and the collision reflex expects it (its external torque
+        estimate uses the same model, and starts over: the arm's inertia changed), from the next
+        cycle on. A :class:`~akarm.ConfigWarning` says so when the motors cannot hold the arm with it
+        everywhere in the joint ranges (:meth:`gravity_check`, as ``akarm check`` does for the file).
+        """
         with self._ctl.lock:
             self.model.set_payload(mass, com)
+            self._ctl.ff.reset_integral()  # it made up for the load the model missed: now the model has it
+            self._ctl.reflex.restart()  # type: ignore[union-attr]
+        over = [(p, j) for p, j in zip(self.gravity_check(), self.config.joints, strict=True)
+                if p.torque > j.limits.torque]
+        if over:
+            import warnings
+
+            from .errors import ConfigWarning
+
+            text = "; ".join(f"{j.name} needs up to {p.torque:.1f} N·m (limit {j.limits.torque:g}) at {p.pose()}"
+                             for p, j in over)
+            warnings.warn(ConfigWarning(f"with a payload of {float(mass):g} kg the motors cannot hold the arm "
+                                        f"everywhere in its ranges: {text}"), stacklevel=2)
+
+    def gravity_check(self) -> list[GravityPeak]:
+        """``akarm check``'s gravity check with the payload the arm carries now: per joint, the largest
+        gravity torque over the joint ranges and where (:func:`akarm.gravity.gravity_peaks`)."""
+        from dataclasses import replace
+
+        from .config import Payload
+        from .gravity import gravity_peaks
+
+        p = self.model.payload
+        payload = None if p is None else Payload(p[0], (float(p[1][0]), float(p[1][1]), float(p[1][2])))
+        return gravity_peaks(replace(self.config, payload=payload))
 
     def clear_payload(self) -> None:
-        """Remove the payload from the feed-forward model."""
+        """Remove the payload from the model (the feed-forward's and the collision reflex's)."""
         with self._ctl.lock:
             self.model.clear_payload()
+            self._ctl.ff.reset_integral()
+            self._ctl.reflex.restart()  # type: ignore[union-attr]
+
+    @property
+    def payload(self) -> tuple[float, np.ndarray] | None:
+        """The payload the arm is told about: (kg, centre of mass in the tool frame, m), or ``None``."""
+        p = self.model.payload
+        return None if p is None else (p[0], p[1].copy())
+
+    def identify(self, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
+                 center: Target | None = None, payload: bool = True, offsets: bool = True,
+                 apply: bool = True) -> Identification:
+        """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify`).
+
+        The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
+        ``amplitude`` rad per joint at most (less near a limit), for ``duration`` s at ``speed``
+        (time scaling, (0, 1]; default: as fast as the joint limits and half the torque limits
+        allow); like any replay, it is checked against every limit before anything moves; its
+        gains alternate between full and half every 3 s (how the fit tells friction from the bias
+        of the torque samples). With ``apply`` the arm uses the results at once (payload, friction). The result
+        suggests collision thresholds; ``.fragment()`` is YAML for the robot file
+        (:func:`akarm.robotfile.save_identification` writes it in, with a backup).
+
+        Raises:
+            LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
+            StateError: the arm is moving, or the telemetry is too short for the duration.
+        """
+        from .identify import identify
+
+        return identify(self, duration=duration, speed=speed, amplitude=amplitude, center=center, payload=payload,
+                        offsets=offsets, apply=apply)
+
+    def estimate_payload(self, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 3.0,
+                         apply: bool = True) -> PayloadFit:
+        """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
+
+        The arm moves (``speed`` as in :meth:`move_to`) to each of ``poses`` (default: where it is,
+        and each of the three joints nearest the tool turned by ±0.9 rad, the one before them
+        ±0.45), waits until it is still (``settle`` s at most), averages the torques, and comes back;
+        a least-squares fit of gravity's torque on Pinocchio's regressor gives mass and centre of
+        mass, twice (the second time with the first estimate carried). The collision reflex only
+        watches meanwhile. With ``apply`` the arm then carries it (:meth:`set_payload`).
+        """
+        from .identify import estimate_payload
+
+        return estimate_payload(self, poses, speed=speed, settle=settle, apply=apply)
+
+    def set_collision(self, thresholds: Mapping[str, float | None] | Sequence[float | None] | None = None,
+                      reaction: str | None = None) -> None:
+        """Change the collision reflex: ``thresholds`` (N·m; a ``{joint: value}`` mapping for some joints,
+        or one per joint in config order; ``None`` for a joint turns its check off) and ``reaction``
+        (``"disable"`` or ``"hold"``). The YAML's ``collision: {threshold: ...}`` are the defaults."""
+        reflex = self._ctl.reflex
+        assert reflex is not None
+        with self._ctl.lock:
+            if thresholds is not None:
+                current: list[float | None] = [None if math.isinf(x) else float(x) for x in reflex.thresholds]
+                if isinstance(thresholds, Mapping):
+                    for name, value in thresholds.items():
+                        if name not in self.names:
+                            raise StateError(f"no joint named {name!r}", fix="joints are: " + ", ".join(self.names))
+                        current[self.names.index(name)] = value
+                else:
+                    current = list(thresholds)
+                reflex.set_thresholds(current)
+            if reaction is not None:
+                reflex.set_reaction(reaction)
+
+    @property
+    def collision_thresholds(self) -> dict[str, float | None]:
+        """The collision reflex's threshold per joint, N·m (``None``: not checked)."""
+        th = self._ctl.reflex.thresholds  # type: ignore[union-attr]
+        return {n: (None if math.isinf(x) else float(x)) for n, x in zip(self.names, th, strict=True)}
+
+    @property
+    def collision(self) -> CollisionError | None:
+        """The collision reflex's last stop (also with the "hold" reaction: the arm stays enabled), or ``None``."""
+        return self._ctl.reflex.last  # type: ignore[union-attr]
 
     def sleep(self, seconds: float) -> None:
         """Wait ``seconds`` of the arm's clock while the loop keeps the arm under control.

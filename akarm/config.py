@@ -90,10 +90,12 @@ class Gains:
 
 @dataclass(frozen=True)
 class Friction:
-    """Joint friction used for feed-forward: Coulomb N·m, viscous N·m·s/rad (output side)."""
+    """Joint friction used for feed-forward and the collision observer: Coulomb N·m, viscous
+    N·m·s/rad, and a constant torque offset N·m the model misses (a cable, a sensor bias), output side."""
 
     coulomb: float = 0.0
     viscous: float = 0.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -133,6 +135,8 @@ class JointConfig:
             its commanded position. ``None``: derived (:func:`akarm.safety.default_following_error`).
         stuck_travel: rad; the supervisor stops the arm when the command moves this far while the
             joint's reading repeats. ``None``: derived (:func:`akarm.safety.default_stuck_travel`).
+        collision_threshold: N·m; the collision reflex stops the arm when this joint's external
+            torque estimate is larger (:mod:`akarm.collision`). ``None``: not checked.
     """
 
     name: str
@@ -153,6 +157,7 @@ class JointConfig:
     friction: Friction | None = None
     following_error: float | None = None
     stuck_travel: float | None = None
+    collision_threshold: float | None = None
 
     def friction_model(self) -> Friction:
         """The friction to compensate: this joint's own, else the motor catalogue's, else none."""

@@ -32,7 +32,8 @@ A robot is described once, in a YAML file next to its URDF::
         limits: {lower: -1.5, upper: 1.5, velocity: 3.0, acceleration: 15.0, jerk: 150.0, torque: 10.0}
         gains: {kp: 60.0, kd: 2.0}  # required for MIT joints
         # optional: reply_id, feedback_timeout, max_temperature, status_rate_hz, can_timeout,
-        #   friction: {coulomb: N·m, viscous: N·m·s/rad} (identified; default: the catalogue's typical values),
+        #   friction: {coulomb: N·m, viscous: N·m·s/rad, offset: N·m} (identified; default: the catalogue's
+        #   typical values), collision: {threshold: N·m} (the collision reflex; `akarm identify` suggests one),
         #   following_error, stuck_travel: rad, the supervisor's limits (default: derived, see akarm.safety)
 
 Rules the loader applies:
@@ -86,7 +87,7 @@ TOP_KEYS = ("name", "urdf", "tool_frame", "gravity", "payload", "rate_hz", "buse
             "defaults", "joints", "locked")
 JOINT_KEYS = ("name", "bus", "can_id", "motor", "mode", "firmware", "direction", "offset", "limits", "gains",
               "reply_id", "feedback_timeout", "max_temperature", "status_rate_hz", "can_timeout", "friction",
-              "following_error", "stuck_travel")
+              "following_error", "stuck_travel", "collision")
 DEFAULT_KEYS = tuple(k for k in JOINT_KEYS if k not in ("name", "can_id"))
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk", "torque")
 GAIN_KEYS = ("kp", "kd")
@@ -673,11 +674,17 @@ class _Loader:
                 extras[key] = r.number(node, f"{label}: {key}", positive=True, fix=f"{what}, e.g. 0.2")
 
         if "friction" in own or "friction" in defaults:
-            fr = _merged(own, defaults, r, "friction", ("coulomb", "viscous"))
-            fvals = {k: r.number(fr[k].value, f"{label}: friction {k}", minimum=0.0,
-                                 fix="N·m (coulomb) or N·m·s/rad (viscous), at the output, ≥ 0") for k in fr}
+            fr = _merged(own, defaults, r, "friction", ("coulomb", "viscous", "offset"))
+            fvals = {k: r.number(fr[k].value, f"{label}: friction {k}", minimum=None if k == "offset" else 0.0,
+                                 fix="N·m (coulomb, offset) or N·m·s/rad (viscous), at the output; coulomb and "
+                                     "viscous ≥ 0") for k in fr}
             if all(v is not None for v in fvals.values()):
                 extras["friction"] = Friction(**fvals)  # type: ignore[arg-type]
+        if "collision" in own or "collision" in defaults:
+            col = _merged(own, defaults, r, "collision", ("threshold",))
+            if "threshold" in col:
+                extras["collision_threshold"] = r.number(col["threshold"].value, f"{label}: collision threshold",
+                                                         positive=True, fix="N·m, e.g. what `akarm identify` suggests")
         limits = self._limits(own, defaults, jnode, label, motor, mode, direction, offset, uj)
         if name is not None:
             self.torque_lines[name] = _line(self._torque_at) or _line(mnode) or _line(jnode)

@@ -63,6 +63,7 @@ from .telemetry import Telemetry
 if TYPE_CHECKING:
     import can
 
+    from .collision import CollisionReflex
     from .trajectory import Timed
 
 __all__ = ["Controller", "Motion", "PathRecorder", "UnsafeExitWarning"]
@@ -93,6 +94,7 @@ class Motion:
         self.plan = plan
         self.duration = plan.duration
         self.superseded = False
+        self.error: AkarmError | None = None
         self._finished = threading.Event()
 
     @property
@@ -107,10 +109,13 @@ class Motion:
         """
         limit = self.duration + 5.0 if timeout is None else timeout
         self._ctl.wait_for(self._finished.is_set, limit, f"the motion ({self.duration:.2f} s) to end")
+        if self.error is not None:  # it was cut short without a safety stop (a collision, the arm holding)
+            raise self.error
         return self
 
-    def _finish(self, superseded: bool = False) -> None:
+    def _finish(self, superseded: bool = False, error: AkarmError | None = None) -> None:
         self.superseded = superseded
+        self.error = error
         self._finished.set()
 
 
@@ -242,6 +247,10 @@ class Controller:
         self._enabling: _Enabling | None = None
         self._teach_damping = [0.0] * n
         self.recorder: PathRecorder | None = None
+        #: the collision reflex (akarm.collision), and the plan that brings the arm to rest for its
+        #: "hold" reaction (``stop_plan(start, now)``); attached by the Arm
+        self.reflex: CollisionReflex | None = None
+        self.stop_plan: Callable[[tuple[np.ndarray, np.ndarray, np.ndarray], float], Timed] | None = None
 
     @staticmethod
     def _feedback_timeout(j: Any, default: float) -> float:
@@ -655,6 +664,8 @@ class Controller:
         t2 = pc()
         stage[1] = t2 - t1
         stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
+        if stop is None and self.reflex is not None:
+            stop = self._collision_check(now, True)
         t3 = pc()
         stage[2] = t3 - t2
         if stop is not None:
@@ -686,10 +697,31 @@ class Controller:
         self._record(now, qd, vd, ff)
         stage[5] = pc() - t5
 
+    def _collision_check(self, now: float, check: bool) -> SafetyStop | None:
+        """Update the collision reflex; its stop if it fired with the "disable" reaction. Its "hold"
+        reaction replaces the plan here by a jerk-limited stop from this cycle's desired state."""
+        js, reflex = self.joints, self.reflex
+        assert reflex is not None
+        if check:  # the MIT gains of this cycle's commands (teach: no stiffness, its damping)
+            kp = [k * self.gain_scale if m else 0.0 for k, m in zip(self._kp_list, self._mit, strict=True)]
+            kd = [k if m else 0.0 for k, m in zip(self._kd_list, self._mit, strict=True)]
+        else:
+            kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
+        err = reflex.step(now, [j.state.position for j in js], [j.state.velocity for j in js],
+                          [j.state.torque for j in js], check, kp, kd, [j.state.stamp for j in js],
+                          self.des[1] if check else None)
+        if err is None or err.reaction == "disable" or self.stop_plan is None:
+            return err
+        if self.motion is not None:
+            self.motion._finish(superseded=True, error=err)
+        self.plan, self.motion = self.stop_plan(self.des, now), None
+        return None
+
     def _record(self, now: float, q_d: Any, dq_d: Any, ff: Any) -> None:
         states = [j.state for j in self.joints]
+        ext = self.reflex.estimate if self.reflex is not None else None
         self.telemetry.record(now, q_d, dq_d, [s.position for s in states], [s.velocity for s in states],
-                              [s.torque for s in states], ff)
+                              [s.torque for s in states], ff, ext)
 
     def _cycle_teach(self, now: float) -> None:
         """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose)."""
@@ -698,6 +730,8 @@ class Controller:
             self.begin_stop(stop)
             self._cycle_stopping(now)
             return
+        if self.reflex is not None:  # estimated (the hand's torque), never checked
+            self._collision_check(now, False)
         q = np.array([j.state.position for j in self.joints])
         g = self.ff.gravity(q)
         gl = g.tolist()

@@ -15,6 +15,8 @@ raises on purpose; anything else escaping akarm is a bug.
     ├── BusError               a CAN bus that cannot be opened or written
     ├── StateError             an Arm call that does not fit its state (move before enable, ...)
     ├── LimitError             a target or a planned path past a joint limit
+    │   ├── UnreachableError   a Cartesian pose or path the tool cannot reach
+    │   └── SingularityError   a Cartesian pose or path at (or through) a singularity
     ├── TrajectoryError        ruckig could not plan the motion
     ├── RecordingError         a teach/replay file that is corrupt or cannot be written
     └── SafetyStop             the arm was stopped (damped, then disabled) for safety
@@ -26,6 +28,7 @@ raises on purpose; anything else escaping akarm is a bug.
         ├── ImplausibleFeedback  replies no physical joint could send (several in a row)
         ├── ForeignTraffic     another program commands, disables or answers for our motors
         ├── NotSettled         the arm kept moving while enable() waited for it to come to rest
+        ├── CollisionError     the collision reflex: a joint's external torque estimate passed its threshold
         └── BusLost            a bus died under the arm (also a BusError)
 """
 
@@ -37,6 +40,7 @@ __all__ = [
     "AkarmError",
     "BusError",
     "BusLost",
+    "CollisionError",
     "ConfigError",
     "ConfigProblem",
     "ConfigWarning",
@@ -52,11 +56,13 @@ __all__ = [
     "ProtocolError",
     "RecordingError",
     "SafetyStop",
+    "SingularityError",
     "StaleFeedback",
     "StateError",
     "TrackingError",
     "TrajectoryError",
     "UnknownMotorError",
+    "UnreachableError",
 ]
 
 
@@ -175,6 +181,35 @@ class StateError(AkarmError):
 
 class LimitError(AkarmError):
     """A target, or a position the planned trajectory passes through, is past a joint limit."""
+
+
+class UnreachableError(LimitError):
+    """A Cartesian target pose, or a point of a straight-line path, that the tool cannot reach with
+    any joint positions (the arm is too short, or the orientation is one it cannot take).
+
+    Attributes:
+        distance: how close the tool came to the pose: m (position) and rad (orientation).
+    """
+
+    def __init__(self, what: str, *, distance: tuple[float, float] = (0.0, 0.0), joint: str | None = None,
+                 fix: str = "") -> None:
+        self.distance = distance
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class SingularityError(LimitError):
+    """A Cartesian target pose, or a straight-line path, at or through a singularity: a pose where
+    the joints cannot move the tool in some direction (an arm stretched out, two axes aligned),
+    so near it small tool motions need very large joint motions.
+
+    Attributes:
+        sigma: the smallest singular value of the tool Jacobian there (m/rad; rotations weighted by
+            0.1 m), or, for a path, the joint travel per metre of tool travel, rad/m.
+    """
+
+    def __init__(self, what: str, *, sigma: float, joint: str | None = None, fix: str = "") -> None:
+        self.sigma = sigma
+        super().__init__(what, joint=joint, fix=fix)
 
 
 class TrajectoryError(AkarmError):
@@ -305,6 +340,27 @@ class NotSettled(SafetyStop):
     def __init__(self, what: str, *, speed: float, limit: float, joint: str | None = None, fix: str = "") -> None:
         self.speed = speed
         self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class CollisionError(SafetyStop):
+    """The collision reflex fired: a joint's estimated external torque (measured torque minus what the
+    model, friction and payload explain) passed its ``collision: {threshold: ...}``.
+
+    With the default reaction the arm was damped and disabled; with ``collision_reaction="hold"`` it
+    was brought to rest, jerk-limited, and holds there (still enabled).
+
+    Attributes:
+        torque: the external torque estimate, N·m (its sign: the direction it pushes the joint).
+        threshold: the joint's threshold, N·m.
+        reaction: ``"disable"`` or ``"hold"``.
+    """
+
+    def __init__(self, what: str, *, torque: float, threshold: float, reaction: str = "disable",
+                 joint: str | None = None, fix: str = "") -> None:
+        self.torque = torque
+        self.threshold = threshold
+        self.reaction = reaction
         super().__init__(what, joint=joint, fix=fix)
 
 

@@ -55,6 +55,11 @@ class FeedForward:
         self.extra = [0.0] * self.n  # user torque, N·m
         self.set_gains([0.0] * self.n)
 
+    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float]) -> None:
+        """New friction to compensate per joint (N·m, N·m·s/rad), e.g. identified ones."""
+        self._c = [float(x) for x in coulomb]
+        self._b = [float(x) for x in viscous]
+
     def set_gains(self, kp: Sequence[float]) -> None:
         """The joints' current kp (N·m/rad): sets the hold integral's gains and which joints are limp."""
         kp = [float(x) for x in kp]

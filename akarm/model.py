@@ -227,6 +227,12 @@ class RobotModel:
         nle = pin.nonLinearEffects(self.pin_model, self.pin_data, self.to_pin_q(q), self.to_pin_v(v))
         return self.from_pin_v(nle)
 
+    def coriolis_matrix(self, q: ArrayLike, v: ArrayLike) -> np.ndarray:
+        """Pinocchio's Coriolis matrix C(q, v) (n × n, config order): ``C·v`` is the Coriolis and
+        centrifugal torque and ``Ṁ = C + Cᵀ`` (what the collision observer needs)."""
+        c = pin.computeCoriolisMatrix(self.pin_model, self.pin_data, self.to_pin_q(q), self.to_pin_v(v))
+        return c.copy() if self._v_identity else c[np.ix_(self._vi, self._vi)]
+
     def forward_dynamics(self, q: ArrayLike, v: ArrayLike, tau: ArrayLike) -> np.ndarray:
         """Joint accelerations (rad/s²) under joint torques tau (N·m) at q (rad), v (rad/s): ABA."""
         ddq = pin.aba(self.pin_model, self.pin_data, self.to_pin_q(q), self.to_pin_v(v), self._pv(tau, "tau"))
@@ -304,6 +310,23 @@ class RobotModel:
             raise ModelError(f"payload inertia is not valid: {e}", fix="give a symmetric positive 3×3 matrix") from None
         self.pin_model.inertias[jid] = self._inertias0[jid] + added
         self.payload = (m, c.copy())
+
+    @property
+    def payload_placement(self) -> np.ndarray:
+        """4×4 pose of the tool frame in the frame of the body the payload is attached to (the tool
+        frame's parent joint): where :meth:`payload_regressor`'s parameters are expressed."""
+        return self._payload_placement.homogeneous.copy()
+
+    def payload_regressor(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> np.ndarray:
+        """n × 10: joint torques (config order) per unit of each inertial parameter of the body that
+        carries the tool frame, ``(m, m·c, I)`` in that body's frame (Pinocchio's dynamic parameters:
+        m, m·cx, m·cy, m·cz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz about the body's origin). A payload adds to
+        these parameters, so its torque is linear in them: identification by least squares."""
+        Y = pin.computeJointTorqueRegressor(self.pin_model, self.pin_data, self.to_pin_q(q), self._pv(v, "v"),
+                                            self._pv(a, "a"))
+        jid = self._payload_joint
+        block = Y[:, 10 * (jid - 1):10 * jid]
+        return block.copy() if self._v_identity else block[self._vi]
 
     def clear_payload(self) -> None:
         """Remove the payload (the config's too): the tool's parent body gets back its URDF inertia, exactly."""

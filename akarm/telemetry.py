@@ -1,7 +1,8 @@
 """Per-cycle telemetry: a ring buffer of desired and measured joint states, saved atomically.
 
 Each control cycle records its time, the desired q/dq (the trajectory), the measured q/dq/τ (the
-joints' latest feedback) and the feed-forward torque, all joint side in SI. Save to CSV (a header
+joints' latest feedback), the feed-forward torque and the collision reflex's estimate of the
+external torque (:mod:`akarm.collision`), all joint side in SI. Save to CSV (a header
 naming joints and units) or NumPy ``.npz``; the file is written to a temporary name and renamed, so
 a crash never leaves half a file. :func:`load` reads either back.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import os
 import tempfile
 from collections.abc import Callable, Sequence
@@ -24,7 +26,7 @@ __all__ = ["FIELDS", "Telemetry", "TelemetryLog", "atomic_write", "check_writabl
 
 #: The per-joint fields of a record, with their units.
 FIELDS = (("q_des", "rad"), ("dq_des", "rad/s"), ("q", "rad"), ("dq", "rad/s"), ("tau", "N·m"),
-          ("tau_ff", "N·m"))
+          ("tau_ff", "N·m"), ("tau_ext", "N·m"))
 
 
 def check_writable(path: str | os.PathLike[str]) -> Path:
@@ -83,7 +85,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[io.BufferedWrite
 
 @dataclass(frozen=True)
 class TelemetryLog:
-    """Recorded cycles as arrays: ``t`` (n,), and each of :data:`FIELDS` as (n, joints)."""
+    """Recorded cycles as arrays: ``t`` (n,), and each of :data:`FIELDS` as (n, joints).
+
+    ``tau_ext`` (the external torque estimate) is NaN where it was not recorded (logs written
+    before akarm had it, or built without it)."""
 
     joint_names: tuple[str, ...]
     t: np.ndarray
@@ -93,6 +98,11 @@ class TelemetryLog:
     dq: np.ndarray
     tau: np.ndarray
     tau_ff: np.ndarray
+    tau_ext: np.ndarray = None  # type: ignore[assignment]  # None: not recorded, NaN (see __post_init__)
+
+    def __post_init__(self) -> None:
+        if self.tau_ext is None:
+            object.__setattr__(self, "tau_ext", np.full(np.shape(self.q), np.nan))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -139,7 +149,8 @@ def load(path: str | os.PathLike[str]) -> TelemetryLog:
         if p.suffix == ".npz":
             with np.load(p) as z:
                 names = tuple(str(n) for n in z["joint_names"])
-                return TelemetryLog(names, z["t"], *(z[f] for f, _ in FIELDS))
+                known = [f for f, _ in FIELDS if f != "tau_ext" or f in z.files]  # older logs: no tau_ext
+                return TelemetryLog(names, z["t"], *(z[f] for f in known))
         with p.open(newline="", encoding="utf-8") as f:
             rows = list(csv.reader(f))
     except (OSError, KeyError, ValueError) as e:
@@ -148,13 +159,14 @@ def load(path: str | os.PathLike[str]) -> TelemetryLog:
         raise RecordingError(f"{p} is not an akarm telemetry CSV (no 't [s]' header)",
                              fix="pass a file written by Arm.telemetry().save()")
     header = rows[0]
-    per_field = (len(header) - 1) // len(FIELDS)
+    fields = len(FIELDS) if header[-1].startswith("tau_ext.") else len(FIELDS) - 1  # older logs: no tau_ext
+    per_field = (len(header) - 1) // fields
     names = tuple(h.split(".", 1)[1].rsplit(" [", 1)[0] for h in header[1:1 + per_field])
     try:
         data = np.array([[float(x) for x in r] for r in rows[1:]], dtype=float).reshape(-1, len(header))
     except ValueError:
         raise RecordingError(f"{p} has a malformed or truncated row", fix="re-record the log") from None
-    cols = [data[:, 1 + k * per_field:1 + (k + 1) * per_field] for k in range(len(FIELDS))]
+    cols = [data[:, 1 + k * per_field:1 + (k + 1) * per_field] for k in range(fields)]
     return TelemetryLog(names, data[:, 0], *cols)
 
 
@@ -167,13 +179,15 @@ class Telemetry:
         self.capacity = capacity
         self.t = np.zeros(capacity)
         self.rows = np.zeros((capacity, len(FIELDS) * n))  # one row per cycle: the fields side by side
+        self._nan = [math.nan] * n
         self.count = 0
 
-    def record(self, t: float, q_des, dq_des, q, dq, tau, tau_ff) -> None:
-        """Record one cycle (sequences of joint values, SI)."""
+    def record(self, t: float, q_des, dq_des, q, dq, tau, tau_ff, tau_ext=None) -> None:
+        """Record one cycle (sequences of joint values, SI; ``tau_ext`` ``None``: not known, NaN)."""
         i = self.count % self.capacity
         self.t[i] = t
-        self.rows[i] = [*q_des, *dq_des, *q, *dq, *tau, *tau_ff]  # one conversion for the whole record
+        ext = self._nan if tau_ext is None else tau_ext
+        self.rows[i] = [*q_des, *dq_des, *q, *dq, *tau, *tau_ff, *ext]  # one conversion for the whole record
         self.count += 1
 
     def clear(self) -> None:

@@ -29,6 +29,9 @@ ROBOTS = REPO / "robots"
 # A simulator in this process shares the CPU (and Python's GIL) with the control loop, so a busy
 # machine can delay its replies by more than the watchdog's 20 ms; hardware keeps the default.
 SIM_FEEDBACK_TIMEOUT = 0.25  # s
+# For the same reason the collision reflex's thresholds are doubled there: a reply that comes late
+# reads like a push to its external torque estimate.
+SIM_COLLISION_SCALE = 2.0
 
 
 def parse_args(description: str, extra: list[tuple[tuple[str, ...], dict]] | None = None) -> argparse.Namespace:
@@ -81,6 +84,8 @@ def open_arm(args: argparse.Namespace, robot: str, **arm_options) -> Iterator[tu
             arm = akarm.Arm(config, clock=sim.clock, **arm_options)
         else:
             arm = akarm.Arm(config, feedback_timeout=SIM_FEEDBACK_TIMEOUT, **arm_options)
+            arm.set_collision(thresholds={n: t * SIM_COLLISION_SCALE
+                                          for n, t in arm.collision_thresholds.items() if t is not None})
         with arm:
             yield arm, sim
 

@@ -10,12 +10,13 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from .conftest import ROOT
 
 EXAMPLES = ROOT / "examples"
-NAMES = ("first_move", "waypoints", "teach_and_replay", "torque_control", "servo_mode", "two_arms")
+NAMES = ("first_move", "waypoints", "teach_and_replay", "torque_control", "servo_mode", "two_arms", "cartesian_pick")
 TIMEOUT = 180.0  # s per example; each takes a few seconds in lock step
 
 
@@ -136,6 +137,25 @@ def test_two_arms(results: dict[str, Result]) -> None:
         assert any(e > 0 for e in ends)
     [(left_moved,)] = numbers(r"left arm moved ([0-9.]+) mrad", out)
     assert left_moved < 2.0
+
+
+def test_cartesian_pick(results: dict[str, Result]) -> None:
+    out = ok(results, "cartesian_pick")
+    [(x, y, z)] = numbers(r"above the object at \[([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\] m, tool down", out)
+    assert np.allclose((x, y, z), (0.45, -0.15, 0.37), atol=2e-3)
+    lines = numbers(r"(?:descend|lift|carry|lower|retreat): ([0-9]+) cm in ([0-9.]+) s, within ([0-9.]+) mm of "
+                    r"the line", out)
+    assert [round(cm) for cm, _, _ in lines] == [12, 12, 35, 12, 12]
+    for _, _, off in lines:
+        assert off < 1.0  # straight lines, measured at the motors' readings
+    descend, lift = lines[0], lines[1]
+    assert descend[1] >= 0.12 / 0.1  # max_velocity=0.1 m/s
+    assert lift[1] < descend[1]  # without the cap: as fast as the joints allow
+    [(weight, threshold, estimate)] = numbers(
+        r"its weight on the \w+ is ([0-9.]+) N·m \(collision threshold ([0-9.]+)\); external torque estimate at "
+        r"most ([0-9.]+) N·m", out)
+    assert weight > threshold  # unannounced, the object would have stopped the arm ...
+    assert estimate < 0.1 * threshold  # ... told with set_payload, the reflex expects it
 
 
 def test_fast_is_refused_on_hardware() -> None:

@@ -34,6 +34,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
     "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
+    "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
 }
 

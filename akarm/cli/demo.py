@@ -50,6 +50,9 @@ WAYPOINTS: tuple[str | tuple[float, ...], ...] = (
 #: with the control loop, so a pause of the whole process (a busy machine, a garbage collection)
 #: delays the replies by as much as the pause; on hardware the Arm's default, 20 ms, applies.
 REALTIME_FEEDBACK_TIMEOUT = 0.25
+#: the same reason, for the collision reflex: a reply that comes late reads like a push (the
+#: estimate takes the time it did not see for a torque), so in real time its thresholds are doubled
+REALTIME_COLLISION_SCALE = 2.0
 _channels = itertools.count()
 
 
@@ -115,6 +118,21 @@ def _session(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
     return steps
 
 
+def _reflex_line(arm: Arm) -> str:
+    """The collision reflex over the session: armed on which joints, and how close the estimate came."""
+    import numpy as np
+
+    th = arm.collision_thresholds
+    log = arm.telemetry()
+    watched = [k for k, n in enumerate(arm.names) if th[n] is not None]
+    if not watched:
+        return "collision reflex: no thresholds in the robot file (akarm identify suggests some)"
+    ratio = np.nanmax(np.abs(log.tau_ext[:, watched]), axis=0) / np.array([th[arm.names[k]] for k in watched])
+    k = watched[int(np.argmax(ratio))]
+    return (f"collision reflex: armed on {len(watched)} joints, 0 stops; the external torque estimate came to "
+            f"{ratio.max() * 100:.0f} % of a threshold at most ({arm.names[k]})")
+
+
 def _tracking_table(log: TelemetryLog) -> str:
     import numpy as np
 
@@ -153,9 +171,11 @@ def run(args: argparse.Namespace) -> int:
         else:
             arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
                       timing=args.profile)
+            arm.set_collision(thresholds={n: t * REALTIME_COLLISION_SCALE
+                                          for n, t in arm.collision_thresholds.items() if t is not None})
             watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none
-            print(f"  (watchdog: {watchdog * 1e3:.0f} ms, as the simulator shares this process; "
-                  "on hardware the default is 20 ms)", flush=True)
+            print(f"  (watchdog: {watchdog * 1e3:.0f} ms and collision thresholds doubled, as the simulator shares "
+                  "this process; on hardware the default is 20 ms and the file's thresholds)", flush=True)
         with arm:
             t_session = arm.clock.now()
             events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
@@ -167,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
                 print(_step_line(k, label, t1 - t0, arm.telemetry(since=t0)), flush=True)
             log = arm.telemetry(since=t_session)
             stats = arm.stats()
+            reflex = _reflex_line(arm)
             t0 = arm.clock.now()
             arm.disable()
             print(f"  {k + 1:>2}. {'disable (damping, then exit motor mode)':<42}{arm.clock.now() - t0:6.2f} s",
@@ -175,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - wall0
 
     print()
+    print(reflex)
     print(_tracking_table(log))
     print()
     timing = "simulated time, lock step" if args.fast else "this machine, wall clock"

@@ -8,11 +8,15 @@
     akarm move robots/arm6.yaml elbow=0.5 wrist_pitch=-0.2    # named joints; the others stay
     akarm move robots/arm6.yaml ready elbow=1.0               # a pose, with some joints changed
     akarm move robots/planar2.yaml up --hold 5 --log up.csv
+    akarm move robots/arm6.yaml --xyz 0.45 0.0 0.5 --rpy 0 1.57 0   # the tool frame to a pose
+    akarm move robots/arm6.yaml --xyz 0.45 0.1 0.5 --linear         # in a straight line, orientation kept
 
 Negative values need no ``--``. Names of poses and joints are checked (with a did-you-mean), the
 ``--log`` file's name and folder too, and the motion is planned (jerk-limited, joints arriving
-together) and checked against every joint's limits, all before anything is enabled. Ctrl-C brings
-the arm to rest smoothly, then disables it (exit 130).
+together) and checked against every joint's limits, all before anything is enabled. With ``--xyz``
+the joint positions are solved (and the motion checked) once the arm is enabled and its pose known;
+``--linear`` keeps the tool on the straight line, jerk-limited along it. Ctrl-C brings the arm to
+rest smoothly, then disables it (exit 130).
 """
 
 from __future__ import annotations
@@ -32,17 +36,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from .options import negative_values_are_positional
 
     add_robot_arguments(parser)
-    parser.add_argument("target", metavar="TARGET", nargs="+",
+    parser.add_argument("target", metavar="TARGET", nargs="*",
                         help="a pose name from the robot file; or joint positions in rad, config order, comma- or "
                              "space-separated (0.1,-0.2 or 0.1 -0.2); or JOINT=VALUE for some joints (elbow=0.5), "
                              "after a pose name or alone (the other joints stay where they are)")
     negative_values_are_positional(parser)
+    _intermixed(parser)
+    parser.add_argument("--xyz", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                        help="instead of TARGET: move the tool frame to this position (m, base frame); its "
+                             "orientation stays as it is unless --rpy gives one")
+    parser.add_argument("--rpy", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                        help="with --xyz: the tool's orientation, rad (URDF convention: Rz(yaw) Ry(pitch) Rx(roll))")
+    parser.add_argument("--linear", action="store_true", help="with --xyz: move the tool in a straight line")
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",
                         help="fraction of the joint limits, 0 < F <= 1 (default 1)")
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
     add_profile_argument(parser)
+
+
+def _intermixed(parser: argparse.ArgumentParser) -> None:
+    """Let TARGET come after options (``move R.yaml -c can0 home``) now that it may be left out (for
+    ``--xyz``): argparse otherwise settles an optional positional, empty, at the first option it
+    meets. Its own ``parse_known_intermixed_args`` does it right and calls ``parse_known_args``
+    itself, so the instance's ``parse_known_args`` (what the verb's sub-parser is called with) is
+    swapped only outside it."""
+    plain = parser.parse_known_args
+
+    def parse_known_args(args=None, namespace=None):
+        parser.parse_known_args = plain  # type: ignore[method-assign]
+        try:
+            return parser.parse_known_intermixed_args(args, namespace)
+        finally:
+            parser.parse_known_args = parse_known_args  # type: ignore[method-assign]
+
+    parser.parse_known_args = parse_known_args  # type: ignore[method-assign]
 
 
 def _number(text: str) -> float | None:
@@ -105,22 +134,25 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
+    from ..errors import AkarmError
+
+    if not args.target and args.xyz is None:
+        raise AkarmError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
+    if args.target and args.xyz is not None:
+        raise AkarmError("give either a TARGET or --xyz, not both")
+    if args.xyz is None and (args.rpy is not None or args.linear):
+        raise AkarmError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
+    if args.xyz is not None:
+        return _move_tool(args)
     from .served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     import numpy as np
 
-    from ..errors import AkarmError
-    from .common import controlled, deferred_signals, format_q, interrupted, stop_smoothly
-    from .options import check_output
+    from .common import format_q
 
-    if not 0 < args.speed <= 1:
-        raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
-    if not args.hold >= 0:
-        raise AkarmError(f"--hold {args.hold} must not be negative")
-    check_output(args.log, LOG_SUFFIXES, "telemetry")
-    config = load_from_args(args)
+    config = _checked_config(args)
     target = parse_target(args.target, config)
     wanted = {n: q for n, q in zip(config.joint_names, config.pose(target) if isinstance(target, str) else target,
                                    strict=True)} if not isinstance(target, dict) else dict(target)
@@ -131,16 +163,49 @@ def run(args: argparse.Namespace) -> int:
             raise AkarmError(f"target {q:+.4f} rad is outside [{lo.lower:+.4f}, {lo.upper:+.4f}] rad", joint=j.name,
                              fix="choose a target within the joint's limits")
     label = " ".join(args.target)
+    q_target = np.zeros(len(config.joints))
+
+    def start(arm):
+        nonlocal q_target
+        motion = arm.move_to(target, speed=args.speed, wait=False)
+        q_target = (np.array(config.pose(target) if isinstance(target, str) else target, dtype=float)
+                    if not isinstance(target, dict) else motion.plan.sample(motion.plan.t_end)[0])
+        print(f"moving to {label} {format_q(q_target)} in {motion.duration:.2f} s", flush=True)
+        return motion
+
+    def arrived(arm) -> str:
+        state = arm.state()
+        err = np.abs(state.q - q_target)
+        return (f"arrived: {format_q(state.q)}, largest error {err.max() * 1e3:.2f} mrad "
+                f"({arm.names[int(err.argmax())]})")
+
+    return _session(args, config, start, arrived)
+
+
+def _checked_config(args: argparse.Namespace):
+    """The options every move checks before anything is enabled, and the robot."""
+    from ..errors import AkarmError
+    from .options import check_output
+
+    if not 0 < args.speed <= 1:
+        raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
+    if not args.hold >= 0:
+        raise AkarmError(f"--hold {args.hold} must not be negative")
+    check_output(args.log, LOG_SUFFIXES, "telemetry")
+    return load_from_args(args)
+
+
+def _session(args: argparse.Namespace, config, start, arrived) -> int:
+    """Enable, ``start(arm)`` a motion and wait for it (and hold), print ``arrived(arm)``, disable;
+    Ctrl-C stops smoothly. Always ends disabled; the telemetry saved with ``--log``."""
+    from .common import controlled, deferred_signals, interrupted, stop_smoothly
+
     code = 0
     with controlled(config, timing=args.profile) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()
-            motion = arm.move_to(target, speed=args.speed, wait=False)
-            q_target = (np.array(config.pose(target) if isinstance(target, str) else target, dtype=float)
-                        if not isinstance(target, dict) else motion.plan.sample(motion.plan.t_end)[0])
-            print(f"moving to {label} {format_q(q_target)} in {motion.duration:.2f} s", flush=True)
-            motion.wait()
+            start(arm).wait()
             if args.hold > 0:
                 arm.sleep(args.hold)
         except KeyboardInterrupt as e:
@@ -148,10 +213,7 @@ def run(args: argparse.Namespace) -> int:
             print("interrupted: stopped and disabled", file=sys.stderr)
             code = interrupted(e)
         else:
-            state = arm.state()
-            err = np.abs(state.q - q_target)
-            print(f"arrived: {format_q(state.q)}, largest error {err.max() * 1e3:.2f} mrad "
-                  f"({arm.names[int(err.argmax())]})")
+            print(arrived(arm))
             with deferred_signals():
                 arm.disable()
         if args.log:
@@ -160,3 +222,44 @@ def run(args: argparse.Namespace) -> int:
     if code == 0:
         print("disabled")
     return code
+
+
+def _move_tool(args: argparse.Namespace) -> int:
+    """--xyz [--rpy] [--linear]: solved and checked once the arm's pose is known (after enabling)."""
+    import numpy as np
+
+    from ..errors import StateError
+    from ..ik import make_pose, pose_error
+    from ..server.registry import any_server, find_server
+
+    config = _checked_config(args)
+    if any_server() and find_server(config) is not None:
+        raise StateError("akarm serve drives this robot: --xyz moves are not served yet",
+                         fix="stop the server, or move to joint positions")
+    xyz = np.array(args.xyz)
+    target = make_pose(args.xyz, rpy=args.rpy) if args.rpy is not None else None
+    start_pose = np.eye(4)
+
+    def _xyz(p) -> str:
+        return "(" + ", ".join(f"{x:+.4f}" for x in p) + ") m"
+
+    def start(arm):
+        nonlocal start_pose
+        start_pose = arm.tool_pose()
+        move = arm.move_linear if args.linear else arm.move_to_pose
+        motion = move(target if target is not None else xyz, speed=args.speed, wait=False)
+        how = "in a straight line" if args.linear else "(joint-space move)"
+        print(f"moving the tool to {_xyz(xyz)} {how} in {motion.duration:.2f} s", flush=True)
+        return motion
+
+    def arrived(arm) -> str:
+        reached = arm.tool_pose()
+        text = (f"arrived: tool at {_xyz(reached[:3, 3])}, {np.linalg.norm(reached[:3, 3] - xyz) * 1e3:.2f} mm "
+                "from the target")
+        if target is not None:
+            text += f", {pose_error(reached, target)[1] * 1e3:.1f} mrad from the target orientation"
+        elif arm.n >= 6:
+            text += f", {pose_error(reached, start_pose)[1] * 1e3:.1f} mrad from the orientation it had"
+        return text
+
+    return _session(args, config, start, arrived)

@@ -1,0 +1,121 @@
+"""The collision reflex on the simulated arm6, in lock step: detection latency and false stops.
+
+    .venv/bin/python benchmarks/bench_collision.py [--pulses N] [--minutes M]
+
+Latency: during fast moves between random poses (full speed), a push of twice a joint's threshold
+(robots/arm6.yaml's, what `akarm identify` suggests for the simulator) starts at a random moment on
+one joint; the time from the push to the `CollisionError` is measured, per joint.
+
+False stops: the `akarm demo` session, then M minutes of moves between random poses at random
+speeds, through waypoints and along straight lines, with pauses, all with the reflex armed; every
+`CollisionError` is counted (and the session goes on after re-enabling). The largest estimate per
+joint is printed as a share of its threshold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from akarm import AkarmError, CollisionError, LimitError, load_robot  # noqa: E402
+from akarm.arm import Arm  # noqa: E402
+from akarm.cli.demo import _session  # noqa: E402
+from akarm.sim import SimulatedRobot  # noqa: E402
+
+ARM6 = load_robot(ROOT / "robots" / "arm6.yaml")
+LO = np.array([-1.5, -0.3, -0.5, -1.5, -1.2, -2.0])  # a box the shoulder holds for minutes
+HI = np.array([1.5, 0.3, 1.0, 1.5, 1.4, 2.0])
+
+
+def latencies(pulses: int) -> None:
+    thresholds = [j.collision_threshold for j in ARM6.joints]
+    rng = np.random.default_rng(11)
+    for joint in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_pitch"):
+        k = ARM6.joint_names.index(joint)
+        found, missed = [], 0
+        for trial in range(pulses):
+            cfg = ARM6.with_bus(interface="virtual", channel=f"bench-collision-{joint}-{trial}")
+            with SimulatedRobot(cfg, realtime=False, q0=ARM6.pose("home")) as sim, Arm(cfg, clock=sim.clock) as arm:
+                arm.enable()
+                motion = arm.move_to(LO + rng.random(6) * (HI - LO), wait=False)
+                arm.sleep(float(rng.uniform(0.1, 0.9)) * motion.duration)
+                push = np.zeros(6)
+                push[k] = 2.0 * thresholds[k] * rng.choice([-1.0, 1.0])
+                t0 = sim.t
+                sim.set_external_torque(push)
+                try:
+                    arm.sleep(0.2)
+                    missed += 1
+                except CollisionError as e:
+                    found.append((e.at - t0) * 1e3)
+                    if e.joint != joint:
+                        missed += 1
+        a = np.array(found)
+        print(f"  {joint:<14} push {2 * thresholds[k]:.2f} N·m: latency median {np.median(a):.0f} ms, "
+              f"max {a.max():.0f} ms over {len(a)} pushes; {missed} missed or on another joint")
+
+
+def false_stops(minutes: float) -> None:
+    cfg = ARM6.with_bus(interface="virtual", channel="bench-collision-run")
+    thresholds = np.array([j.collision_threshold for j in ARM6.joints])
+    rng = np.random.default_rng(12)
+    stops: list[str] = []
+    with SimulatedRobot(cfg, realtime=False) as sim, Arm(cfg, clock=sim.clock, telemetry_seconds=10) as arm:
+        for _label, _short, action in _session(arm):
+            try:
+                action()
+            except CollisionError as e:
+                stops.append(f"demo: {e}")
+                arm.enable()
+        demo_peak = arm._ctl.reflex.peak / thresholds
+        arm._ctl.reflex.clear_peak()
+        t0, moves = arm.clock.now(), 0
+        while arm.clock.now() - t0 < 60.0 * minutes:
+            speed = float(rng.uniform(0.3, 1.0))
+            try:
+                if moves % 4 == 3:
+                    pose = arm.tool_pose()
+                    pose[:3, 3] += rng.uniform(-0.08, 0.08, 3)
+                    with contextlib.suppress(LimitError):  # a line the arm refuses: not moved
+                        arm.move_linear(pose, speed=speed)
+                elif moves % 4 == 2:
+                    arm.move_through([LO + rng.random(6) * (HI - LO) for _ in range(3)], speed=speed)
+                else:
+                    arm.move_to(LO + rng.random(6) * (HI - LO), speed=speed)
+                arm.sleep(float(rng.uniform(0.2, 1.2)))
+            except CollisionError as e:
+                stops.append(f"run: {e}")
+                arm.enable()
+            except AkarmError as e:  # another safety stop (overheating, ...): say so, go on
+                print(f"  (not a collision: {type(e).__name__}: {e})")
+                arm.enable()
+            moves += 1
+        run_peak = arm._ctl.reflex.peak / thresholds
+    print(f"  demo session: largest estimate {np.round(demo_peak, 2).tolist()} of the thresholds")
+    print(f"  {minutes:g} min, {moves} motions: largest estimate {np.round(run_peak, 2).tolist()} of the thresholds")
+    print(f"  false stops: {len(stops)}")
+    for s in stops:
+        print(f"    {s}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pulses", type=int, default=10, help="pushes per joint (default 10)")
+    ap.add_argument("--minutes", type=float, default=5.0, help="length of the continuous run (default 5)")
+    args = ap.parse_args()
+    print(f"thresholds (robots/arm6.yaml), N·m: {[j.collision_threshold for j in ARM6.joints]}")
+    print("detection latency, a push of twice the threshold during a full-speed move:")
+    latencies(args.pulses)
+    print("false stops with the reflex armed:")
+    false_stops(args.minutes)
+
+
+if __name__ == "__main__":
+    main()

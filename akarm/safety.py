@@ -24,9 +24,11 @@ Checks, per joint, in order (the first that fires is the stop):
    minus the measured position over the joint's limit for three cycles in a row; or a command
    saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
    ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
-   reading that repeats while the command has moved on by more than ``stuck_travel`` and the motor
-   is not saturated (a frozen encoder or a blocked joint: a moving joint's reading changes every
-   step of its 16-bit field, and one whose motor is at its limit is the saturation check's). →
+   reading that repeats while the command has moved on by more than ``stuck_travel``, is more than
+   that from the reading, and the motor is not saturated (a frozen encoder or a blocked joint: a
+   moving joint's reading changes every step of its 16-bit field; a joint turning round more slowly
+   than its command repeats its reading but stays near it; a motor at its limit is the saturation
+   check's). →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -91,8 +93,9 @@ def default_stuck_travel(joint: JointConfig, kp: float, following_error: float) 
     """How far (rad) the command may move while the joint's reading repeats, before the arm stops.
 
     Three times what friction alone could hold back with the PD (``3 · coulomb / kp``), at least
-    0.02 rad, at most the following-error limit. Servo joints: a tenth of the following-error limit
-    (their reading updates only with status frames).
+    0.05 rad (a loaded joint turning round behind a command that reverses fast reads the same step of
+    its field for tens of milliseconds, 20-30 mrad behind), at most the following-error limit. Servo
+    joints: a tenth of the following-error limit (their reading updates only with status frames).
     """
     if joint.stuck_travel is not None:
         return joint.stuck_travel
@@ -100,7 +103,7 @@ def default_stuck_travel(joint: JointConfig, kp: float, following_error: float) 
         return following_error / 10.0
     if not kp > 0:
         return math.inf
-    return min(following_error, max(0.02, 3.0 * joint.friction_model().coulomb / kp))
+    return min(following_error, max(0.05, 3.0 * joint.friction_model().coulomb / kp))
 
 
 @dataclass(frozen=True)
@@ -293,8 +296,10 @@ class Supervisor:
                 if q != last_value[i] or sat:
                     last_value[i], des_at[i] = q, qd
                 else:
-                    travel = qd - des_at[i]
-                    if travel > self._stuck[i] or travel < -self._stuck[i]:
+                    # the command moved on, and is that far from the reading now: a joint that only turns
+                    # round slower than its command (readings repeat within one step of the field) is not
+                    travel, lim = qd - des_at[i], self._stuck[i]
+                    if (travel > lim or travel < -lim) and (e > lim or e < -lim):
                         return TrackingError(
                             f"its reading stays at {q:+.4f} rad while the command moved {travel * 1e3:+.0f} mrad "
                             f"(limit {self._stuck[i] * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "

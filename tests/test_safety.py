@@ -263,7 +263,7 @@ def test_default_following_errors(planar2: RobotConfig) -> None:
     servo = replace(el, mode="servo", status_rate_hz=100.0)
     v, a = servo.limits.velocity, servo.limits.acceleration
     assert default_following_error(servo, 0.0) == pytest.approx(v * v / (2 * a) + 3 * v / 100.0 + 0.1)
-    assert default_stuck_travel(sh, 40.0, 0.45) == pytest.approx(max(0.02, 3 * sh.friction_model().coulomb / 40))
+    assert default_stuck_travel(sh, 40.0, 0.45) == pytest.approx(max(0.05, 3 * sh.friction_model().coulomb / 40))
     assert default_stuck_travel(replace(sh, stuck_travel=0.05), 40.0, 0.45) == 0.05
 
 

@@ -88,11 +88,10 @@ def position_extrema(traj: ruckig.Trajectory) -> list[tuple[float, float, float,
     exact: from its profiles' phases (the brake that brings a start outside the limits back within
     them, then the seven phases), and its end.
 
-    ruckig's own ``position_extrema`` (Community Version, 0.19 and upstream) looks for a reversal
-    (velocity through zero) only inside phases with jerk, and misses one inside a phase of constant
-    acceleration: a move that starts moving away from its target (a retarget) turns around in such a
-    phase, and passes its reported extrema by up to the whole overshoot (ruckig issue #215, "fixed in
-    the Pro version").
+    ruckig's own ``position_extrema`` (Community Version; seen with 0.19.4) misses a reversal
+    (velocity through zero) inside a phase of constant acceleration: a move that starts moving away
+    from its target (a retarget) turns around in such a phase, and passes the reported extrema by up
+    to the whole overshoot (0.11 rad in tests/test_trajectory.py).
     """
     out = []
     end = traj.at_time(traj.duration)[0]

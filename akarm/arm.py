@@ -355,7 +355,7 @@ class Arm:
                 ``range_margin`` outside a range, and come back into it.
         """
         q = self._target_vector(target)
-        return self._run(self._start(lambda start, now: Plan([self.planner.move(start, q, now, speed)])), wait)
+        return self._run(self._start(lambda start, now: self.planner.move_from(start, q, now, speed)), wait)
 
     def move_through(self, points: Sequence[Target], speed: float = 1.0, wait: bool = True) -> Motion:
         """Move through every point without stopping at the intermediate ones; end at rest on the last.
@@ -386,7 +386,7 @@ class Arm:
         """Retarget online: from the current commanded state (position, velocity, acceleration) to
         ``target``, without a jump. Does not block; call it as often as new targets arrive."""
         q = self._target_vector(target)
-        return self._start(lambda start, now: Plan([self.planner.move(start, q, now, speed)]))
+        return self._start(lambda start, now: self.planner.move_from(start, q, now, speed))
 
     def stop(self, wait: bool = True) -> Motion:
         """Bring the commanded motion to rest, jerk-limited, and hold there."""
@@ -605,8 +605,8 @@ class Arm:
         check = rec_mod.PathPlan(rec, 0.0, speed)
 
         def make(start, now):
-            soft = self.planner.move(start, check.q[0], now, min(speed, 1.0))
-            return Chain([Plan([soft]), rec_mod.PathPlan(rec, now + soft.duration, speed)])
+            soft = self.planner.move_from(start, check.q[0], now, min(speed, 1.0))
+            return Chain([soft, rec_mod.PathPlan(rec, soft.t_end, speed)])
 
         return self._run(self._start(make), wait)
 

@@ -7,7 +7,10 @@ start from wherever the commanded trajectory is, retargeting is smooth, and wayp
 through without stopping.
 
 ruckig's Community Version does not enforce position limits and its waypoint feature calls a cloud
-server: akarm checks every segment's position extrema itself and chains segments for waypoints.
+server: akarm checks every segment's position extrema itself (:func:`position_extrema`: ruckig's
+own miss a reversal at constant acceleration, which retargets have) and chains segments for
+waypoints. A retarget to a slower speed than the motion it interrupts first settles within the
+slower limits at the joints' own (:meth:`Planner.settle`).
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import ruckig
 
 from .errors import LimitError, TrajectoryError
 
-__all__ = ["JointLimits", "Plan", "Planner", "Segment", "State", "Vector"]
+__all__ = ["JointLimits", "Plan", "Planner", "Segment", "State", "Vector", "position_extrema"]
 
 #: Joint values in config order: a list or an array.
 Vector = Sequence[float] | np.ndarray
@@ -57,6 +60,57 @@ class JointLimits:
                 raise LimitError(
                     f"{what} {v:.4f} rad is outside the joint's range [{self.lower[i]:.4f}, {self.upper[i]:.4f}] rad",
                     joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
+
+
+def _phase_extrema(t: float, p: float, v: float, a: float, j: float, t_off: float,
+                   ext: list[float]) -> None:
+    """Widen ``ext`` = [min, t_min, max, t_max] by one constant-jerk phase of ``t`` s starting at
+    ``t_off`` from (p, v, a) with jerk ``j``: its start, and where its velocity passes zero inside it
+    (``v + a·τ + j·τ²/2 = 0``: two roots with jerk, one without: the case ruckig misses)."""
+    taus = [0.0]  # the start; then the reversals strictly inside
+    if j != 0.0:
+        d = a * a - 2.0 * j * v
+        if d >= 0.0:
+            r = math.sqrt(d)
+            taus += [x for x in ((-a - r) / j, (-a + r) / j) if 0.0 < x < t]
+    elif a != 0.0 and 0.0 < -v / a < t:
+        taus.append(-v / a)
+    for tau in taus:
+        x = p + tau * (v + tau * (0.5 * a + tau * j / 6.0))
+        if x < ext[0]:
+            ext[0], ext[1] = x, t_off + tau
+        if x > ext[2]:
+            ext[2], ext[3] = x, t_off + tau
+
+
+def position_extrema(traj: ruckig.Trajectory) -> list[tuple[float, float, float, float]]:
+    """Per DOF ``(min, t_min, max, t_max)`` of a ruckig trajectory's position (rad, s from its start),
+    exact: from its profiles' phases (the brake that brings a start outside the limits back within
+    them, then the seven phases), and its end.
+
+    ruckig's own ``position_extrema`` (Community Version; seen with 0.19.4) misses a reversal
+    (velocity through zero) inside a phase of constant acceleration: a move that starts moving away
+    from its target (a retarget) turns around in such a phase, and passes the reported extrema by up
+    to the whole overshoot (0.11 rad in tests/test_trajectory.py).
+    """
+    out = []
+    end = traj.at_time(traj.duration)[0]
+    for dof, prof in enumerate(traj.profiles[0]):
+        ext = [math.inf, 0.0, -math.inf, 0.0]
+        t_off = 0.0
+        brake = prof.brake
+        if brake.duration > 0.0:
+            for k in range(2):
+                if brake.t[k] > 0.0:
+                    _phase_extrema(brake.t[k], brake.p[k], brake.v[k], brake.a[k], brake.j[k], t_off, ext)
+                    t_off += brake.t[k]
+        pt, pp, pv, pa, pj = prof.t, prof.p, prof.v, prof.a, prof.j
+        for k in range(7):
+            _phase_extrema(pt[k], pp[k], pv[k], pa[k], pj[k], t_off, ext)
+            t_off += pt[k]
+        _phase_extrema(0.0, float(end[dof]), 0.0, 0.0, 0.0, traj.duration, ext)  # the end (and a DOF done early)
+        out.append((ext[0], ext[1], ext[2], ext[3]))
+    return out
 
 
 class Segment:
@@ -237,10 +291,10 @@ class Planner:
         """Raise :class:`LimitError` if ``seg`` passes outside any joint's position range (or ``bounds``,
         from :meth:`bounds_from`)."""
         lower, upper = bounds if bounds is not None else (self.limits.lower, self.limits.upper)
-        for i, b in enumerate(seg.traj.position_extrema):
+        for i, (q_min, t_min, q_max, t_max) in enumerate(position_extrema(seg.traj)):
             lo, hi = lower[i], upper[i]
-            if b.min < lo - 1e-9 or b.max > hi + 1e-9:
-                worst, t = (b.min, b.t_min) if b.min < lo - 1e-9 else (b.max, b.t_max)
+            if q_min < lo - 1e-9 or q_max > hi + 1e-9:
+                worst, t = (q_min, t_min) if q_min < lo - 1e-9 else (q_max, t_max)
                 raise LimitError(
                     f"the planned path reaches {worst:.4f} rad at t = {t:.3f} s, outside [{lo:.4f}, {hi:.4f}] rad",
                     joint=self.limits.names[i],
@@ -268,6 +322,53 @@ class Planner:
         self.check_extrema(seg, bounds)
         return seg
 
+    def settle(self, start: State, t0: float, speed: float) -> Segment | None:
+        """The segment that brings a start moving faster than ``speed`` allows (a retarget to a slower
+        speed) within the slower limits, at the joints' own limits; ``None`` if it is within them.
+
+        Every joint's acceleration goes to zero at its full jerk, and its velocity to where that
+        leaves it, or to the slower velocity limit if that is less (velocity interface, each joint as
+        soon as it can). Planned at the slower jerk instead (ruckig's own brake), a joint accelerating
+        at 12 rad/s² into a move at speed 0.3 (3.2 rad/s³) would keep accelerating for seconds,
+        to ten times its velocity limit. Checked against the position ranges like a move.
+
+        Raises:
+            LimitError: the joint's path, settling, leaves its range.
+        """
+        if speed >= 1.0:
+            return None
+        slow = self.limits.scaled(speed)
+        v0, a0 = np.asarray(start[1], dtype=float), np.asarray(start[2], dtype=float)
+        tol = 1e-9
+        # the speed where the acceleration's ramp to 0 at the slower jerk would end: a start within the
+        # slower limits can still pass the velocity limit on its way (a₀ = a_slow at v₀ = v_slow)
+        v_slow_free = v0 + a0 * np.abs(a0) / (2.0 * slow.jerk)
+        if np.all(np.abs(v_slow_free) <= slow.velocity * (1 + tol)) and \
+                np.all(np.abs(a0) <= slow.acceleration * (1 + tol)):
+            return None
+        v_free = v0 + a0 * np.abs(a0) / (2.0 * self.limits.jerk)  # where the acceleration's ramp to 0 ends
+        inp = self._input(self.limits, *start)
+        inp.control_interface = ruckig.ControlInterface.Velocity
+        inp.synchronization = ruckig.Synchronization.No
+        inp.target_velocity = [float(x) for x in np.clip(v_free, -slow.velocity, slow.velocity)]
+        inp.target_acceleration = [0.0] * self.dofs
+        seg = self._calculate(inp, t0)
+        self.check_extrema(seg, self.bounds_from(start[0]))
+        return seg
+
+    def move_from(self, start: State, target: Vector, t0: float, speed: float = 1.0) -> Plan:
+        """:meth:`move` from any commanded state: first :meth:`settle` if the start moves faster than
+        ``speed`` allows (a retarget to a slower speed), then the move at ``speed``.
+
+        Raises:
+            LimitError, TrajectoryError: as :meth:`move`; nothing is planned in part.
+        """
+        self.limits.check_position(target)
+        first = self.settle(start, t0, speed)
+        if first is None:
+            return Plan([self.move(start, target, t0, speed)])
+        return Plan([first, self.move(first.end, target, t0 + first.duration, speed)])
+
     def stop(self, start: State, t0: float) -> Segment:
         """The jerk-limited stop to rest from ``start`` (velocity interface: no position target).
 
@@ -287,7 +388,8 @@ class Planner:
         central difference of the neighbouring points over the rest-to-rest durations of the two
         segments (zero where the joint reverses), scaled down from 1 to 0.25 until the whole chain
         respects every limit; the fastest valid chain is kept (ruckig plans cost microseconds).
-        Ends at rest on the last point.
+        Ends at rest on the last point. A start moving faster than ``speed`` allows is first
+        brought within its limits (:meth:`settle`: one more segment, before the waypoints').
         """
         pts = [np.asarray(p, dtype=float) for p in points]
         if not pts:
@@ -298,7 +400,10 @@ class Planner:
                                  fix="give one angle per joint, in config order")
             self.limits.check_position(p, what=f"waypoint {k}")
         if len(pts) == 1:
-            return Plan([self.move(start, pts[0], t0, speed)])
+            return self.move_from(start, pts[0], t0, speed)
+        first = self.settle(start, t0, speed)  # a start faster than `speed` allows: within its limits first
+        if first is not None:
+            start, t0 = first.end, t0 + first.duration
 
         q0 = np.asarray(start[0], dtype=float)
         nodes = [q0, *pts]
@@ -317,7 +422,7 @@ class Planner:
                 v[np.sign(before) != np.sign(after)] = 0.0
                 vias.append(np.clip(v * factor, -limits.velocity, limits.velocity))
             try:
-                segs = []
+                segs = [] if first is None else [first]
                 state: tuple = start
                 t = t0
                 for k, p in enumerate(pts):

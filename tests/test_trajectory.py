@@ -134,3 +134,52 @@ def test_through_checks_waypoints_and_sizes() -> None:
         p.through(rest([0, 0, 0]), [[0.5, 0, 0], [0, 3.0, 0]], 0.0)
     with pytest.raises(LimitError, match="has 2 values"):
         p.through(rest([0, 0, 0]), [[0.5, 0]], 0.0)
+
+
+def test_exact_extrema_see_a_reversal_at_constant_acceleration_that_ruckig_misses() -> None:
+    """A move that starts moving away from its target (a retarget) turns around inside a phase of
+    constant acceleration; ruckig's own extrema (Community Version) miss that reversal."""
+    from akarm.trajectory import position_extrema
+
+    p = Planner(limits())
+    start = (np.array([0.0, 0.0, 0.0]), np.array([-2.0, 0.0, 0.0]), np.zeros(3))
+    seg = p.move(start, [1.0, 0.5, 0.2], 0.0)
+    t = np.linspace(0.0, seg.duration, 20001)
+    q = np.array([seg.traj.at_time(x)[0] for x in t])
+    ours = position_extrema(seg.traj)
+    np.testing.assert_allclose([e[0] for e in ours], q.min(axis=0), atol=1e-6)
+    np.testing.assert_allclose([e[2] for e in ours], q.max(axis=0), atol=1e-6)
+    assert abs(t[np.argmin(q[:, 0])] - ours[0][1]) < 1e-3  # and when
+    assert seg.traj.position_extrema[0].min > q[:, 0].min() + 0.1  # ruckig's: 0.11 rad short
+    # so a path that passes a limit this way is refused (ruckig's extrema would let it through)
+    with pytest.raises(LimitError, match=r"reaches -2\.09"):
+        p.move((np.array([-1.8, 0.0, 0.0]), np.array([-2.0, 0.0, 0.0]), np.zeros(3)), [1.0, 0.5, 0.2], 0.0)
+
+
+@pytest.mark.parametrize("speed", [0.3, 0.6, 0.9])
+def test_a_retarget_to_a_slower_speed_stays_within_the_joint_limits(speed: float) -> None:
+    """Retargeted mid-move at a slower speed factor, the joints first settle within the slower limits
+    at their own: ruckig alone brakes at the slower jerk, and a joint accelerating hard keeps
+    accelerating for seconds (at 0.3: to 20 times its velocity limit, 1000 rad away)."""
+    lim = limits()
+    p = Planner(lim)
+    fast = Plan([p.move(rest([0.0, 0.0, 0.0]), [1.8, -1.8, 1.5], 0.0)])
+    _t, _q, _v, a = sampled(fast)
+    t_hard = _t[int(np.argmax(np.abs(a[:, 1])))]  # hardest acceleration of the fastest joint
+    start = fast.sample(t_hard)
+    plan = p.move_from(start, [-0.5, 0.5, 0.0], t_hard, speed)
+    for got, want in zip(plan.sample(t_hard), start, strict=True):
+        np.testing.assert_allclose(got, want, atol=1e-9)  # no jump
+    assert_within_limits(plan, lim)  # never beyond the joints' own limits, not even settling
+    settled = plan.segments[0].t0 + plan.segments[0].duration
+    assert len(plan.segments) == 2 and settled - t_hard < 0.5
+    slow = lim.scaled(speed)
+    _t2, _q2, v2, a2 = sampled(Plan(plan.segments[1:]))
+    assert np.all(np.abs(v2) <= slow.velocity * (1 + 1e-6)) and np.all(np.abs(a2) <= slow.acceleration * (1 + 1e-6))
+    q_end, v_end, _ = plan.sample(plan.t_end)
+    np.testing.assert_allclose(q_end, [-0.5, 0.5, 0.0], atol=1e-9)
+    np.testing.assert_allclose(v_end, 0.0, atol=1e-9)
+    # a start the slower limits can take as it is needs no settling
+    assert len(p.move_from(fast.sample(0.001), [0.1, 0.1, 0.1], 0.001, 1.0).segments) == 1
+    calm = Plan([p.move(rest([0.0, 0.0, 0.0]), [1.0, 1.0, 1.0], 0.0, speed=0.2)])
+    assert len(p.move_from(calm.sample(0.5), [0.0, 0.0, 0.0], 0.5, speed).segments) == 1

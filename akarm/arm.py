@@ -272,8 +272,9 @@ class Arm:
            consistent replies, the first within its feedback timeout (else
            :class:`~akarm.StaleFeedback`). Servo joints: two status frames.
         3. Damping (kp = 0, the joint's kd, gravity feed-forward at the measured pose; servo: a
-           braking current) until every joint is slower than ``settle_speed`` for five cycles
-           (else :class:`~akarm.NotSettled` after ``settle_timeout``).
+           braking current) until every joint is slower than ``settle_speed`` (with its weight
+           carried a swing only decays, so the first reading below it is rest; else
+           :class:`~akarm.NotSettled` after ``settle_timeout``).
         4. The measured pose becomes the commanded one; kp ramps up from zero over ``enable_ramp`` s.
 
         Args:
@@ -507,6 +508,9 @@ class Arm:
         feed-forward at the measured pose. Servo joints: current mode with the gravity current
         (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all but the following error).
         """
+        if not (isinstance(damping, int | float) and math.isfinite(damping) and damping >= 0):
+            raise LimitError(f"teach damping must be a finite number of N·m·s/rad, at least 0, got {damping!r}",
+                             fix="e.g. arm.teach(0.1); 0 leaves the joints free")
         self._ctl.require_enabled()
         for j in self.joints:
             if not j.answers_commands and j.motor.kt is None:

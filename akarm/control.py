@@ -170,6 +170,7 @@ class _Enabling:
     received0: list[int]  # frames_received per joint when the enable began
     first_reply: list[float | None]
     entered: bool = False
+    first_sent: float = 0.0  # when the first frames (ENTER) went out
     settling_since: float | None = None  # contact made with every joint; damping since
 
 
@@ -202,6 +203,8 @@ class Controller:
         self.lock = threading.RLock()
         self.modes = ModeMachine()
         self.loop: ControlLoop | None = None
+        self._closing = False  # close() is under way (in another thread)
+        self._signals_installed = False  # this controller counts in akarm.signals' handlers
         self.telemetry = Telemetry(config.joint_names, max(1, int(telemetry_seconds * config.rate_hz)))
 
         lim = [j.limits for j in config.joints]
@@ -316,7 +319,7 @@ class Controller:
                                 on_crash=self._crashed)
         self.loop.start()
         _open_controllers.add(self)
-        signals.install()
+        self._signals_installed = signals.install()
 
     def close(self, warn: str | None = None) -> None:
         """Disable the arm if it may be powered (damping, then exit), stop the loop, close the buses.
@@ -324,19 +327,24 @@ class Controller:
         Never raises; signals (Ctrl-C, SIGTERM) are held back until the arm is disabled. ``warn``:
         a warning to give if the arm was still powered (the program ended, or dropped the Arm).
         """
-        if self.modes.mode is Mode.CLOSED:
-            return
+        with self.lock:
+            if self.modes.mode is Mode.CLOSED or self._closing:
+                return
+            self._closing = True
         with signals.deferred(reraise=threading.current_thread() is threading.main_thread() and warn is None):
             try:
                 if self.modes.mode.powered and self.modes.mode is not Mode.FAULT:
                     if warn is not None:
                         warnings.warn(warn, UnsafeExitWarning, stacklevel=3)
-                    with contextlib.suppress(AkarmError):
-                        self.disable()
+                    if not self._on_loop_thread():  # (the loop cannot wait for its own cycles)
+                        with contextlib.suppress(Exception):  # whatever fails, the frames below still go out
+                            self.disable()
             finally:
                 if self.loop is not None:
                     self.loop.stop()
                 with self.lock:
+                    if self.modes.mode.powered:  # the stop did not run to its end (a stalled or dead loop): exit now
+                        self._release_all()
                     self.modes.go(Mode.CLOSED)
                 close_buses(self.buses)
                 self._live = []
@@ -346,12 +354,38 @@ class Controller:
                         self._can_logger.stop()
                     self._can_logger = None
                 _open_controllers.discard(self)
-                signals.uninstall()
+                if self._signals_installed:
+                    self._signals_installed = False
+                    signals.uninstall()
+                self._closing = False
+
+    def _on_loop_thread(self) -> bool:
+        return self.loop is not None and self.loop.thread is threading.current_thread()
+
+    def _release_all(self) -> None:
+        """Exit motor mode (MIT) or release (servo) on every joint at once, without damping: the last
+        resort when the loop cannot run the stop sequence."""
+        for j in self.joints:
+            for f in j.release_frames():
+                with contextlib.suppress(Exception):
+                    self._send(j, f)
 
     def close_collected(self) -> None:
-        """The Arm was garbage-collected while open: close, with a warning if it was still enabled."""
-        self.close(warn="an akarm Arm was garbage-collected while enabled: akarm damped and disabled it "
-                        "(use `with arm:` or call arm.close())")
+        """The Arm was garbage-collected while open: close, with a warning if it was still enabled.
+
+        The collection may run in the loop's own thread (Python's cycle collector runs in whichever
+        thread allocates): the loop cannot wait for its own cycles, so a thread of its own closes
+        the arm, with the damping, while the loop goes on; if no thread can be started (the
+        interpreter is exiting), the joints exit motor mode at once."""
+        warn = ("an akarm Arm was garbage-collected while enabled: akarm damped and disabled it "
+                "(use `with arm:` or call arm.close())")
+        if self._on_loop_thread():
+            try:
+                threading.Thread(target=self.close, kwargs={"warn": warn}, name="akarm-close").start()
+                return
+            except RuntimeError:
+                pass
+        self.close(warn=warn)
 
     # ------------------------------------------------------------------------------------------
     # requests from the Arm (caller's thread)
@@ -400,18 +434,26 @@ class Controller:
             return
         if self.modes.mode is Mode.STOPPING:
             self.wait_disabled()
+            if self.modes.mode is Mode.FAULT:  # the stop ended in a fault (a bus lost): say that one
+                raise self.fault or StateError("the arm is in fault", fix="close the arm and open it again")
         # listen first: another controller driving our motors shows within this time (in lock step the
         # frames already sent are read by the first cycle, before anything is sent)
         if not self.clock.stepped:
             self.wait_for(lambda: self.clock.now() - self._t_open >= _LISTEN, _LISTEN + 1.0, "the bus to be heard",
                           raise_fault=False)
         with self.lock:
+            if self.modes.mode is not Mode.DISABLED:  # changed meanwhile (another thread, a lost bus)
+                if self.modes.mode is Mode.FAULT:
+                    raise self.fault or StateError("the arm is in fault", fix="close the arm and open it again")
+                raise StateError(f"the arm became {self.modes.mode} while enable() waited: another thread "
+                                 "enables or stops it", fix="enable and disable from one thread")
             now = self.clock.now()
             refused = self._refuse_foreign(now, now - _FOREIGN_RECENT)
             if refused is not None:
                 raise refused
             self.fault = None
             self.enable_error = None
+            self.tau_ff = [0.0] * self.n  # a stop during contact fades from here, not the last session's torque
             for j in self.joints:
                 j.begin_contact()
             contact = []
@@ -479,6 +521,7 @@ class Controller:
         """Plan from the commanded state now (``make_plan(start, now)``) and follow it."""
         self.require_enabled()
         with self.lock:
+            self._require_active()
             now = self.clock.now()
             start = self.plan.sample(now) if self.plan is not None else (self.hold, np.zeros(self.n), np.zeros(self.n))
             plan = make_plan(start, now)
@@ -533,9 +576,20 @@ class Controller:
                 raise LimitError(f"extra torque needs {self.n} finite values (N·m)", fix="one per joint, config order")
             self.ff.extra = v.tolist()
 
+    def _require_active(self) -> None:
+        """(Under the lock) raise the fault, or a StateError, unless the arm is still active: a stop may
+        have come between a caller's check and its taking the lock."""
+        if self.modes.mode is not Mode.ACTIVE:
+            if self.fault is not None:
+                raise self.fault
+            raise StateError(f"the arm is {self.modes.mode}, not enabled", fix="call arm.enable() first")
+
     def enter_teach(self, damping: float) -> None:
         with self.lock:
+            self._require_active()
             self._teach_damping = np.minimum(damping, self.kd).tolist()
+            if self.motion is not None:
+                self.motion._finish(superseded=True)
             self.plan, self.motion = None, None
             self.modes.go(Mode.TEACH)
 
@@ -610,8 +664,7 @@ class Controller:
                 self._bus_lost(j.bus, e, self.clock.now())
             return
         self._send_failures[j.bus] = 0
-        if j.answers_commands:
-            j.frames_sent += 1
+        j.sent()
         if self._can_logger is not None:
             msg.timestamp = time.time()
             self._can_logger.on_message_received(msg)
@@ -625,7 +678,7 @@ class Controller:
             on_it = [j for j in self.joints if j.bus == name]
             cfg = self.config.buses[name]
             stop = BusLost(
-                f"bus {name!r} ({cfg.interface} channel {cfg.channel!r}) failed: {error or type(error).__name__}; "
+                f"bus {name!r} ({cfg.interface} channel {cfg.channel!r}) failed: {str(error) or type(error).__name__}; "
                 f"{', '.join(j.name for j in on_it)} may not have been damped or disabled (the frames were tried; a "
                 "MIT driver keeps its last command until its CAN timeout, if it has one); the other joints were",
                 bus=name,
@@ -788,6 +841,7 @@ class Controller:
                 for f in j.enter_frames():
                     self._send(j, f)
             en.entered = True
+            en.first_sent = now
         for j in js:  # zero gains, zero torque: overrides the remembered command and asks for a reply
             msg = j.neutral()
             if msg is not None:
@@ -797,7 +851,7 @@ class Controller:
         for i, j in enumerate(js):
             if en.first_reply[i] is None and j.frames_received > en.received0[i]:
                 en.first_reply[i] = now
-                delay = contact_delay(en.t0, now, self.period)
+                delay = contact_delay(en.first_sent, now, self.period)
                 if j.answers_commands and delay > self._timeouts[i]:
                     stop = StaleFeedback(
                         f"its first reply came {delay * 1e3:.0f} ms after the first frame (limit "

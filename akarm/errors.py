@@ -305,7 +305,7 @@ class ImplausibleFeedback(SafetyStop):
 
     Attributes:
         value: the last rejected position, rad (joint side).
-        limit: the largest step the joint could have made, rad.
+        limit: the fastest the joint can move (the gate's speed, 1.5 × its velocity range), rad/s.
         count: rejected replies in a row.
     """
 

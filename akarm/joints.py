@@ -197,6 +197,7 @@ class Joint(abc.ABC):
         ones after it are gated against. :meth:`rebase` returns here."""
         self.state.stamp = -math.inf
         self.rejected_run = 0
+        self.rejected_peak = 0  # replies refused before (while disabled, or an odd reference) do not count
         self.accepted_run = 0
 
     def rebase(self) -> None:
@@ -375,10 +376,6 @@ class MitJoint(Joint):
         s.error = r[5] or 0
         s.stamp = now
 
-    def handle_status(self, arbitration_id: int, data: bytes | bytearray, now: float) -> None:
-        """Take a V3 reply (a 0x29xx status frame)."""
-        self.take(arbitration_id, data, now)
-
     def begin_contact(self) -> None:
         super().begin_contact()
         self._checkpoint = (self._last_raw, self._turns)  # a forged first reply must not keep a turn
@@ -470,9 +467,6 @@ class ServoJoint(Joint):
         self._update(units.servo_deg_to_rad(m, s.position_deg), units.erpm_to_rad_s(m, s.speed_erpm), torque,
                      float(s.temperature_c), s.error, now)
 
-    def handle_status(self, arbitration_id: int, data: bytes | bytearray, now: float) -> None:
-        """Take a 0x29xx status frame."""
-        self.take(arbitration_id, data, now)
 
 
 def make_joint(index: int, config: JointConfig) -> Joint:

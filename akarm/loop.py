@@ -307,6 +307,11 @@ class ControlLoop:
         finally:
             _switch_interval.release(id(self))
 
+    @property
+    def thread(self) -> threading.Thread | None:
+        """The loop's thread while it runs (``None`` in lock step: cycles run in the caller's thread)."""
+        return self._thread
+
     def stop(self, timeout: float = 2.0) -> None:
         """Stop the loop thread (after its current cycle)."""
         self._running.clear()

@@ -73,15 +73,15 @@ def install() -> bool:
 
 
 def uninstall() -> None:
-    """Undo one :func:`install`; the last one restores the default action (where ours is still set)."""
+    """Undo one :func:`install` (call it only for an install that returned True); the last one
+    restores the default action where ours is still set, from the main thread (elsewhere ours stays:
+    it ends the program as the default would, by an exception in the main thread)."""
     global _users
-    if threading.current_thread() is not threading.main_thread():
-        return
     with _lock:
         if _users == 0:
             return
         _users -= 1
-        if _users == 0:
+        if _users == 0 and threading.current_thread() is threading.main_thread():
             for sig in _replaced:
                 if signal.getsignal(sig) is _raise:
                     signal.signal(sig, signal.SIG_DFL)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -24,6 +25,12 @@ except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
     pass
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    # Started in the background by a non-interactive shell (`cmd &` in a script), a process ignores
+    # Ctrl-C, and Python then leaves it ignored: the tests that press Ctrl-C on a verb would wait forever.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(autouse=True)

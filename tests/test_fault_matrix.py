@@ -20,6 +20,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -473,6 +474,91 @@ def test_an_arm_dropped_while_enabled_is_disabled_with_a_warning(channel: str) -
             gc.collect()
         assert not any(d.enabled for d in sim.drivers)
         damping_then_exit(wire, cfg)
+
+
+def test_an_arm_collected_in_its_own_loop_thread_is_still_damped_and_disabled(channel: str) -> None:
+    """Python's cycle collector runs in whichever thread allocates, often the loop's own: the loop
+    cannot wait for its own cycles there. The arm must still be damped and disabled (it was closed with
+    the motors enabled: the wait timed out, the buses closed without an EXIT)."""
+    cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(cfg, q0=[0.0, 0.0]) as sim, Wire(cfg, background=True) as wire:  # real time
+        arm = akarm.Arm(cfg, feedback_timeout=0.25)
+        arm.open()
+        arm.enable()
+        ctl = arm._ctl
+        cycle, collected = ctl.loop.cycle, []  # type: ignore[union-attr]
+
+        def collected_here(now, *rest):  # what the collector does when it runs inside a cycle
+            if not collected:
+                collected.append(now)
+                ctl.close_collected()
+            return cycle(now, *rest)
+
+        with pytest.warns(UnsafeExitWarning):
+            ctl.loop.cycle = collected_here  # type: ignore[union-attr]
+            assert wait_until(lambda: ctl.modes.mode is Mode.CLOSED, 10.0)
+        assert collected and not any(d.enabled for d in sim.drivers)
+        assert wait_until(lambda: all(wire.sent_to(j) and wire.sent_to(j)[-1].kind == "exit" for j in cfg.joints), 5)
+        damping_then_exit(wire, cfg, damping_time=0.25)  # with its damping, not only the exit
+
+
+def test_a_loop_that_stopped_running_cannot_keep_close_from_exiting_motor_mode(channel: str) -> None:
+    """A loop that no longer runs its cycles (stalled, dead) cannot run the stop sequence: close() gives
+    up waiting for it and sends the exit frames itself."""
+    cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(cfg, q0=[0.0, 0.0]) as sim, Wire(cfg, background=True) as wire:
+        arm = akarm.Arm(cfg, feedback_timeout=0.25, stop_damping_time=0.05)
+        arm.open()
+        arm.enable()
+        stall = threading.Event()
+        loop = arm._ctl.loop
+        cycle = loop.cycle  # type: ignore[union-attr]
+        loop.cycle = lambda *a: stall.wait(30) or cycle(*a)  # type: ignore[union-attr]
+        arm.close()
+        stall.set()
+        assert arm.mode is Mode.CLOSED
+        assert wait_until(lambda: not any(d.enabled for d in sim.drivers), 2.0)
+        assert all(wire.sent_to(j)[-1].kind == "exit" for j in cfg.joints)
+
+
+def test_a_stop_during_enable_fades_from_zero_not_from_the_last_sessions_torque(channel: str) -> None:
+    with rig("arm6", channel) as (arm, sim, wire):
+        arm.enable()
+        arm.move_to("reach")
+        arm.disable()
+        held = np.abs(arm._ctl.tau_ff).max()
+        seen = []
+        contact = arm._ctl._make_contact
+
+        def first_contact(en, now):
+            seen.append(np.asarray(arm._ctl.tau_ff, float).copy())
+            return contact(en, now)
+
+        arm._ctl._make_contact = first_contact  # type: ignore[method-assign]
+        arm.enable()
+        assert held > 1.0 and np.all(seen[0] == 0.0)  # what a stop during contact would fade from
+
+
+def test_enable_after_a_stop_that_ended_in_a_lost_bus_raises_that_loss(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        moving(arm, "planar2")
+        with arm._ctl.lock:
+            arm._ctl.begin_stop()  # a stop under way (disable() from another thread) ...
+        arm._ctl.buses["arm"].shutdown()  # ... when the bus dies
+        with pytest.raises(BusLost):
+            arm.enable()
+        assert arm.mode is Mode.FAULT and isinstance(arm.fault, BusLost)
+        with pytest.raises(BusLost):
+            arm.enable()
+
+
+def test_teach_damping_must_be_a_finite_non_negative_number(channel: str) -> None:
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
+        arm.enable()
+        for bad in (float("nan"), -0.1, float("inf"), "0.1"):
+            with pytest.raises(LimitError, match="teach damping"):
+                arm.teach(bad)  # type: ignore[arg-type]
+        assert arm.mode is Mode.ACTIVE and arm.enabled
 
 
 # ------------------------------------------------------------------------------------------------

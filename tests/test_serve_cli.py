@@ -105,6 +105,32 @@ def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):
     assert arm.enabled
 
 
+def test_a_teach_client_killed_in_teach_mode_leaves_the_server_holding_not_limp(local_arm, tmp_path):
+    """`akarm teach` killed with SIGKILL (or its terminal gone) cannot end teach mode itself: the
+    server sees its connection end and ends teach mode, holding where the hand left the arm, so
+    moves and trajectories are accepted again."""
+    arm, bus = local_arm
+    with akarm.ArmServer(arm, ros=False) as server:
+        teach = subprocess.Popen([sys.executable, "-m", "akarm", "teach", *bus, str(tmp_path / "k.yaml")],
+                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.monotonic() + 60
+            while server.mode != "teach" and time.monotonic() < deadline and teach.poll() is None:
+                time.sleep(0.02)
+            assert server.mode == "teach"
+            teach.kill()
+            teach.wait(10)
+        finally:
+            teach.stdin.close()  # type: ignore[union-attr]
+        deadline = time.monotonic() + 10
+        while server.mode == "teach" and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert server.mode == "holding" and arm.enabled
+        out = cli("move", *bus, "up", "--speed", "0.5")  # commandable again
+        assert out.returncode == 0, out.stderr
+        assert np.abs(arm.state().q - [1.2, -1.2]).max() < 5e-3
+
+
 def test_akarm_serve_in_a_script_returns_on_sigterm_and_leaves_the_arm_disabled(local_arm):
     arm, bus = local_arm
     done: list[subprocess.CompletedProcess[str]] = []

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import _thread
 import os
 import subprocess
 import sys
+import threading
+import time
+from pathlib import Path
 
 import pytest
 
@@ -12,6 +16,7 @@ import akarm
 from akarm.errors import AkarmError, LimitError, MotorFault, StateError
 from akarm.server import registry
 from akarm.server.control import ControlClient, ControlServer
+from akarm.sim import SimulatedRobot
 
 from .conftest import ROBOTS
 
@@ -56,7 +61,7 @@ def test_virtual_buses_are_never_locked(channel):
 
 
 def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
-    def dispatch(op, args):
+    def dispatch(op, args, client):
         if op == "add":
             return args["a"] + args["b"]
         if op == "limit":
@@ -85,8 +90,95 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
         ControlClient(tmp_path / "c.sock")
 
 
+def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_path):
+    """Ctrl-C while a call waits leaves the server's answer on the socket: the next call must skip it
+    (it took `False` for a recording, and the path was lost)."""
+    release = threading.Event()
+    left = []
+
+    def dispatch(op, args, client):
+        if op == "slow":
+            release.wait(10)
+            return "the slow call's answer"
+        return {"echo": op, "client": client}
+
+    server = ControlServer(tmp_path / "c.sock", dispatch, closed=left.append)
+    try:
+        with ControlClient(tmp_path / "c.sock", timeout=10) as c:
+            timer = threading.Timer(0.2, lambda: (release.set(), _thread.interrupt_main()))
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                c.call("slow")  # cut short: its answer arrives after the interrupt
+            timer.join()
+            first = c.call("first")
+            assert first["echo"] == "first"  # not "the slow call's answer"
+            assert c.call("second")["echo"] == "second"
+            client = first["client"]
+        with ControlClient(tmp_path / "c.sock", timeout=10) as other:
+            assert other.call("x")["client"] != client  # each connection has its own number
+        deadline = time.monotonic() + 5
+        while len(left) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert client in left and len(left) == 2  # the server hears when each connection ends
+    finally:
+        server.close()
+
+
 def test_the_lock_files_live_in_one_place_whatever_the_environment(monkeypatch, tmp_path):
     first = registry.runtime_dir()
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    monkeypatch.setenv("TMPDIR", str(tmp_path))  # a service and a shell may differ in both
     assert registry.runtime_dir() == first and first.name == f"akarm-{os.getuid()}"
-    assert (first.stat().st_mode & 0o777) == 0o700
+    assert first.parent == Path("/tmp") and (first.stat().st_mode & 0o777) == 0o700
+
+
+def test_a_runtime_directory_others_could_write_in_is_refused(monkeypatch, tmp_path):
+    monkeypatch.setattr(registry, "BASE", tmp_path)
+    planted = tmp_path / f"akarm-{os.getuid()}"
+    planted.mkdir(mode=0o777)
+    planted.chmod(0o777)  # made by someone else first (mkdir's mode is masked by the umask)
+    with pytest.raises(StateError, match="not a private directory") as e:
+        registry.runtime_dir()
+    assert "chmod 700" in e.value.fix
+    planted.chmod(0o700)
+    assert registry.runtime_dir() == planted
+
+
+def test_sockets_of_servers_that_are_gone_are_swept_and_live_ones_kept(monkeypatch, tmp_path):
+    monkeypatch.setattr(registry, "BASE", tmp_path)
+    runtime = registry.runtime_dir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    gone = runtime / f"serve-{dead.pid}-7f00.sock"
+    alive = runtime / f"serve-{os.getpid()}-7f01.sock"
+    other = runtime / "serve-akarm_local-can0.lock"
+    for p in (gone, alive, other):
+        p.write_text("")
+    assert registry.sweep_sockets() == 1
+    assert not gone.exists() and alive.exists() and other.exists()
+
+
+def test_server_rates_must_be_positive(channel):
+    config = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        for bad in ({"joint_states_hz": 0}, {"joint_states_hz": -5.0}, {"status_hz": float("nan")}):
+            with pytest.raises(StateError, match="must be a positive number of Hz"):
+                akarm.ArmServer(arm, ros=False, **bad)
+        assert not arm.enabled  # refused before anything was opened or enabled
+
+
+def test_a_dds_configuration_cyclone_cannot_use_is_an_akarm_error(monkeypatch, channel):
+    pytest.importorskip("cyclonedds")
+    from akarm.ros.node import RosNode
+
+    config = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    monkeypatch.setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces>"
+                                         "<NetworkInterface name='no-such-nic0'/></Interfaces></General>"
+                                         "</Domain></CycloneDDS>")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = akarm.ArmServer(arm, ros=False)
+        with pytest.raises(AkarmError, match="Cyclone DDS could not start") as e:
+            RosNode(server, 77, "", 10.0, 1.0)
+        assert "CYCLONEDDS_URI" in e.value.fix

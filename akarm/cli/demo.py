@@ -84,9 +84,9 @@ def _arm6_yaml() -> Path:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Fail before the session, not after it, on an output that cannot be written."""
-    from .options import check_output
+    from .options import TELEMETRY_SUFFIXES, check_output
 
-    check_output(args.log, (".csv", ".npz"), "telemetry")
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
     if not args.no_plot:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")

@@ -27,9 +27,6 @@ from collections.abc import Sequence
 
 from .common import add_profile_argument, add_robot_arguments, load_from_args
 
-#: telemetry files akarm writes
-LOG_SUFFIXES = (".csv", ".npz")
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
@@ -185,13 +182,13 @@ def run(args: argparse.Namespace) -> int:
 def _checked_config(args: argparse.Namespace):
     """The options every move checks before anything is enabled, and the robot."""
     from ..errors import AkarmError
-    from .options import check_output
+    from .options import TELEMETRY_SUFFIXES, check_output
 
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if not args.hold >= 0:
         raise AkarmError(f"--hold {args.hold} must not be negative")
-    check_output(args.log, LOG_SUFFIXES, "telemetry")
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
     return load_from_args(args)
 
 

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_bus_kwargs", "check_output", "negative_values_are_positional", "renamed"]
+__all__ = ["TELEMETRY_SUFFIXES", "add_bus_kwargs", "check_output", "negative_values_are_positional", "renamed"]
 
 
 class _BusKwargs(argparse.Action):
@@ -52,6 +52,10 @@ class _Renamed(argparse.Action):
 def renamed(parser: argparse.ArgumentParser, old: str, new: str, *more: str) -> None:
     """Accept ``old`` (and ``more`` spellings) only to say that it is now ``new`` (exit status 2)."""
     parser.add_argument(old, *more, action=_Renamed, new=new)
+
+
+#: the telemetry log types ``--log`` writes (by suffix)
+TELEMETRY_SUFFIXES = (".csv", ".npz")
 
 
 def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], what: str) -> Path | None:

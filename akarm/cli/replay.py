@@ -16,12 +16,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import TYPE_CHECKING
 
 from .common import add_profile_argument, add_robot_arguments, load_from_args
-
-if TYPE_CHECKING:
-    pass
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,11 +43,11 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import AkarmError
     from ..recording import Keyframes, load
     from .common import controlled, deferred_signals, interrupted, stop_smoothly
-    from .options import check_output
+    from .options import TELEMETRY_SUFFIXES, check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
-    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")  # before anything moves
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config, timing=args.profile)

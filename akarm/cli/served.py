@@ -109,14 +109,14 @@ def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..errors import AkarmError
-    from .move import LOG_SUFFIXES, parse_target
-    from .options import check_output
+    from .move import parse_target
+    from .options import TELEMETRY_SUFFIXES, check_output
 
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if not args.hold >= 0:
         raise AkarmError(f"--hold {args.hold} must not be negative")
-    check_output(args.log, LOG_SUFFIXES, "telemetry")
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
     target = parse_target(args.target, arm.config)  # a pose name, a vector, or {joint: rad}
     if isinstance(target, str):
         target = list(arm.config.pose(target))
@@ -208,15 +208,16 @@ def _status(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from .teach import _reader, _teach_keyframes, _teach_path
+    from .teach import _reader, _teach_keyframes, _teach_path, default_sample_rate
 
     out = Path(args.out)  # checked by the verb before it asked the server
     lines = _reader(sys.stdin)
-    arm.call("enable")
-    arm.call("teach", damping=args.damping)
-    try:
+    state = arm.call("enable")
+    rate = args.sample_rate if args.sample_rate is not None else default_sample_rate(state["rate_hz"])  # its loop
+    try:  # the server ends teach mode itself if this process goes without ending it (killed, hung up)
+        arm.call("teach", damping=args.damping)
         if out.suffix == ".csv":
-            code = _teach_path(arm, out, lines, args.sample_rate, args.seconds)  # type: ignore[arg-type]
+            code = _teach_path(arm, out, lines, rate, args.seconds)  # type: ignore[arg-type]
         else:
             code = _teach_keyframes(arm, out, lines)  # type: ignore[arg-type]
     finally:
@@ -227,11 +228,11 @@ def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 def _replay(arm: RemoteArm, args: argparse.Namespace) -> int:
     from ..errors import AkarmError
-    from .options import check_output
+    from .options import TELEMETRY_SUFFIXES, check_output
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
-    check_output(args.log, (".csv", ".npz"), "telemetry")  # before anything moves
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")  # before anything moves
     path = os.path.abspath(args.file)
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:

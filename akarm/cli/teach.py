@@ -147,6 +147,12 @@ def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float
     return code
 
 
+def default_sample_rate(loop_rate_hz: float) -> float:
+    """Hz: 50, or half the loop rate if that is less (at the loop's own rate, an early cycle misses
+    its sample)."""
+    return min(50.0, loop_rate_hz / 2)
+
+
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from ..errors import AkarmError
@@ -163,12 +169,12 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
     config = get_profile(args.profile).apply(load_from_args(args))
-    if args.sample_rate is None:  # half the loop rate at most: at the loop's own rate, an early cycle misses its sample
-        args.sample_rate = min(50.0, config.rate_hz / 2)
     from .served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
         return served
+    if args.sample_rate is None:
+        args.sample_rate = default_sample_rate(config.rate_hz)
     if out.suffix == ".csv" and args.sample_rate > config.rate_hz:
         raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --sample-rate {config.rate_hz:g}")

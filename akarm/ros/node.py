@@ -21,7 +21,7 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
-from cyclonedds.core import GuardCondition, ReadCondition, WaitSet
+from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from ..errors import AkarmError
 from . import msgs
@@ -62,7 +62,24 @@ class RosNode:
     def __init__(self, server: ArmServer, domain: int, namespace: str, joint_states_hz: float,
                  status_hz: float) -> None:
         self.server = server
-        self.node = Node(domain, namespace)
+        try:
+            self.node = Node(domain, namespace)
+            self._open()
+        except DDSException as e:  # a bad CYCLONEDDS_URI (an interface this machine lacks), no network
+            with contextlib.suppress(Exception):
+                self.node.close()
+            raise AkarmError(f"Cyclone DDS could not start the ROS 2 node in domain {domain}: {e}",
+                             fix="check CYCLONEDDS_URI (its network interface must exist here; unset it for "
+                                 "the default), or serve without ROS 2 (akarm serve --no-ros)") from None
+        self.js_period = 1.0 / joint_states_hz
+        self.status_period = 1.0 / status_hz
+        self._running = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.names = list(server.arm.names)
+        self.published = 0
+        self.errors = 0
+
+    def _open(self) -> None:
         n = self.node
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
@@ -75,12 +92,6 @@ class RosNode:
         self._waitset = WaitSet(n.participant)
         for c in (self._traj_cond, self._wake, *(s.condition for s in self._services)):
             self._waitset.attach(c)
-        self.js_period = 1.0 / joint_states_hz
-        self.status_period = 1.0 / status_hz
-        self._running = threading.Event()
-        self._thread: threading.Thread | None = None
-        self.names = list(server.arm.names)
-        self.published = 0
 
     # -- services ------------------------------------------------------------------------------
     def _enable(self) -> tuple[bool, str]:
@@ -110,31 +121,45 @@ class RosNode:
         self.node.close()
 
     def _run(self) -> None:
-        next_js = next_status = time.monotonic()
+        """Serve until :meth:`stop`. An error of DDS (or a bug) is logged and counted, and serving goes
+        on: this thread ending silently would leave the arm held with nothing published."""
+        self._next = [time.monotonic(), time.monotonic()]  # joint_states, status
         while self._running.is_set():
-            wait = max(0.0, min(next_js, next_status) - time.monotonic())
-            self._waitset.wait(int(wait * 1e9))
-            if not self._running.is_set():
-                break
-            for msg in self._traj.take(16):
-                if _info(msg).valid_data:
-                    with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
-                        times, positions, velocities = trajectory_arrays(msg)
-                        if msg.points and not times:
-                            self.server.refuse("every point of the trajectory is already in the past "
-                                               "(header.stamp + time_from_start)",
-                                               fix="stamp it with the current time, or leave the stamp zero")
-                        self.server.follow(list(msg.joint_names), times, positions, velocities)
-            for s in self._services:  # answered in threads of their own: enabling takes a while, and
-                for req in s.take():  # joint_states must go on meanwhile
-                    threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
-            now = time.monotonic()
-            if now >= next_js:
-                self.publish_joint_states()
-                next_js += self.js_period * (1 + int((now - next_js) / self.js_period))  # skip, never burst
-            if now >= next_status:
-                self.publish_status()
-                next_status = now + self.status_period
+            try:
+                self._serve_once()
+            except Exception as e:
+                self.errors += 1
+                if self.errors <= 10 or self.errors % 1000 == 0:
+                    self.server.log(f"akarm serve: the ROS 2 interface failed ({type(e).__name__}: {e}); "
+                                    f"going on ({self.errors} so far)")
+                time.sleep(0.05)
+
+    def _serve_once(self) -> None:
+        next_js, next_status = self._next
+        wait = max(0.0, min(next_js, next_status) - time.monotonic())
+        self._waitset.wait(int(wait * 1e9))
+        if not self._running.is_set():
+            return
+        for msg in self._traj.take(16):
+            if _info(msg).valid_data:
+                with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
+                    times, positions, velocities = trajectory_arrays(msg)
+                    if msg.points and not times:
+                        self.server.refuse("every point of the trajectory is already in the past "
+                                           "(header.stamp + time_from_start)",
+                                           fix="stamp it with the current time, or leave the stamp zero")
+                    self.server.follow(list(msg.joint_names), times, positions, velocities)
+        for s in self._services:  # answered in threads of their own: enabling takes a while, and
+            for req in s.take():  # joint_states must go on meanwhile
+                threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
+        now = time.monotonic()
+        if now >= next_js:
+            self.publish_joint_states()
+            next_js += self.js_period * (1 + int((now - next_js) / self.js_period))  # skip, never burst
+        if now >= next_status:
+            self.publish_status()
+            next_status = now + self.status_period
+        self._next = [next_js, next_status]
 
     def publish_joint_states(self) -> None:
         s = self.server.arm.state()

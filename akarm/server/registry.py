@@ -16,7 +16,7 @@ import fcntl
 import json
 import os
 import re
-import tempfile
+import stat
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -25,17 +25,32 @@ from typing import Any
 from ..config import BusConfig, RobotConfig
 from ..errors import StateError
 
-__all__ = ["BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir"]
+__all__ = ["BASE", "BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir",
+           "sweep_sockets"]
 
 _LOCAL_ONLY = {"virtual"}  # interfaces whose buses no other process can see
+
+
+#: where :func:`runtime_dir` is made: ``/tmp`` itself, not ``TMPDIR`` (which a service and a shell may set differently)
+BASE = Path("/tmp")
 
 
 def runtime_dir() -> Path:
     """The per-user directory for lock files and control sockets, ``/tmp/akarm-UID`` (created, mode
     700). One fixed place whatever the environment says: a server started by systemd and a CLI in a
-    terminal (different ``XDG_RUNTIME_DIR``, or none) must find each other."""
-    path = Path(tempfile.gettempdir()) / f"akarm-{os.getuid()}"
+    terminal (different ``XDG_RUNTIME_DIR`` or ``TMPDIR``, or none) must find each other.
+
+    Raises:
+        StateError: the directory exists but is another user's, or others may write in it (someone
+            could plant locks and sockets there).
+    """
+    path = BASE / f"akarm-{os.getuid()}"
     path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    st = path.lstat()
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o077:
+        raise StateError(f"{path} is not a private directory of this user (owner uid {st.st_uid}, mode "
+                         f"{stat.S_IMODE(st.st_mode):o})", fix=f"remove it, or make it yours with mode 700 "
+                                                                f"(chmod 700 {path})")
     return path
 
 
@@ -74,9 +89,7 @@ class BusLock:
                 except OSError as e:
                     raise StateError(f"cannot create the lock file for bus {key}: {e}",
                                      fix=f"make {runtime_dir()} writable for this user") from None
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:
+                if not _lock_exclusive(fd):
                     os.close(fd)
                     other = _read(key)
                     who = f"akarm serve (pid {other.get('pid', '?')}, {other.get('robot', '?')})" if other else \
@@ -97,6 +110,20 @@ class BusLock:
             with contextlib.suppress(OSError):
                 os.ftruncate(fd, 0)
             os.close(fd)  # closing drops the flock
+
+
+def _lock_exclusive(fd: int, patience: float = 0.05) -> bool:
+    """Take the exclusive lock, trying for ``patience`` s: a process that only looks whether a server
+    runs (:func:`_held`, every CLI verb and every Arm.open) holds a shared lock for a moment."""
+    end = time.monotonic() + patience
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.002)
 
 
 def _read(key: str) -> dict[str, Any] | None:
@@ -122,6 +149,26 @@ def _held(key: str) -> bool:
     return False
 
 
+def sweep_sockets() -> int:
+    """Remove the control sockets of servers that are gone (``serve-PID-ID.sock`` of a process that
+    no longer exists: a server killed with SIGKILL cannot remove its own). Returns how many."""
+    removed = 0
+    with contextlib.suppress(OSError):
+        for path in runtime_dir().glob("serve-*-*.sock"):
+            pid = path.name.split("-")[1]
+            if not pid.isdigit():
+                continue
+            try:
+                os.kill(int(pid), 0)
+            except ProcessLookupError:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+                    removed += 1
+            except PermissionError:  # alive, another user's
+                pass
+    return removed
+
+
 def any_server() -> bool:
     """True when some ``akarm serve`` of this user runs on this machine (cheap: no config needed)."""
     try:
@@ -141,9 +188,13 @@ def find_server(robot: RobotConfig | Iterable[BusConfig], wait: float = 1.0) -> 
             continue
         end = time.monotonic() + wait
         info = _read(key)
-        while info is None and time.monotonic() < end:  # a server that is writing who it is
+        while info is None and time.monotonic() < end:  # a server that is writing who it is ...
             time.sleep(0.02)
+            if not _held(key):  # ... or one that has just stopped
+                break
             info = _read(key)
+        if info is None and not _held(key):
+            continue
         if info is not None and info.get("pid") == os.getpid():
             continue
         return info or {"pid": None, "bus": key}

@@ -37,7 +37,7 @@ from .. import signals as _signals
 from ..errors import AkarmError, LimitError, StateError
 from ..modes import Mode
 from .control import ControlServer
-from .registry import BusLock, runtime_dir
+from .registry import BusLock, runtime_dir, sweep_sockets
 
 if TYPE_CHECKING:
     from ..arm import Arm, Motion
@@ -75,6 +75,10 @@ class ArmServer:
         if arm.clock.stepped:
             raise StateError("akarm serve needs an arm on the wall clock, not a lock-step simulation",
                              fix="build the Arm without clock= (a simulator in its own process works)")
+        for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
+            if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
+                raise StateError(f"{what} must be a positive number of Hz, got {hz!r}",
+                                 fix="e.g. --joint-states-hz 100 --status-hz 2")
         self.arm = arm
         self.domain = _default_domain() if domain is None else int(domain)
         self.namespace = namespace.strip("/")
@@ -89,6 +93,7 @@ class ArmServer:
         self._motions: OrderedDict[int, Motion] = OrderedDict()
         self._next_id = 0
         self._teaching = False
+        self._teacher: int | None = None  # the control connection that started teach mode (None: ROS, Python)
         self._opened_arm = False
         self._lock: BusLock | None = None
         self._control: ControlServer | None = None
@@ -103,6 +108,7 @@ class ArmServer:
     def start(self) -> ArmServer:
         """Claim the buses, open and enable the arm, start serving. Raises on any failure, leaving
         the arm as it was (disabled) and the buses free."""
+        sweep_sockets()  # of servers killed before they could remove them
         source = self.arm.config.source
         self._lock = BusLock(self.arm.config, {"robot": str(source) if source else self.arm.config.name,
                                                "socket": str(self.socket_path), "domain": self.domain,
@@ -117,7 +123,7 @@ class ArmServer:
                 self._opened_arm = True
             if self._enable_at_start:
                 self.arm.enable()
-            self._control = ControlServer(self.socket_path, self.dispatch)
+            self._control = ControlServer(self.socket_path, self.dispatch, closed=self._client_left)
             threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
             if self._node is not None:
                 self._node.start()
@@ -235,6 +241,7 @@ class ArmServer:
     def _end_teach(self) -> None:
         if self._teaching:
             self._teaching = False
+            self._teacher = None
             with contextlib.suppress(AkarmError):
                 self.arm.stop_recording()
             self.arm.end_teach()
@@ -306,12 +313,25 @@ class ArmServer:
         raise e
 
     # -- the CLI's operations (JSON in, JSON out) --------------------------------------------------
-    def dispatch(self, op: str, args: dict[str, Any]) -> Any:
-        """Run a control-socket operation (see :mod:`akarm.cli.served` for the client side)."""
+    def dispatch(self, op: str, args: dict[str, Any], client: int | None = None) -> Any:
+        """Run a control-socket operation (see :mod:`akarm.cli.served` for the client side) for the
+        control connection ``client``."""
         handler = getattr(self, f"_op_{op}", None)
         if handler is None:
             raise StateError(f"unknown server operation {op!r}", fix="is the CLI the same akarm version as the server?")
+        if op == "teach":
+            return self._op_teach(**args, client=client)
         return handler(**args)
+
+    def _client_left(self, client: int) -> None:
+        """A control connection ended: teach mode it started ends with it (the client was killed, hung
+        up, or lost its terminal without ending it): the arm holds where the hand left it."""
+        with self._cmd:
+            if self._teaching and self._teacher == client:
+                with contextlib.suppress(AkarmError):
+                    self._end_teach()
+                self.log("akarm serve: the client that started teach mode left without ending it; "
+                         "teach mode ended, the arm holds where it was left")
 
     def _state_doc(self) -> dict[str, Any]:
         s = self.arm.state()
@@ -321,7 +341,7 @@ class ArmServer:
                 "q": s.q.tolist(), "dq": s.dq.tolist(), "tau": s.tau.tolist(),
                 "temperature": [j.temperature for j in s.joints], "fault": [j.fault for j in s.joints],
                 "age": [j.age for j in s.joints], "enabled": s.enabled, "moving": s.moving, "mode": self.mode,
-                "robot": cfg.name, "pid": os.getpid()}
+                "robot": cfg.name, "pid": os.getpid(), "rate_hz": cfg.rate_hz}
 
     def _op_state(self) -> dict[str, Any]:
         return self._state_doc()
@@ -363,11 +383,12 @@ class ArmServer:
     def _op_sleep(self, seconds: float) -> None:
         self.arm.sleep(seconds)
 
-    def _op_teach(self, damping: float = 0.1) -> None:
+    def _op_teach(self, damping: float = 0.1, client: int | None = None) -> None:
         with self._cmd:
             self._require_commandable()
             self.arm.teach(damping)
             self._teaching = True
+            self._teacher = client
 
     def _raise_fault(self) -> None:
         if self.arm.fault is not None:

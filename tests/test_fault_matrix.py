@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import gc
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -144,7 +145,8 @@ def test_a_constant_reply_delay_from_the_start_refuses_the_enable(robot: str, jo
         e = stopped(arm, sim, StaleFeedback, joint, arm.enable)
         assert e.at - t <= 0.2 and e.age == pytest.approx(0.06, abs=0.0025) and e.limit == 0.02
         never_held(wire, arm.config)
-        assert "60 ms after the first frame (limit 20 ms)" in str(e)
+        # measured from the first frame sent, less the loop's own period: 60 ms within one period
+        assert re.search(r"(58|59|60) ms after the first frame \(limit 20 ms\)", str(e)), str(e)
 
 
 @pytest.mark.parametrize("robot", ["planar2", "arm6"])

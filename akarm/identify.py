@@ -51,7 +51,7 @@ from .telemetry import TelemetryLog
 from .trajectory import JointLimits
 
 if TYPE_CHECKING:
-    from .arm import Arm
+    from .arm import Arm, Motion
 
 __all__ = [
     "MIN_SHARE",
@@ -467,20 +467,52 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
     kp0, kd0 = ctl.kp.copy(), ctl.kd.copy()
     switches = [(-math.inf, 1.0)]
+    before = arm.payload  # the rough estimate below replaces it: restored unless the result is applied
+    applied = False
+    try:
+        motion = _excite(arm, rec, speed, payload, kp0, kd0, switches)
+        result = _evaluate(arm, model, rec, motion, switches, mit, kp0, kd0, payload, offsets, speed)
+        if apply:
+            apply_identification(arm, result)
+            applied = True
+    finally:
+        if payload and not applied:
+            _restore_payload(arm, before)
+    return result
+
+
+def _restore_payload(arm: Arm, before: tuple[float, np.ndarray] | None) -> None:
+    if before is None:
+        arm.clear_payload()
+    else:
+        arm.set_payload(before[0], before[1].tolist())
+
+
+def _excite(arm: Arm, rec: PathRecording, speed: float, payload: bool, kp0: np.ndarray, kd0: np.ndarray,
+            switches: list[tuple[float, float]]) -> Motion:
+    """Follow the excitation, full and reduced gains in turn (see fit()), noting each switch."""
     with _reflex_watching(arm) if payload else contextlib.nullcontext():
         if payload:  # carry the payload's weight during the excitation: a rough estimate at rest first
             estimate_payload(arm, settle=1.0, average=0.3, passes=1, apply=True)
         motion = arm.replay(rec, speed=speed, wait=False)
-        try:  # full and reduced gains in turn: see fit()
+        try:
             while not motion.done:
                 arm.sleep(min(GAIN_BLOCK, max(motion.plan.t_end - arm.clock.now(), 0.0) + 1e-3))
                 if not motion.done:
                     f = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
-                    arm.set_gains(kp=kp0 * f, kd=kd0 * f)
+                    arm.set_gains(kp=(kp0 * f).tolist(), kd=(kd0 * f).tolist())
                     switches.append((arm.clock.now(), f))
             motion.wait()
         finally:
-            arm.set_gains(kp=kp0, kd=kd0)
+            arm.set_gains(kp=kp0.tolist(), kd=kd0.tolist())
+    return motion
+
+
+def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, switches: list[tuple[float, float]],
+              mit: np.ndarray, kp0: np.ndarray, kd0: np.ndarray, payload: bool, offsets: bool,
+              speed: float) -> Identification:
+    """The fit, the thresholds and the result from the excitation's telemetry."""
+    ctl = arm._ctl
     excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
     log = arm.telemetry(since=excite.t0)
     # each row's torque answered the command of the cycle before: the gains in force then
@@ -505,11 +537,8 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
     fits = [replace(f, threshold=th, amplitude=float(a)) for f, th, a in zip(fits, thresholds, room, strict=True)]
     notes = tuple(f"{f.name}: moved only ±{f.amplitude:.2f} rad (near its limits): its values are less sure"
                   for f in fits if f.amplitude < 0.1)
-    result = Identification(tuple(fits), pay, len(log), float(log.t[-1] - log.t[0]) if len(log) else 0.0, offsets,
-                            notes, speed)
-    if apply:
-        apply_identification(arm, result)
-    return result
+    return Identification(tuple(fits), pay, len(log), float(log.t[-1] - log.t[0]) if len(log) else 0.0, offsets,
+                          notes, speed)
 
 
 def apply_identification(arm: Arm, result: Identification) -> None:

@@ -159,6 +159,25 @@ def test_a_planar_arm_cannot_tell_the_centre_of_mass_along_its_axes(planar2, cha
     assert p.mass == pytest.approx(0.3, rel=0.10) and p.com[0] == pytest.approx(0.02, abs=0.01)
 
 
+def test_identify_without_apply_leaves_the_arms_payload_as_it_was(planar2, channel: str,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    # identify carries a rough estimate at rest during the excitation: it must not stay behind
+    cfg = planar2.with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(cfg, realtime=False, q0=[0.3, -0.6]) as sim, Arm(cfg, clock=sim.clock) as arm:
+        arm.set_collision(thresholds=[None] * 2)
+        sim.set_payload(0.3, (0.02, 0.0, 0.0))
+        arm.enable()
+        result = arm.identify(duration=8.0, apply=False)
+        assert result.payload is not None and result.payload.mass > 0.2  # it saw the load
+        assert arm.payload is None
+        arm.set_payload(0.1, (0.0, 0.0, 0.01))
+        monkeypatch.setattr(arm, "replay", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("in the excitation")))
+        with pytest.raises(RuntimeError):
+            arm.identify(duration=8.0)  # an error after the estimate at rest, with apply
+        assert arm.payload is not None and arm.payload[0] == pytest.approx(0.1)
+        assert np.allclose(arm.payload[1], (0.0, 0.0, 0.01))
+
+
 def test_the_excitation_stays_within_every_limit_and_half_the_torque() -> None:
     arm = Arm(ARM6)
     path = excitation(arm.limits, ARM6.pose("home"), amplitude=0.7, duration=20)

@@ -229,6 +229,72 @@ def test_save_writes_the_values_in_place_with_a_backup(identified: Identified, t
     assert backup2 != backup and path.read_text() == text
 
 
+BLOCK_STYLE = """\
+# planar2 written in block style
+name: planar2
+urdf: planar2.urdf
+tool_frame: tool0
+buses:
+  arm:
+    interface: socketcan
+    channel: can0
+defaults:
+  mode: mit
+  limits:
+    velocity: 4.0
+    acceleration: 20.0
+    jerk: 200.0
+payload:            # a guess
+  mass: 0.1
+  com:
+    - 0.0
+    - 0.0
+    - 0.0
+joints:
+  - name: shoulder
+    can_id: 1
+    motor: AK80-9
+    friction:       # from the datasheet
+      coulomb: 0.3
+      viscous: 0.01
+    gains:
+      kp: 40.0
+      kd: 1.5
+  - name: elbow     # the forearm
+    can_id: 2
+    motor: AK60-6
+    gains:
+      kp: 20.0
+      kd: 0.8
+# the end
+"""
+
+
+def test_save_into_a_block_style_file_gives_each_joint_its_own_values(tmp_path: Path) -> None:
+    robot = tmp_path / "planar2.yaml"
+    robot.write_text(BLOCK_STYLE)
+    (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
+    result = Identification((akarm.identify.JointFit("shoulder", 0.41, 0.021, 0.011, 0.02, threshold=1.5),
+                             akarm.identify.JointFit("elbow", 0.12, 0.0031, -0.012, 0.01, threshold=0.75)),
+                            akarm.identify.PayloadFit(0.35, (0.01, 0.0, 0.02)), 1000, 8.0)
+    save_identification(robot, result)
+    config = akarm.load_robot(robot)  # it loads
+    assert config.payload.mass == pytest.approx(0.35) and np.allclose(config.payload.com, (0.01, 0.0, 0.02))
+    for joint, fit in zip(config.joints, result.joints, strict=True):
+        assert joint.name == fit.name
+        assert (joint.friction.coulomb, joint.friction.viscous, joint.friction.offset) == \
+            pytest.approx((fit.coulomb, fit.viscous, fit.offset))
+        assert joint.collision_threshold == pytest.approx(fit.threshold)
+        assert joint.gains.kp == (40.0 if fit.name == "shoulder" else 20.0)
+    text = robot.read_text()
+    replaced = {"payload:", "mass: 0.1", "com:", "- 0.0", "friction:", "coulomb: 0.3", "viscous: 0.01"}
+    for line in BLOCK_STYLE.splitlines():  # every line not replaced is kept, and the replaced keys' comments
+        if line.split("#")[0].strip() not in replaced:
+            assert line in text.splitlines(), line
+    assert "payload: {mass: 0.3500, com: [0.0100, 0.0000, 0.0200]}            # a guess" in text
+    assert "    friction: {coulomb: 0.4100, viscous: 0.02100, offset: 0.0110}       # from the datasheet" in text
+
+
 def test_save_refuses_a_result_for_other_joints(identified: Identified, tmp_path: Path) -> None:
     robot = tmp_path / "planar2.yaml"
     robot.write_text((ROBOTS / "planar2.yaml").read_text())

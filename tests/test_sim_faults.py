@@ -246,12 +246,21 @@ def test_parse_command_line_faults(spec: str, expected: tuple[str, faults.Fault]
 
 @pytest.mark.parametrize("spec", ["elbow", "elbow:melt", "elbow:drop", "elbow:drop:1.5", "elbow:delay:-1",
                                   "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe", "elbow:forged",
-                                  "elbow:forged:1,0", "elbow:rogue-exit:loud", "elbow:blocked:1"])
+                                  "elbow:forged:1,0", "elbow:forged:nan", "elbow:forged:-inf",
+                                  "elbow:forged:1,2,inf", "elbow:rogue-exit:loud", "elbow:blocked:1"])
 def test_parse_rejects_bad_faults_with_the_kinds_listed(spec: str) -> None:
     with pytest.raises(AkarmError) as info:
         faults.parse(spec)
     assert ("drop:FRACTION" in str(info.value) or "outside" in str(info.value) or "negative" in str(info.value)
-            or "count ≥ 1" in str(info.value))
+            or "count ≥ 1" in str(info.value) or "not a finite number" in str(info.value))
+
+
+@pytest.mark.parametrize("args", [(float("nan"),), (float("inf"), 2), (1.0, 2, float("inf")), (1.0, 2, float("nan"))])
+def test_a_forged_reply_needs_a_finite_position_and_interval(args: tuple) -> None:
+    # nan cannot be put in a reply (the simulator's thread would fail); an infinite interval never comes
+    with pytest.raises(AkarmError) as info:
+        faults.ForgedReply(*args)
+    assert repr(args[0] if len(args) == 1 or args[0] != 1.0 else args[2]) in str(info.value) and info.value.fix
 
 
 def test_faults_on_an_unknown_joint_name_it(rig: tuple[SimulatedRobot, can.BusABC]) -> None:

@@ -246,6 +246,9 @@ def _savgol(x: np.ndarray, dt: float, window: float, order: int = 3) -> tuple[np
     """Savitzky-Golay smoothing of the columns of ``x`` sampled every ``dt``: value, first and second
     derivative at each sample (zero phase; the ends, where the window does not fit, are NaN)."""
     half = max(order, round(window / dt / 2))
+    if len(x) < 2 * half + 1:
+        raise StateError(f"{len(x)} samples are too few: the {window:g} s smoothing window alone takes {2 * half + 1}",
+                         fix="excite for longer")
     k = np.arange(-half, half + 1) * dt
     V = np.vander(k, order + 1, increasing=True)  # columns 1, k, k², k³
     P = np.linalg.pinv(V)  # rows: coefficients of 1, k, k²: value, slope, curvature/2
@@ -281,6 +284,8 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
     if payload and model.payload is not None:
         raise StateError("identifying the payload needs the model without one", fix="model.clear_payload() first")
     n = model.n
+    if len(log.t) < 2:
+        raise StateError(f"{len(log.t)} samples are too few to identify {n} joints", fix="excite for longer")
     period = float(np.median(np.diff(log.t)))
     dt = period
     q, dq, ddq = _savgol(log.q, dt, window)

@@ -24,12 +24,14 @@ import yaml
 import akarm
 from akarm.arm import Arm
 from akarm.cli import main
-from akarm.errors import LimitError
-from akarm.identify import Identification, apply_identification, excitation, torque_speed
+from akarm.errors import LimitError, StateError
+from akarm.identify import Identification, JointFit, PayloadFit, apply_identification, excitation, torque_speed
+from akarm.identify import fit as identify_fit
 from akarm.model import RobotModel
 from akarm.robotfile import save_identification
 from akarm.sim import SimulatedRobot
 from akarm.sim.params import default_params
+from akarm.telemetry import TelemetryLog
 
 from .conftest import ROBOTS, relaxed_robot, wait_until
 
@@ -178,6 +180,19 @@ def test_identify_without_apply_leaves_the_arms_payload_as_it_was(planar2, chann
         assert np.allclose(arm.payload[1], (0.0, 0.0, 0.01))
 
 
+@pytest.mark.parametrize("samples", [0, 1, 30, 50])
+def test_a_log_shorter_than_the_filter_window_is_too_little_data(samples: int) -> None:
+    # at 500 Hz the 0.1 s window is 51 samples: a shorter log once reached a numpy ValueError
+    model = RobotModel(ARM6)
+    model.clear_payload()
+    t = np.arange(samples) / 500.0
+    z = np.zeros((samples, 6))
+    log = TelemetryLog(ARM6.joint_names, t, z, z, z, z, z, z)
+    with pytest.raises(StateError) as info:
+        identify_fit(model, log)
+    assert f"{samples} samples" in str(info.value) and "excite for longer" in info.value.fix
+
+
 def test_the_excitation_stays_within_every_limit_and_half_the_torque() -> None:
     arm = Arm(ARM6)
     path = excitation(arm.limits, ARM6.pose("home"), amplitude=0.7, duration=20)
@@ -274,9 +289,9 @@ def test_save_into_a_block_style_file_gives_each_joint_its_own_values(tmp_path: 
     robot = tmp_path / "planar2.yaml"
     robot.write_text(BLOCK_STYLE)
     (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
-    result = Identification((akarm.identify.JointFit("shoulder", 0.41, 0.021, 0.011, 0.02, threshold=1.5),
-                             akarm.identify.JointFit("elbow", 0.12, 0.0031, -0.012, 0.01, threshold=0.75)),
-                            akarm.identify.PayloadFit(0.35, (0.01, 0.0, 0.02)), 1000, 8.0)
+    result = Identification((JointFit("shoulder", 0.41, 0.021, 0.011, 0.02, threshold=1.5),
+                             JointFit("elbow", 0.12, 0.0031, -0.012, 0.01, threshold=0.75)),
+                            PayloadFit(0.35, (0.01, 0.0, 0.02)), 1000, 8.0)
     save_identification(robot, result)
     config = akarm.load_robot(robot)  # it loads
     assert config.payload.mass == pytest.approx(0.35) and np.allclose(config.payload.com, (0.01, 0.0, 0.02))

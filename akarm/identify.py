@@ -3,7 +3,10 @@
 **Excitation** (:func:`excitation`): every joint follows, around a centre pose, two sines of its
 own frequencies (``0.6·sin(ωt) + 0.4·sin(2.63·ωt + φ)``) under a smooth envelope that starts and
 ends at rest. The amplitude is clipped to stay within each joint's range, the frequency chosen so
-the motion uses at most 80 % of the joint's velocity, acceleration and jerk limits at ``speed = 1``.
+the sines use at most 80 % of the joint's velocity, acceleration and jerk limits at ``speed = 1``;
+the envelope's ramps add their own derivatives to that, so where they would take a joint over
+80 % (large amplitudes: the ramp's velocity alone is about amplitude × 1.1 /s), its amplitude is
+reduced until the whole motion, ramps included, stays within 80 %.
 It is an ordinary recorded path (:class:`~akarm.recording.PathRecording`): replayed, after a soft
 start, and checked against every limit before anything moves, like any replay.
 
@@ -170,11 +173,21 @@ def yaml_collision(j: JointFit) -> str:
 # ----------------------------------------------------------------------------------------------
 # excitation
 # ----------------------------------------------------------------------------------------------
-def _envelope(t: np.ndarray, duration: float) -> np.ndarray:
-    """0 → 1 → 0 with zero velocity, acceleration and jerk at both ends (7th-order smoothstep ramps)."""
+_SMOOTHSTEP = np.array([0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0])  # x⁴(35 - 84x + 70x² - 20x³)
+
+
+def _envelope(t: np.ndarray, duration: float, derivative: int = 0) -> np.ndarray:
+    """0 → 1 → 0 with zero velocity, acceleration and jerk at both ends (7th-order smoothstep ramps);
+    or its ``derivative``-th time derivative."""
     ramp = min(_RAMP, duration / 4)
+    rising = t < duration - t
     x = np.clip(np.minimum(t, duration - t) / ramp, 0.0, 1.0)
-    return x**4 * (35 - 84 * x + 70 * x**2 - 20 * x**3)
+    poly = np.polynomial.polynomial
+    value = poly.polyval(x, poly.polyder(_SMOOTHSTEP, derivative) if derivative else _SMOOTHSTEP)
+    if derivative:  # dx/dt: 1/ramp rising, -1/ramp falling, 0 at full envelope
+        slope = np.where(x >= 1.0, 0.0, np.where(rising, 1.0, -1.0) / ramp)
+        value = value * slope**derivative
+    return value
 
 
 def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5, duration: float = 30.0,
@@ -202,11 +215,23 @@ def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5
                                np.cbrt(0.8 * limits.jerk / (safe * sum_j)), np.full(len(c), 2 * math.pi * 0.5)])
     omega *= 1.0 - 0.061 * np.arange(len(c))  # a frequency of its own per joint: the columns stay apart
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate_hz)
-    env = _envelope(t, duration)[:, None]
     phase = np.linspace(0.3, 2.5, len(c))
     w = omega[None, :] * t[:, None]
-    wave = _WEIGHTS[0] * np.sin(w) + _WEIGHTS[1] * np.sin(_HARMONIC * w + phase[None, :])
-    q = c[None, :] + env * amp[None, :] * wave
+
+    def wave(k: int) -> np.ndarray:  # the k-th time derivative of the two sines
+        turn = k * math.pi / 2
+        return (_WEIGHTS[0] * omega**k * np.sin(w + turn)
+                + _WEIGHTS[1] * (_HARMONIC * omega)**k * np.sin(_HARMONIC * w + phase[None, :] + turn))
+
+    env = [_envelope(t, duration, k)[:, None] for k in range(4)]
+    # the sines at full envelope use at most 80 %; during the ramps the envelope's derivatives add
+    # to that (amplitude × E'·sines ...): where they take a joint over 80 %, its amplitude is reduced
+    used = np.zeros(len(c))
+    for k, lim in ((1, limits.velocity), (2, limits.acceleration), (3, limits.jerk)):
+        dk = sum(math.comb(k, i) * env[i] * wave(k - i) for i in range(k + 1))
+        used = np.maximum(used, amp * np.max(np.abs(dk), axis=0) / lim)
+    amp = np.where(used > 0.8, amp * 0.8 / np.maximum(used, 1e-300), amp)
+    q = c[None, :] + env[0] * amp[None, :] * wave(0)
     return PathRecording(limits.names, t, q)
 
 
@@ -548,7 +573,8 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
 
 def apply_identification(arm: Arm, result: Identification) -> None:
     """Tell the arm what was identified: the payload (feed-forward and collision observer) and the
-    friction (the collision observer, and the feed-forward where friction is compensated)."""
+    friction (the collision observer; the feed-forward, where friction is compensated, takes the
+    Coulomb and viscous terms, not the offset)."""
     ctl = arm._ctl
     with ctl.lock:
         if result.payload is not None:

@@ -206,6 +206,24 @@ def test_the_excitation_stays_within_every_limit_and_half_the_torque() -> None:
     assert peak * s * s <= 0.5 * ARM6.joints[joint].limits.torque + 1e-6 + abs(model.gravity(ARM6.pose("home"))[joint])
 
 
+@pytest.mark.parametrize(("robot", "amplitude", "duration"), [("arm6", 3.0, 30.0), ("planar2", 3.0, 30.0),
+                                                               ("arm6", 0.5, 8.0)])
+def test_the_excitation_uses_at_most_80_percent_of_the_limits_ramps_included(robot: str, amplitude: float,
+                                                                             duration: float) -> None:
+    # the envelope's ramps add amplitude × its derivative: with a large amplitude they once took
+    # arm6's velocity to 96 % of its limit
+    config = akarm.load_robot(ROBOTS / f"{robot}.yaml")
+    arm = Arm(config)
+    path = excitation(arm.limits, config.pose("home"), amplitude=amplitude, duration=duration, rate_hz=4000)
+    v = np.gradient(path.q, path.t, axis=0)
+    a = np.gradient(v, path.t, axis=0)
+    j = np.gradient(a, path.t, axis=0)[3:-3]  # (the ends of a numerical third derivative are off)
+    used = [np.max(np.abs(x), axis=0) / lim for x, lim in ((v, arm.limits.velocity), (a, arm.limits.acceleration),
+                                                          (j, arm.limits.jerk))]
+    assert np.max(used) <= 0.8 * 1.002, np.round(used, 3)
+    assert np.max(used) > 0.7  # and it does use them (to 80 %)
+
+
 def test_identification_too_fast_or_off_centre_is_refused_before_moving(channel: str) -> None:
     cfg = ARM6.with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(cfg, realtime=False, q0=ARM6.pose("home")) as sim, Arm(cfg, clock=sim.clock) as arm:

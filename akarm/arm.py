@@ -687,7 +687,8 @@ class Arm:
         """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify`).
 
         The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
-        ``amplitude`` rad per joint at most (less near a limit), for ``duration`` s at ``speed``
+        ``amplitude`` rad per joint at most (less near a limit, or where a large one would take the start and
+        end ramps past 80 % of the joint's limits), for ``duration`` s at ``speed``
         (time scaling, (0, 1]; default: as fast as the joint limits and half the torque limits
         allow); like any replay, it is checked against every limit before anything moves; its
         gains alternate between full and half every 3 s (how the fit tells friction from the bias

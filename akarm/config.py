@@ -90,8 +90,10 @@ class Gains:
 
 @dataclass(frozen=True)
 class Friction:
-    """Joint friction used for feed-forward and the collision observer: Coulomb N·m, viscous
-    N·m·s/rad, and a constant torque offset N·m the model misses (a cable, a sensor bias), output side."""
+    """Joint friction, output side: Coulomb N·m, viscous N·m·s/rad, and a constant torque offset N·m
+    the model misses (a cable, a sensor bias). The collision observer uses all three; the
+    feed-forward (where friction is compensated) only Coulomb and viscous: the offset is not
+    compensated, it only keeps the observer from taking it for an external torque."""
 
     coulomb: float = 0.0
     viscous: float = 0.0
@@ -130,7 +132,8 @@ class JointConfig:
         max_temperature: °C; the watchdog stops the arm above it.
         status_rate_hz: servo joints: the rate the motor sends status frames at (its own setting).
         can_timeout: s; MIT firmware CAN timeout (0 = off, as on units in the field). Simulator only.
-        friction: identified friction for feed-forward; ``None`` uses the catalogue's typical values.
+        friction: identified friction (see :class:`Friction`: the feed-forward compensates its Coulomb and
+            viscous terms, the collision observer uses the offset too); ``None`` uses the catalogue's typical values.
         following_error: rad; the supervisor stops the arm when the joint is further than this from
             its commanded position. ``None``: derived (:func:`akarm.safety.default_following_error`).
         stuck_travel: rad; the supervisor stops the arm when the command moves this far while the

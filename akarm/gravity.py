@@ -172,8 +172,10 @@ def _key(config: RobotConfig, extra_payload: float) -> tuple[object, ...] | None
         st = os.stat(config.urdf)
     except OSError:
         return None
+    p = config.payload  # by value: a Payload built in code may hold a list (unhashable) as its com
+    payload = None if p is None else (float(p.mass), tuple(float(c) for c in p.com))
     return (str(config.urdf), st.st_mtime_ns, st.st_size, tuple((j.name, j.limits.lower, j.limits.upper)
-            for j in config.joints), tuple(sorted(config.locked.items())), config.payload, tuple(config.gravity),
+            for j in config.joints), tuple(sorted(config.locked.items())), payload, tuple(config.gravity),
             config.tool_frame, float(extra_payload))
 
 

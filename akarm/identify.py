@@ -3,7 +3,10 @@
 **Excitation** (:func:`excitation`): every joint follows, around a centre pose, two sines of its
 own frequencies (``0.6·sin(ωt) + 0.4·sin(2.63·ωt + φ)``) under a smooth envelope that starts and
 ends at rest. The amplitude is clipped to stay within each joint's range, the frequency chosen so
-the motion uses at most 80 % of the joint's velocity, acceleration and jerk limits at ``speed = 1``.
+the sines use at most 80 % of the joint's velocity, acceleration and jerk limits at ``speed = 1``;
+the envelope's ramps add their own derivatives to that, so where they would take a joint over
+80 % (large amplitudes: the ramp's velocity alone is about amplitude × 1.1 /s), its amplitude is
+reduced until the whole motion, ramps included, stays within 80 %.
 It is an ordinary recorded path (:class:`~akarm.recording.PathRecording`): replayed, after a soft
 start, and checked against every limit before anything moves, like any replay.
 
@@ -51,7 +54,7 @@ from .telemetry import TelemetryLog
 from .trajectory import JointLimits
 
 if TYPE_CHECKING:
-    from .arm import Arm
+    from .arm import Arm, Motion
 
 __all__ = [
     "MIN_SHARE",
@@ -170,11 +173,21 @@ def yaml_collision(j: JointFit) -> str:
 # ----------------------------------------------------------------------------------------------
 # excitation
 # ----------------------------------------------------------------------------------------------
-def _envelope(t: np.ndarray, duration: float) -> np.ndarray:
-    """0 → 1 → 0 with zero velocity, acceleration and jerk at both ends (7th-order smoothstep ramps)."""
+_SMOOTHSTEP = np.array([0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0])  # x⁴(35 - 84x + 70x² - 20x³)
+
+
+def _envelope(t: np.ndarray, duration: float, derivative: int = 0) -> np.ndarray:
+    """0 → 1 → 0 with zero velocity, acceleration and jerk at both ends (7th-order smoothstep ramps);
+    or its ``derivative``-th time derivative."""
     ramp = min(_RAMP, duration / 4)
+    rising = t < duration - t
     x = np.clip(np.minimum(t, duration - t) / ramp, 0.0, 1.0)
-    return x**4 * (35 - 84 * x + 70 * x**2 - 20 * x**3)
+    poly = np.polynomial.polynomial
+    value = poly.polyval(x, poly.polyder(_SMOOTHSTEP, derivative) if derivative else _SMOOTHSTEP)
+    if derivative:  # dx/dt: 1/ramp rising, -1/ramp falling, 0 at full envelope
+        slope = np.where(x >= 1.0, 0.0, np.where(rising, 1.0, -1.0) / ramp)
+        value = value * slope**derivative
+    return value
 
 
 def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5, duration: float = 30.0,
@@ -202,11 +215,23 @@ def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5
                                np.cbrt(0.8 * limits.jerk / (safe * sum_j)), np.full(len(c), 2 * math.pi * 0.5)])
     omega *= 1.0 - 0.061 * np.arange(len(c))  # a frequency of its own per joint: the columns stay apart
     t = np.arange(0.0, duration + 1e-9, 1.0 / rate_hz)
-    env = _envelope(t, duration)[:, None]
     phase = np.linspace(0.3, 2.5, len(c))
     w = omega[None, :] * t[:, None]
-    wave = _WEIGHTS[0] * np.sin(w) + _WEIGHTS[1] * np.sin(_HARMONIC * w + phase[None, :])
-    q = c[None, :] + env * amp[None, :] * wave
+
+    def wave(k: int) -> np.ndarray:  # the k-th time derivative of the two sines
+        turn = k * math.pi / 2
+        return (_WEIGHTS[0] * omega**k * np.sin(w + turn)
+                + _WEIGHTS[1] * (_HARMONIC * omega)**k * np.sin(_HARMONIC * w + phase[None, :] + turn))
+
+    env = [_envelope(t, duration, k)[:, None] for k in range(4)]
+    # the sines at full envelope use at most 80 %; during the ramps the envelope's derivatives add
+    # to that (amplitude × E'·sines ...): where they take a joint over 80 %, its amplitude is reduced
+    used = np.zeros(len(c))
+    for k, lim in ((1, limits.velocity), (2, limits.acceleration), (3, limits.jerk)):
+        dk = sum(math.comb(k, i) * env[i] * wave(k - i) for i in range(k + 1))
+        used = np.maximum(used, amp * np.max(np.abs(dk), axis=0) / lim)
+    amp = np.where(used > 0.8, amp * 0.8 / np.maximum(used, 1e-300), amp)
+    q = c[None, :] + env[0] * amp[None, :] * wave(0)
     return PathRecording(limits.names, t, q)
 
 
@@ -246,6 +271,9 @@ def _savgol(x: np.ndarray, dt: float, window: float, order: int = 3) -> tuple[np
     """Savitzky-Golay smoothing of the columns of ``x`` sampled every ``dt``: value, first and second
     derivative at each sample (zero phase; the ends, where the window does not fit, are NaN)."""
     half = max(order, round(window / dt / 2))
+    if len(x) < 2 * half + 1:
+        raise StateError(f"{len(x)} samples are too few: the {window:g} s smoothing window alone takes {2 * half + 1}",
+                         fix="excite for longer")
     k = np.arange(-half, half + 1) * dt
     V = np.vander(k, order + 1, increasing=True)  # columns 1, k, k², k³
     P = np.linalg.pinv(V)  # rows: coefficients of 1, k, k²: value, slope, curvature/2
@@ -281,6 +309,8 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
     if payload and model.payload is not None:
         raise StateError("identifying the payload needs the model without one", fix="model.clear_payload() first")
     n = model.n
+    if len(log.t) < 2:
+        raise StateError(f"{len(log.t)} samples are too few to identify {n} joints", fix="excite for longer")
     period = float(np.median(np.diff(log.t)))
     dt = period
     q, dq, ddq = _savgol(log.q, dt, window)
@@ -467,20 +497,52 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
     kp0, kd0 = ctl.kp.copy(), ctl.kd.copy()
     switches = [(-math.inf, 1.0)]
+    before = arm.payload  # the rough estimate below replaces it: restored unless the result is applied
+    applied = False
+    try:
+        motion = _excite(arm, rec, speed, payload, kp0, kd0, switches)
+        result = _evaluate(arm, model, rec, motion, switches, mit, kp0, kd0, payload, offsets, speed)
+        if apply:
+            apply_identification(arm, result)
+            applied = True
+    finally:
+        if payload and not applied:
+            _restore_payload(arm, before)
+    return result
+
+
+def _restore_payload(arm: Arm, before: tuple[float, np.ndarray] | None) -> None:
+    if before is None:
+        arm.clear_payload()
+    else:
+        arm.set_payload(before[0], before[1].tolist())
+
+
+def _excite(arm: Arm, rec: PathRecording, speed: float, payload: bool, kp0: np.ndarray, kd0: np.ndarray,
+            switches: list[tuple[float, float]]) -> Motion:
+    """Follow the excitation, full and reduced gains in turn (see fit()), noting each switch."""
     with _reflex_watching(arm) if payload else contextlib.nullcontext():
         if payload:  # carry the payload's weight during the excitation: a rough estimate at rest first
             estimate_payload(arm, settle=1.0, average=0.3, passes=1, apply=True)
         motion = arm.replay(rec, speed=speed, wait=False)
-        try:  # full and reduced gains in turn: see fit()
+        try:
             while not motion.done:
                 arm.sleep(min(GAIN_BLOCK, max(motion.plan.t_end - arm.clock.now(), 0.0) + 1e-3))
                 if not motion.done:
                     f = GAIN_LOW if switches[-1][1] == 1.0 else 1.0
-                    arm.set_gains(kp=kp0 * f, kd=kd0 * f)
+                    arm.set_gains(kp=(kp0 * f).tolist(), kd=(kd0 * f).tolist())
                     switches.append((arm.clock.now(), f))
             motion.wait()
         finally:
-            arm.set_gains(kp=kp0, kd=kd0)
+            arm.set_gains(kp=kp0.tolist(), kd=kd0.tolist())
+    return motion
+
+
+def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, switches: list[tuple[float, float]],
+              mit: np.ndarray, kp0: np.ndarray, kd0: np.ndarray, payload: bool, offsets: bool,
+              speed: float) -> Identification:
+    """The fit, the thresholds and the result from the excitation's telemetry."""
+    ctl = arm._ctl
     excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
     log = arm.telemetry(since=excite.t0)
     # each row's torque answered the command of the cycle before: the gains in force then
@@ -505,16 +567,14 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
     fits = [replace(f, threshold=th, amplitude=float(a)) for f, th, a in zip(fits, thresholds, room, strict=True)]
     notes = tuple(f"{f.name}: moved only ±{f.amplitude:.2f} rad (near its limits): its values are less sure"
                   for f in fits if f.amplitude < 0.1)
-    result = Identification(tuple(fits), pay, len(log), float(log.t[-1] - log.t[0]) if len(log) else 0.0, offsets,
-                            notes, speed)
-    if apply:
-        apply_identification(arm, result)
-    return result
+    return Identification(tuple(fits), pay, len(log), float(log.t[-1] - log.t[0]) if len(log) else 0.0, offsets,
+                          notes, speed)
 
 
 def apply_identification(arm: Arm, result: Identification) -> None:
     """Tell the arm what was identified: the payload (feed-forward and collision observer) and the
-    friction (the collision observer, and the feed-forward where friction is compensated)."""
+    friction (the collision observer; the feed-forward, where friction is compensated, takes the
+    Coulomb and viscous terms, not the offset)."""
     ctl = arm._ctl
     with ctl.lock:
         if result.payload is not None:

@@ -216,22 +216,22 @@ class IKSolver:
             UnreachableError: no joint positions put the tool there (says how close it gets).
             SingularityError: the only solution found is at a singularity.
         """
-        start = np.asarray(seed, dtype=float)
-        q, _, ok = self.iterate(start, target, position_only)
+        q_seed = np.asarray(seed, dtype=float)
+        q, _, ok = self.iterate(q_seed, target, position_only)
         if not ok:  # the other starts, nearest the seed first; three solutions are enough to choose from
             found = []
-            order = np.argsort(np.max(np.abs(self._starts - start), axis=1))
-            for start in self._starts[order]:
-                qs, _, oks = self.iterate(start, target, position_only)
+            order = np.argsort(np.max(np.abs(self._starts - q_seed), axis=1))
+            for other in self._starts[order]:
+                qs, _, oks = self.iterate(other, target, position_only)
                 if oks:
                     found.append(qs)
                     if len(found) == 3:
                         break
-            if found:
-                q = min(found, key=lambda x: float(np.max(np.abs(x - start))))
+            if found:  # nearest the seed (not the last start tried): the least joint motion from here
+                q = min(found, key=lambda x: float(np.max(np.abs(x - q_seed))))
                 ok = True
         if not ok:
-            q, failure = self._without_ranges(target, start, position_only)
+            q, failure = self._without_ranges(target, q_seed, position_only)
             if failure is not None:
                 raise failure
         if check_singular:

@@ -39,21 +39,52 @@ def _line_end(text: str, index: int) -> int:
     return len(text) if nl < 0 else nl + 1
 
 
-def _set(text: str, mapping: yaml.MappingNode, key: str, flow: str, after: yaml.Node | None = None) -> _Edit:
-    """The edit that makes ``key: flow`` an entry of ``mapping``: replace its value, or add it (in a
+def _end(node: yaml.Node) -> int:
+    """The index just after the node's own text. PyYAML's ``end_mark`` of a block mapping or sequence
+    is where the next token starts (on a later line, after the newline and the next line's indent):
+    its text ends with its last scalar, or flow collection, instead."""
+    if isinstance(node, yaml.MappingNode | yaml.SequenceNode) and not node.flow_style and node.value:
+        last = node.value[-1]
+        return _end(last[1] if isinstance(last, tuple) else last)
+    return int(node.end_mark.index)
+
+
+def _line_start(text: str, index: int) -> int:
+    return text.rfind("\n", 0, index) + 1
+
+
+def _set(text: str, mapping: yaml.MappingNode, key: str, flow: str, after: yaml.Node | None = None) -> list[_Edit]:
+    """The edits that make ``key: flow`` an entry of ``mapping``: replace its value, or add it (in a
     block mapping on a line of its own after ``after`` or the last entry, in a flow mapping before ``}``)."""
     found = _key(mapping, key)
     if found is not None:
-        value = found[1]
-        return value.start_mark.index, value.end_mark.index, flow
+        k, value = found
+        start, end = value.start_mark.index, _end(value)
+        on_key_line = "\n" not in text[k.end_mark.index:start]
+        block_scalar = isinstance(value, yaml.ScalarNode) and value.style in ("|", ">")
+        if on_key_line and not block_scalar and end > start:  # `key: value` or `key: {...}`
+            return [(start, end, flow)]
+        # a block value on the lines below (or a block scalar, or nothing): the flow value goes on the
+        # key's line, after its colon (a comment there stays), and the value's own lines go
+        colon = text.index(":", k.end_mark.index) + 1
+        if end <= start:  # `key:` with no value
+            return [(colon, colon, f" {flow}")]
+        if on_key_line:  # `key: |` ...: the block scalar's lines end with its newline
+            return [(start, end, flow + ("\n" if text[end - 1] == "\n" else ""))]
+        cut_from = _line_start(text, start)
+        if text[cut_from:start].strip():  # something before it on its line (an anchor): keep that
+            cut_from = start
+        cut_to = _line_end(text, end - 1) if not text[end:_line_end(text, end - 1)].strip() else end
+        return [(colon, colon, f" {flow}"), (cut_from, cut_to, "")]
     if mapping.flow_style:
         close = mapping.end_mark.index - 1
-        return close, close, f", {key}: {flow}"
+        return [(close, close, f", {key}: {flow}")]
     first_key = mapping.value[0][0]
     indent = " " * first_key.start_mark.column
     last = after if after is not None else mapping.value[-1][1]
-    at = _line_end(text, last.end_mark.index - 1 if last.end_mark.index > 0 else 0)
-    return at, at, f"{indent}{key}: {flow}\n"
+    end = _end(last)
+    at = _line_end(text, end - 1 if end > 0 else 0)
+    return [(at, at, f"{indent}{key}: {flow}\n")]
 
 
 def _edits(text: str, root: yaml.MappingNode, result: Identification, path: Path) -> list[_Edit]:
@@ -65,7 +96,7 @@ def _edits(text: str, root: yaml.MappingNode, result: Identification, path: Path
     if result.payload is not None:
         flow = yaml_payload(result.payload).split(": ", 1)[1]
         urdf = _key(root, "urdf")
-        edits.append(_set(text, root, "payload", flow, after=urdf[1] if urdf else None))
+        edits += _set(text, root, "payload", flow, after=urdf[1] if urdf else None)
     joints = _key(root, "joints")
     if joints is None or not isinstance(joints[1], yaml.SequenceNode):
         raise problem("it has no `joints:` list")
@@ -82,7 +113,7 @@ def _edits(text: str, root: yaml.MappingNode, result: Identification, path: Path
         if j.threshold is not None:
             values.append(("collision", yaml_collision(j)))
         for key, flow in values:
-            edits.append(_set(text, item, key, flow))
+            edits += _set(text, item, key, flow)
     return edits
 
 

@@ -170,6 +170,15 @@ def _round(x: float, digits: int = 2) -> float:
     return round(x, digits - 1 - math.floor(math.log10(abs(x))))
 
 
+def _held_at(j: UrdfJoint) -> float:
+    """Where a joint no motor drives is held: 0, or the limit nearest it, as :func:`_num` prints it
+    (6 decimals), rounded into the range: printed, it must not pass the URDF's limits."""
+    if j.lower is None or j.upper is None:
+        return 0.0
+    lo, hi = math.ceil(round(j.lower * 1e6, 6)) / 1e6, math.floor(round(j.upper * 1e6, 6)) / 1e6
+    return min(max(lo, round(min(max(0.0, j.lower), j.upper), 6)), hi)
+
+
 def _num(x: float) -> str:
     """A number for the YAML: up to 6 decimals, no exponent (YAML 1.1 reads ``1e-05`` as text)."""
     text = f"{x:.6f}".rstrip("0").rstrip(".")
@@ -220,9 +229,8 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     if not driven:
         raise _problems(path, [(None, "the URDF has no revolute or continuous joint for a motor to drive",
                                 "akarm drives revolute and continuous joints")])
-    held = {j.name: min(max(0.0, j.lower), j.upper) if j.lower is not None and j.upper is not None else 0.0
-            for j in movable if j not in driven and j.mimic is None and j.type in ("revolute", "continuous",
-                                                                                 "prismatic")}
+    held = {j.name: _held_at(j) for j in movable if j not in driven and j.mimic is None
+            and j.type in ("revolute", "continuous", "prismatic")}
     locked = dict(held)
     for _ in movable:  # mimic joints follow their (locked) masters
         for j in movable:

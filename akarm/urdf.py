@@ -420,6 +420,7 @@ def _check_tree(urdf: Urdf, problems: list[UrdfProblem], robot_line: int) -> Non
                                         f"{did_you_mean(j.mimic.joint, list(joints))}", "name an existing joint"))
         elif j.mimic is not None and j.mimic.joint == j.name:
             problems.append(UrdfProblem(j.line, f"joint {j.name!r} mimics itself", "name the joint it follows"))
+    _check_mimic_loops(joints, problems)
     roots = [n for n in links if n not in parent_of]
     if len(roots) != 1:
         if roots:
@@ -447,6 +448,32 @@ def _check_tree(urdf: Urdf, problems: list[UrdfProblem], robot_line: int) -> Non
         problems.append(UrdfProblem(links[lost[0]].line, f"links {', '.join(map(repr, lost[:6]))} form a loop "
                                     "not connected to the root", "a URDF is a tree: remove the joint that closes "
                                     "the loop"))
+
+
+def _check_mimic_loops(joints: dict[str, UrdfJoint], problems: list[UrdfProblem]) -> None:
+    """Joints that follow each other round a loop (A mimics B, B mimics A) have no position to start from."""
+    seen: set[str] = set()
+    for start in joints.values():
+        path: list[str] = []
+        name = start.name
+        while name in joints and name not in seen and name not in path:
+            m = joints[name].mimic
+            if m is None:
+                break
+            path.append(name)
+            name = m.joint
+        seen.update(path)
+        if name not in path or path.index(name) == len(path) - 1:  # no loop, or one mimicking itself (said above)
+            continue
+        loop = path[path.index(name):]
+        first = min(range(len(loop)), key=lambda i: joints[loop[i]].line)
+        loop = loop[first:] + loop[:first]
+        chain = " mimics " + ", which mimics ".join(f"{n!r} (line {joints[n].line})" for n in loop[1:])
+        problems.append(UrdfProblem(joints[loop[0]].line, f"joint {loop[0]!r} (line {joints[loop[0]].line}){chain}, "
+                                    f"which mimics {loop[0]!r}: the <mimic> joints form a loop, and none of them "
+                                    "has a position of its own",
+                                    "a <mimic> follows a joint that follows no other (one a motor drives, or one "
+                                    "held by locked:): remove the <mimic> of one of them"))
 
 
 def _root(urdf: Urdf) -> str:

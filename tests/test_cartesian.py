@@ -115,6 +115,46 @@ def test_ik_prefers_the_solution_nearest_the_start() -> None:
     assert np.allclose(q, q_true, atol=1e-5)
 
 
+class _SeedFails(IKSolver):
+    """The solve from the seed does not converge; every solution the other starts find is kept."""
+
+    def iterate(self, q0, target, position_only, bounded=True, max_iterations=None):
+        if not hasattr(self, "found"):
+            self.found: list[np.ndarray] = []
+            return np.asarray(q0, dtype=float), np.ones(6), False
+        q, e, ok = super().iterate(q0, target, position_only, bounded, max_iterations)
+        if ok and bounded:
+            self.found.append(q)
+        return q, e, ok
+
+
+def test_when_the_seed_fails_the_solution_nearest_the_seed_wins_not_the_one_nearest_the_last_start() -> None:
+    lim = [j.limits for j in ARM6.joints]
+    ik = _SeedFails(RobotModel(ARM6), [x.lower for x in lim], [x.upper for x in lim])
+    q_true = np.array([-1.13, 0.82, 1.11, -1.58, 1.32, 0.95])
+    seed = q_true + 0.05
+    q = ik.solve(ik.model.tool_pose(q_true), seed)
+    dist = [float(np.max(np.abs(x - seed))) for x in ik.found]
+    assert len(ik.found) == 3 and max(dist) > 3.0  # the starts found other solutions (a wrist flip)
+    assert float(np.max(np.abs(q - seed))) == pytest.approx(min(dist), abs=1e-9) and min(dist) < 0.06
+
+
+def test_the_solve_without_ranges_starts_from_the_seed() -> None:
+    class NothingConverges(IKSolver):
+        def iterate(self, q0, target, position_only, bounded=True, max_iterations=None):
+            return np.asarray(q0, dtype=float), np.ones(6), False
+
+        def _without_ranges(self, target, seed, position_only):
+            self.seen = np.array(seed)
+            return seed, None
+
+    lim = [j.limits for j in ARM6.joints]
+    ik = NothingConverges(RobotModel(ARM6), [x.lower for x in lim], [x.upper for x in lim], starts=4)
+    seed = np.array(ARM6.pose("home"), dtype=float)
+    ik.solve(ik.model.tool_pose(seed), seed, check_singular=False)
+    assert np.array_equal(ik.seen, seed)
+
+
 def test_a_pose_out_of_reach_is_unreachable_and_says_how_far() -> None:
     ik = solver(ARM6)
     with pytest.raises(UnreachableError) as e:

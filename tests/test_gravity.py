@@ -147,3 +147,16 @@ def test_check_prints_gravity_and_the_payload_margin(capsys: pytest.CaptureFixtu
     assert "joint 'shoulder_lift': with 2 kg more at the tool, gravity needs up to 34" in captured.err
     assert main(["check", arm6, "--payload", "0.3"]) == 0
     assert main(["check", arm6, "--payload", "-1"]) == 1
+
+
+def test_a_payload_built_in_code_with_a_list_com_is_taken_as_its_tuple() -> None:
+    # the cache key once held the Payload itself: a list com made it unhashable (TypeError)
+    from dataclasses import replace
+
+    from akarm.config import Payload
+
+    config = load_robot(ROBOTS / "planar2.yaml")
+    listed = gravity_peaks(replace(config, payload=Payload(0.4, [0.05, 0.0, 0.0])))  # type: ignore[arg-type]
+    tupled = gravity_peaks(replace(config, payload=Payload(0.4, (0.05, 0.0, 0.0))))
+    assert [p.torque for p in listed] == [p.torque for p in tupled]
+    assert listed[0].torque > gravity_peaks(config)[0].torque  # and the payload counts

@@ -206,3 +206,23 @@ def test_a_revolute_joint_others_mimic_is_taken_for_a_grippers_and_held(tmp_path
     out = tmp_path / "g.yaml"
     out.write_text(s.text)
     assert load_robot(out).warnings == ()
+
+
+def test_a_locked_joint_whose_range_excludes_zero_is_printed_inside_its_range(tmp_path: Path) -> None:
+    # 0 is outside both sliders' ranges: each is held at the limit nearest 0, which has 7 decimals;
+    # printed with 6, it must round into the range, not out of it (the file would be refused)
+    slider = """  <link name="{c}"><inertial><mass value="0.02"/>
+    <inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial></link>
+  <joint name="{c}_joint" type="prismatic"><parent link="link4"/><child link="{c}"/><axis xyz="1 0 0"/>
+    <limit lower="{lo}" upper="{hi}" effort="100" velocity="0.1"/></joint>
+"""
+    text = (URDFS / "cad_arm4.urdf").read_text().replace(
+        "</robot>", slider.format(c="a", lo="0.0123454", hi="0.04") + slider.format(c="b", lo="-0.04", hi="-0.0123454")
+        + "</robot>")
+    urdf = tmp_path / "s.urdf"
+    urdf.write_text(text)
+    s = suggest(urdf, tmp_path / "s.yaml")
+    out = tmp_path / "s.yaml"
+    out.write_text(s.text)
+    locked = load_robot(out).locked
+    assert locked == {"a_joint": 0.012346, "b_joint": -0.012346} == s.locked

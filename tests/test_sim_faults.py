@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 
 import can
+import numpy as np
+import pinocchio as pin
 import pytest
 
 from akarm.config import RobotConfig
@@ -12,6 +15,7 @@ from akarm.config_loader import load_robot
 from akarm.errors import AkarmError
 from akarm.protocol import mit, servo
 from akarm.sim import MitDriver, SimulatedRobot, faults
+from akarm.sim.params import default_params
 
 from .conftest import ROBOTS, drain, send
 
@@ -242,12 +246,21 @@ def test_parse_command_line_faults(spec: str, expected: tuple[str, faults.Fault]
 
 @pytest.mark.parametrize("spec", ["elbow", "elbow:melt", "elbow:drop", "elbow:drop:1.5", "elbow:delay:-1",
                                   "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe", "elbow:forged",
-                                  "elbow:forged:1,0", "elbow:rogue-exit:loud", "elbow:blocked:1"])
+                                  "elbow:forged:1,0", "elbow:forged:nan", "elbow:forged:-inf",
+                                  "elbow:forged:1,2,inf", "elbow:rogue-exit:loud", "elbow:blocked:1"])
 def test_parse_rejects_bad_faults_with_the_kinds_listed(spec: str) -> None:
     with pytest.raises(AkarmError) as info:
         faults.parse(spec)
     assert ("drop:FRACTION" in str(info.value) or "outside" in str(info.value) or "negative" in str(info.value)
-            or "count ≥ 1" in str(info.value))
+            or "count ≥ 1" in str(info.value) or "not a finite number" in str(info.value))
+
+
+@pytest.mark.parametrize("args", [(float("nan"),), (float("inf"), 2), (1.0, 2, float("inf")), (1.0, 2, float("nan"))])
+def test_a_forged_reply_needs_a_finite_position_and_interval(args: tuple) -> None:
+    # nan cannot be put in a reply (the simulator's thread would fail); an infinite interval never comes
+    with pytest.raises(AkarmError) as info:
+        faults.ForgedReply(*args)
+    assert repr(args[0] if len(args) == 1 or args[0] != 1.0 else args[2]) in str(info.value) and info.value.fix
 
 
 def test_faults_on_an_unknown_joint_name_it(rig: tuple[SimulatedRobot, can.BusABC]) -> None:
@@ -335,6 +348,32 @@ def test_blocked_joint_stays_put_whatever_the_torque(rig: tuple[SimulatedRobot, 
     sim.joint("elbow").clear_faults()
     sim.run_for(0.2)
     assert sim.q[1] > 0.5                                     # free again: it goes where it is told
+
+
+def test_a_blocked_shoulder_holds_the_other_joints_as_the_reduced_model_says(channel: str) -> None:
+    # arm6 mid-motion, no friction, motors off, a push on every joint; shoulder_lift blocked: the
+    # other joints move as the arm with that joint locked (Pinocchio's reduced model) does
+    arm6 = load_robot(ROBOTS / "arm6.yaml")
+    free = replace(default_params(arm6.joints[0].motor), viscous=0.0, coulomb=0.0)
+    with SimulatedRobot(arm6, "virtual", channel, realtime=False, params={j.name: free for j in arm6.joints}) as sim:
+        q = np.array([0.3, 0.6, -0.9, 0.4, 0.8, -0.2])
+        sim.set_state(q, [0.5, 1.5, -1.0, 0.8, -0.6, 1.2])
+        tau = np.array([0.5, -1.0, 2.0, 0.3, -0.2, 0.1])
+        sim.set_external_torque(tau)
+        assert sim.model.identity_mapping
+        before = sim.dq.copy()
+        sim.joint("shoulder_lift").inject(faults.Blocked())
+        q, dq = sim.q.copy(), sim.dq.copy()
+        M = sim.model.mass_matrix(q)  # the stop's impulse acts on joint 1 only: the others' momentum is kept
+        assert np.allclose(np.delete(M @ dq, 1), np.delete(M @ before, 1), rtol=1e-12, atol=1e-12)
+        sim.plant.step(0.0)
+        pm = sim.model.pin_model
+        reduced = pin.buildReducedModel(pm, [pm.getJointId("shoulder_lift")], q)
+        reduced.armature = np.delete(np.array(pm.armature), 1)
+        expected = pin.aba(reduced, reduced.createData(), np.delete(q, 1), np.delete(dq, 1), np.delete(tau, 1))
+        assert sim.plant.ddq[1] == 0.0 and dq[1] == 0.0
+        assert np.allclose(np.delete(sim.plant.ddq, 1), expected, rtol=1e-9, atol=1e-9), \
+            (np.delete(sim.plant.ddq, 1), expected)
 
 
 def test_a_fault_from_the_start_is_in_force_before_the_first_frame(planar2: RobotConfig, channel: str) -> None:

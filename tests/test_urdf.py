@@ -303,6 +303,23 @@ def test_every_urdf_problem_has_its_line_and_a_fix(tmp_path: Path, change: tuple
     assert hits[0].line == line, str(hits[0])
 
 
+def _finger(name: str, parent: str, child: str, mimics: str) -> str:
+    return (f'  <joint name="{name}" type="prismatic">\n    <parent link="{parent}"/>\n    <child link="{child}"/>\n'
+            f'    <axis xyz="1 0 0"/>\n    <limit lower="0" upper="0.04" effort="10" velocity="0.1"/>\n'
+            f'    <mimic joint="{mimics}"/>\n  </joint>\n  <link name="{child}"/>\n')
+
+
+def test_joints_that_mimic_each_other_in_a_loop_are_refused_with_their_lines(tmp_path: Path) -> None:
+    # a loop has no position to start from: the model would hold both at 0 without a word
+    text = GOOD.replace("</robot>", _finger("f1", "l1", "p1", "f2") + _finger("f2", "l1", "p2", "f1") + "</robot>")
+    found = urdf_problems(tmp_path, text)
+    lines = [line_of(text, 'name="f1"'), line_of(text, 'name="f2"')]
+    hits = [p for p in found if "mimic" in p.message]
+    assert len(hits) == 1, [str(p) for p in found]
+    assert f"'f1' (line {lines[0]}) mimics 'f2' (line {lines[1]}), which mimics 'f1'" in hits[0].message
+    assert hits[0].line == lines[0] and "follows a joint that follows no other" in hits[0].fix
+
+
 def test_a_urdf_that_is_not_a_robot(tmp_path: Path) -> None:
     (p,) = urdf_problems(tmp_path, '<?xml version="1.0"?>\n<sdf version="1.7">\n  <model name="r"/>\n</sdf>\n')
     assert "the root element is <sdf>, not <robot>" in p.message and p.line == 2

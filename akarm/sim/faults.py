@@ -16,6 +16,7 @@ generator of :class:`DropReplies`, the frozen reading of :class:`FrozenEncoder`,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..errors import AkarmError
@@ -152,8 +153,11 @@ class ForgedReply(Fault):
     interval: float = 0.0
 
     def __post_init__(self) -> None:
-        if int(self.count) < 1 or not self.interval >= 0.0:
-            raise AkarmError(f"ForgedReply needs count ≥ 1 and interval ≥ 0, got {self.count!r}, {self.interval!r}",
+        if int(self.count) < 1 or not 0.0 <= self.interval < math.inf:
+            raise AkarmError(f"ForgedReply needs count ≥ 1 and a finite interval ≥ 0, got {self.count!r}, "
+                             f"{self.interval!r}", fix="e.g. ForgedReply(12.45, 5, 0.01): five replies 10 ms apart")
+        if not math.isfinite(self.position):  # a reply cannot carry it: the simulator would fail to encode it
+            raise AkarmError(f"ForgedReply position {self.position!r} rad is not a finite number",
                              fix="e.g. ForgedReply(12.45) for one reply at +12.45 rad")
 
 

@@ -19,6 +19,11 @@ adding ``dt·D + dt²·K`` to the armature (the diagonal of M) for the call turn
 
 An external torque per joint (a hand pushing the arm) can be set; it acts until changed.
 
+A blocked joint (the ``Blocked`` fault) is held at rest: the step then solves the free joints'
+rows of the system above with the blocked joints' accelerations 0 (the mass matrix and the bias
+restricted to the free joints), so the others feel the reaction of what holds it; the impulse that
+stops it at once acts on the others too (:meth:`Plant.block`).
+
 Friction per joint: ``τ_f = -viscous·v - coulomb·tanh(v / coulomb_eps)``. Hard stops past the URDF
 limits (revolute joints): a spring of ``limit_stiffness`` with critical damping for the joint's
 inertia, pushing only (it never pulls the joint into the stop). Motor torque saturates at ``t_max``.
@@ -196,7 +201,9 @@ class Plant:
             tau_eff.append(tj + ext - dt * k * vi)
             extra.append(dt * d + dt2 * k)
         pm = self._pm
-        if self._identity:
+        if self.blocked:
+            acc = self._held_acceleration(np.array(tau_eff), np.array(extra))
+        elif self._identity:
             pm.armature = self._arm0 + np.array(extra)
             try:
                 acc = pin.aba(pm, self._pd, self.q, self.dq, np.array(tau_eff))
@@ -219,3 +226,27 @@ class Plant:
                 self.q[i], dq[i], acc[i] = qb, 0.0, 0.0
         self.tau = np.array(motor)
         self.steps += 1
+
+    def _held_acceleration(self, tau: np.ndarray, extra: np.ndarray) -> np.ndarray:
+        """The step's accelerations with the blocked joints held (at rest, a = 0): the free joints'
+        rows of ``(M + diag(extra))·a = tau - h(q, v)`` with the blocked joints' columns dropped, so
+        the others feel the reaction of what holds them (ABA would treat every joint as free)."""
+        free = [i for i in range(self.n) if i not in self.blocked]
+        acc = np.zeros(self.n)
+        if free:
+            M = self.model.mass_matrix(self.q)
+            M[free, free] += extra[free]
+            h = self.model.nonlinear_effects(self.q, self.dq)
+            acc[free] = np.linalg.solve(M[np.ix_(free, free)], tau[free] - h[free])
+        return acc
+
+    def block(self, i: int) -> None:
+        """Hold joint ``i`` where it is from now on: it stops at once, and the impulse that stops it
+        acts on the others too (their rows of the generalized momentum do not change)."""
+        v = self.dq[i]
+        self.blocked[i] = float(self.q[i])
+        free = [k for k in range(self.n) if k not in self.blocked]
+        if v != 0.0 and free:
+            M = self.model.mass_matrix(self.q)
+            self.dq[free] += np.linalg.solve(M[np.ix_(free, free)], M[free, i] * v)
+        self.dq[i] = 0.0

@@ -283,8 +283,7 @@ class SimulatedRobot:
         i = self.config.joint_names.index(name)
         with self._lock:
             if blocked:
-                self.plant.blocked[i] = float(self.plant.q[i])
-                self.plant.dq[i] = 0.0
+                self.plant.block(i)
             else:
                 self.plant.blocked.pop(i, None)
 

@@ -203,7 +203,7 @@ class Controller:
         self.lock = threading.RLock()
         self.modes = ModeMachine()
         self.loop: ControlLoop | None = None
-        self._closing = False  # close() is under way (in another thread)
+        self._closing: threading.Event | None = None  # set when a close() under way (in any thread) ends
         self._signals_installed = False  # this controller counts in akarm.signals' handlers
         self.telemetry = Telemetry(config.joint_names, max(1, int(telemetry_seconds * config.rate_hz)))
 
@@ -328,9 +328,15 @@ class Controller:
         a warning to give if the arm was still powered (the program ended, or dropped the Arm).
         """
         with self.lock:
-            if self.modes.mode is Mode.CLOSED or self._closing:
+            if self.modes.mode is Mode.CLOSED:
                 return
-            self._closing = True
+            closing = self._closing
+            if not closing:
+                self._closing = threading.Event()
+        if closing:  # another thread closes it: return once it is closed (the loop's own thread cannot wait)
+            if not self._on_loop_thread():
+                closing.wait(self.stop_damping_time + 5.0)
+            return
         with signals.deferred(reraise=threading.current_thread() is threading.main_thread() and warn is None):
             try:
                 if self.modes.mode.powered and self.modes.mode is not Mode.FAULT:
@@ -357,7 +363,9 @@ class Controller:
                 if self._signals_installed:
                     self._signals_installed = False
                     signals.uninstall()
-                self._closing = False
+                done, self._closing = self._closing, None
+                if done:
+                    done.set()
 
     def _on_loop_thread(self) -> bool:
         return self.loop is not None and self.loop.thread is threading.current_thread()

@@ -48,6 +48,7 @@ import numpy as np
 
 from .collision import MomentumObserver, velocity_resolution
 from .errors import LimitError, StateError
+from .gravity import sample_box
 from .model import ArrayLike, RobotModel
 from .recording import PathRecording
 from .telemetry import TelemetryLog
@@ -456,9 +457,7 @@ def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[Join
 def largest_inertia(model: RobotModel, samples: int = 64) -> np.ndarray:
     """Each joint's largest inertia (the mass matrix's diagonal, kg·m²) over the joint ranges, sampled."""
     lim = [j.limits for j in model.config.joints]
-    lo, hi = np.array([x.lower for x in lim]), np.array([x.upper for x in lim])
-    rng = np.random.default_rng(2)
-    qs = np.vstack([(lo + hi) / 2, lo + rng.random((samples, model.n)) * (hi - lo)])
+    qs = sample_box([x.lower for x in lim], [x.upper for x in lim], samples, seed=2)
     return np.max([np.diag(model.mass_matrix(q)) for q in qs], axis=0)
 
 

@@ -179,8 +179,8 @@ def run(args: argparse.Namespace) -> int:
     return _session(args, config, start, arrived)
 
 
-def _checked_config(args: argparse.Namespace):
-    """The options every move checks before anything is enabled, and the robot."""
+def check_options(args: argparse.Namespace) -> None:
+    """The options every move checks before anything is enabled (here or through akarm serve)."""
     from ..errors import AkarmError
     from .options import TELEMETRY_SUFFIXES, check_output
 
@@ -189,6 +189,11 @@ def _checked_config(args: argparse.Namespace):
     if not args.hold >= 0:
         raise AkarmError(f"--hold {args.hold} must not be negative")
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
+
+
+def _checked_config(args: argparse.Namespace):
+    """The options every move checks before anything is enabled, and the robot."""
+    check_options(args)
     return load_from_args(args)
 
 

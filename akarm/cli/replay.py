@@ -31,6 +31,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_profile_argument(parser)
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """The options a replay checks before anything moves (here or through akarm serve)."""
+    from ..errors import AkarmError
+    from .options import TELEMETRY_SUFFIXES, check_output
+
+    if not args.speed > 0:
+        raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
+
+
 def run(args: argparse.Namespace) -> int:
     """Load and check the recording, then enable, replay with progress, disable."""
     from .served import via_server
@@ -40,14 +50,10 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ..arm import Arm
-    from ..errors import AkarmError
     from ..recording import Keyframes, load
     from .common import controlled, deferred_signals, interrupted, stop_smoothly
-    from .options import TELEMETRY_SUFFIXES, check_output
 
-    if not args.speed > 0:
-        raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
-    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")  # before anything moves
+    check_options(args)
     config = load_from_args(args)
     rec = load(args.file, config.joint_names)
     arm = Arm(config, timing=args.profile)

@@ -108,15 +108,9 @@ def _wait(arm: RemoteArm, motion: dict[str, Any]) -> dict[str, Any]:
 def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..errors import AkarmError
-    from .move import parse_target
-    from .options import TELEMETRY_SUFFIXES, check_output
+    from .move import check_options, parse_target
 
-    if not 0 < args.speed <= 1:
-        raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
-    if not args.hold >= 0:
-        raise AkarmError(f"--hold {args.hold} must not be negative")
-    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
+    check_options(args)
     target = parse_target(args.target, arm.config)  # a pose name, a vector, or {joint: rad}
     if isinstance(target, str):
         target = list(arm.config.pose(target))
@@ -179,32 +173,27 @@ def _disable(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _status(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from ..errors import AkarmError
     from ..probe import JointStatus
-    from .status import _print
+    from .status import check_options, watch
 
-    if args.watch and not args.interval > 0:
-        raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
-    tty = sys.stdout.isatty()
-    n = 0
-    next_t = time.monotonic()
-    while True:
-        d = arm.call("state")
-        states = [JointStatus(name, mode, bus, can_id, q, dq, tau, temp, fault, False)
-                  for name, mode, bus, can_id, q, dq, tau, temp, fault in
-                  zip(d["names"], d["modes"], d["buses"], d["can_ids"], d["q"], d["dq"], d["tau"],
-                      d["temperature"], d["fault"], strict=True)]
-        n += 1
-        if args.watch and n > 1 and not args.json and not tty:
-            print()
-        _print(states, args, sys.stdout, clear=args.watch and tty and not args.json)
-        if not args.json and n == 1:
+    check_options(args)
+    last: dict[str, Any] = {}
+
+    def read() -> list[JointStatus]:
+        d = last["doc"] = arm.call("state")
+        return [JointStatus(name, mode, bus, can_id, q, dq, tau, temp, fault, False)
+                for name, mode, bus, can_id, q, dq, tau, temp, fault in
+                zip(d["names"], d["modes"], d["buses"], d["can_ids"], d["q"], d["dq"], d["tau"],
+                    d["temperature"], d["fault"], strict=True)]
+
+    def first() -> None:
+        d = last["doc"]
+        if not args.json:
             print(f"({d['mode']}; {_held(arm)})" if d["enabled"] else f"({d['mode']}; read through akarm serve "
-                                                                          f"pid {arm.pid})")
-        if not args.watch or (args.count is not None and n >= args.count):
-            return 0
-        next_t += args.interval
-        time.sleep(max(0.0, next_t - time.monotonic()))
+                                                                      f"pid {arm.pid})")
+
+    watch(args, read, first)
+    return 0
 
 
 def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
@@ -227,12 +216,9 @@ def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _replay(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from ..errors import AkarmError
-    from .options import TELEMETRY_SUFFIXES, check_output
+    from .replay import check_options
 
-    if not args.speed > 0:
-        raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
-    check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")  # before anything moves
+    check_options(args)  # before anything moves
     path = os.path.abspath(args.file)
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:

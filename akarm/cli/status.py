@@ -17,7 +17,7 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TextIO
 
 from .common import add_robot_arguments, format_table, load_from_args
@@ -70,35 +70,49 @@ def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO,
     print(status_table(states), file=out, flush=True)
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """The options status checks before it reads anything (here or through akarm serve)."""
+    from ..errors import AkarmError
+
+    if args.watch and not args.interval > 0:
+        raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
+
+
+def watch(args: argparse.Namespace, read: Callable[[], list[JointStatus]],
+          first: Callable[[], None] | None = None) -> list[JointStatus]:
+    """Print ``read()`` once, or with --watch every --interval s (--count times, else until Ctrl-C);
+    ``first()`` after the first table. Returns the last states read."""
+    out = sys.stdout
+    tty = out.isatty()
+    n = 0
+    next_t = time.monotonic()
+    while True:
+        states = read()
+        n += 1
+        if args.watch and n > 1 and not args.json and not tty:
+            print(file=out)
+        _print(states, args, out, clear=args.watch and tty and not args.json)
+        if n == 1 and first is not None:
+            first()
+        if not args.watch or (args.count is not None and n >= args.count):
+            return states
+        next_t += args.interval
+        time.sleep(max(0.0, next_t - time.monotonic()))
+
+
 def run(args: argparse.Namespace) -> int:
     """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
     from .served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
-    from ..errors import AkarmError
     from ..probe import Probe
 
-    if args.watch and not args.interval > 0:
-        raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
+    check_options(args)
     config = load_from_args(args)
-    out = sys.stdout
-    tty = out.isatty()
-    missing: list[str] = []
     with Probe(config) as probe:
-        n = 0
-        next_t = time.monotonic()
-        while True:
-            states = probe.read_state(args.timeout)
-            n += 1
-            if args.watch and n > 1 and not args.json and not tty:
-                print(file=out)
-            _print(states, args, out, clear=args.watch and tty and not args.json)
-            missing = [s.name for s in states if s.missing]
-            if not args.watch or (args.count is not None and n >= args.count):
-                break
-            next_t += args.interval
-            time.sleep(max(0.0, next_t - time.monotonic()))
+        states = watch(args, lambda: probe.read_state(args.timeout))
+    missing = [s.name for s in states if s.missing]
     if missing:
         from ..bus import no_answer_hint
 

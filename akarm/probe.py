@@ -358,11 +358,6 @@ class Probe:
             while bus.recv(timeout=0.0) is not None:
                 pass
 
-    @staticmethod
-    def query_frames(j: Joint) -> list[can.Message]:
-        """The frames that read a silent joint without commanding it: MIT exit frames, none for servo."""
-        return j.query_frames()
-
     def default_timeout(self) -> float:
         """s :meth:`read_state` waits by default: 0.25, or 2.5 periods of the slowest servo status rate."""
         periods = [2.5 / j.config.status_rate_hz for j in self.joints
@@ -397,7 +392,7 @@ class Probe:
         queried = set()
         for j in self.joints:
             if j.state.stamp == -math.inf:
-                for f in self.query_frames(j):
+                for f in j.query_frames():
                     self.send(j, f)
                     queried.add(j.name)
         self.pump(t0 + max(timeout, listen), all_heard)
@@ -507,7 +502,7 @@ class Probe:
         j.state = JointState()
         end = time.monotonic() + timeout
         while True:
-            for f in self.query_frames(j):
+            for f in j.query_frames():
                 self.send(j, f)
             step = end if every is None else min(end, time.monotonic() + every)
             self.pump(step, lambda: j.state.stamp > -math.inf)

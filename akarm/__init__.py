@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from ._version import __version__
-from .errors import (
+from akarm._version import __version__
+from akarm.errors import (
     AkarmError,
     BusError,
     BusLost,
@@ -47,10 +47,10 @@ from .errors import (
 )
 
 if TYPE_CHECKING:
-    from .arm import Arm
-    from .config import RobotConfig
-    from .config_loader import load_robot
-    from .server import ArmServer, serve
+    from akarm.arm import Arm
+    from akarm.config import RobotConfig
+    from akarm.robotfile.load import load_robot
+    from akarm.server import ArmServer, serve
 
 __all__ = [
     "AkarmError",
@@ -93,7 +93,7 @@ _LAZY = {
     "ArmServer": ("akarm.server", "ArmServer"),
     "serve": ("akarm.server", "serve"),
     "RobotConfig": ("akarm.config", "RobotConfig"),
-    "load_robot": ("akarm.config_loader", "load_robot"),
+    "load_robot": ("akarm.robotfile.load", "load_robot"),
 }
 
 

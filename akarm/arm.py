@@ -10,8 +10,8 @@
         arm.move_to([0.3, -0.5, 1.0, 0.0, 0.4, 0.0], speed=0.5)
 
 The Arm checks what it is asked (targets, paths, recordings: before anything moves) and asks its
-:class:`~akarm.control.Controller` to do it; the controller runs the fixed-rate loop, the mode
-machine (:mod:`akarm.modes`) and the safety supervisor (:mod:`akarm.safety`).
+:class:`~akarm.control.controller.Controller` to do it; the controller runs the fixed-rate loop, the mode
+machine (:mod:`akarm.control.modes`) and the safety supervisor (:mod:`akarm.control.safety`).
 
 All positions are rad, velocities rad/s, torques N·m, times s, in config joint order.
 """
@@ -25,24 +25,24 @@ from os import PathLike
 
 import numpy as np
 
-from . import recording as rec_mod
-from .cartesian import plan_linear
-from .clock import Clock, RealClock
-from .collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
-from .config import RobotConfig
-from .control import Controller, Motion, PathRecorder, track_arm
-from .errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
-from .feedforward import FeedForwardKind
-from .gravity import GravityPeak
-from .identify import Identification, PayloadFit
-from .ik import IKSolver, as_pose
-from .joints import Joint, make_joint
-from .loop import StatsSummary
-from .model import RobotModel
-from .modes import Mode
-from .telemetry import TelemetryLog
-from .timing import TimingProfile, get_profile
-from .trajectory import Chain, JointLimits, Plan, Planner
+from akarm.clock import Clock, RealClock
+from akarm.config import RobotConfig
+from akarm.control.collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
+from akarm.control.controller import Controller, Motion, PathRecorder, track_arm
+from akarm.control.feedforward import FeedForwardKind
+from akarm.control.joints import Joint, make_joint
+from akarm.control.loop import StatsSummary
+from akarm.control.modes import Mode
+from akarm.dynamics.gravity import GravityPeak
+from akarm.dynamics.ik import IKSolver, as_pose
+from akarm.dynamics.model import RobotModel
+from akarm.errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
+from akarm.identify.procedure import Identification, PayloadFit
+from akarm.motion import recording as rec_mod
+from akarm.motion.cartesian import plan_linear
+from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner
+from akarm.telemetry.log import TelemetryLog
+from akarm.timing import TimingProfile, get_profile
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
 
@@ -54,7 +54,7 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 class JointReport:
     """One joint's latest feedback (joint side, SI): position rad, velocity rad/s, torque N·m,
     temperature °C (None if not reported), fault code (0 none), age s (time since the feedback),
-    and the collision observer's estimate of the external torque on it, N·m (:mod:`akarm.collision`)."""
+    and the collision observer's estimate of the external torque on it, N·m (:mod:`akarm.control.collision`)."""
 
     name: str
     position: float
@@ -76,8 +76,8 @@ class ArmState:
         q, dq, tau: measured positions (rad), velocities (rad/s), torques (N·m) as arrays.
         q_des: the commanded position (rad) this cycle.
         enabled: True while the arm is powered and tracking. moving: True while a motion runs.
-        mode: the arm's :class:`~akarm.modes.Mode`.
-        tau_ext: the external torque estimate per joint, N·m (:mod:`akarm.collision`).
+        mode: the arm's :class:`~akarm.control.modes.Mode`.
+        tau_ext: the external torque estimate per joint, N·m (:mod:`akarm.control.collision`).
     """
 
     time: float
@@ -132,7 +132,7 @@ class Arm:
         implausible_limit: rejected replies in a row that stop the arm (:class:`~akarm.ImplausibleFeedback`).
         collision_reaction: what the collision reflex does when a joint's external torque estimate
             passes its YAML ``collision: {threshold: ...}``: ``"disable"`` (damp, then disable; the
-            default) or ``"hold"`` (come to rest, jerk-limited, and hold). See :mod:`akarm.collision`.
+            default) or ``"hold"`` (come to rest, jerk-limited, and hold). See :mod:`akarm.control.collision`.
         collision_gain: 1/s, the bandwidth of the external torque estimate (default 50: a 20 ms
             time constant; at most a quarter of the loop rate). With a ``timing`` profile for machines
             that cannot keep time (``slow``), the reflex only watches: no thresholds.
@@ -140,7 +140,7 @@ class Arm:
         can_log: optional path of a raw CAN log (``.log`` candump, ``.asc``, ``.blf``, ...).
         realtime_priority: ask for SCHED_FIFO and locked memory for the loop thread, freeze the
             garbage collector's view of existing objects and shorten the interpreter's thread switch
-            interval (:func:`akarm.loop.request_realtime`; reported, never fatal).
+            interval (:func:`akarm.control.loop.request_realtime`; reported, never fatal).
         busy_wait: the loop thread keeps its core between cycles (it yields instead of sleeping),
             so it starts every cycle with warm caches: for six joints at 500 Hz on our 2-core
             machines, 130-170 µs of compute per cycle instead of 175-195 µs, for a whole core
@@ -156,7 +156,7 @@ class Arm:
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
     and disables the arm; an Arm still enabled when the program ends, or when it is dropped, is
-    damped and disabled with an :class:`~akarm.control.UnsafeExitWarning`.
+    damped and disabled with an :class:`~akarm.control.controller.UnsafeExitWarning`.
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
@@ -224,7 +224,7 @@ class Arm:
     def from_yaml(cls, path: str | PathLike[str], *, interface: str | None = None,
                   channel: str | Mapping[str, str] | None = None, bitrate: int | None = None, **kwargs) -> Arm:
         """Load a robot YAML (bus overrides: ``interface=``, ``channel=``, ``bitrate=``) and build its Arm."""
-        from .config_loader import load_robot
+        from akarm.robotfile.load import load_robot
 
         config = load_robot(path)
         if interface is not None or channel is not None or bitrate is not None:
@@ -242,7 +242,7 @@ class Arm:
             StateError: an ``akarm serve`` of another process drives one of the buses.
         """
         if self.mode is Mode.CLOSED:
-            from .server.registry import refuse_if_served
+            from akarm.buses.ownership import refuse_if_served
 
             refuse_if_served(self.config, "opening this Arm")  # akarm serve drives these buses: one controller only
         self._ctl.open()
@@ -297,7 +297,7 @@ class Arm:
 
     @property
     def mode(self) -> Mode:
-        """What the arm is doing now (:class:`~akarm.modes.Mode`)."""
+        """What the arm is doing now (:class:`~akarm.control.modes.Mode`)."""
         return self._ctl.mode
 
     # ------------------------------------------------------------------------------------------
@@ -310,7 +310,7 @@ class Arm:
             q = self._ctl.desired_now()[0].copy()
             for name, value in target.items():
                 if name not in self.names:
-                    from .motors import did_you_mean
+                    from akarm.protocol.motors import did_you_mean
 
                     raise LimitError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
                                      fix="joints are: " + ", ".join(self.names))
@@ -374,11 +374,11 @@ class Arm:
         """Move through ``positions[k]`` (rad, config order; NaN: keep that joint where it is
         commanded), reaching each ``times[k]`` s from now, or as soon after as the limits allow.
 
-        Jerk-limited through every point (:func:`akarm.timed.timed_plan`); replaces a running motion
+        Jerk-limited through every point (:func:`akarm.motion.timed.timed_plan`); replaces a running motion
         smoothly. Raises :class:`~akarm.LimitError` before anything moves if a point or the path
         leaves a joint's range.
         """
-        from .timed import timed_plan
+        from akarm.motion.timed import timed_plan
 
         return self._run(self._start(lambda start, now: timed_plan(self.planner, start, now, times, positions,
                                                                    velocities)), wait)
@@ -406,7 +406,7 @@ class Arm:
         return motion.wait() if wait else motion
 
     # ------------------------------------------------------------------------------------------
-    # Cartesian: the tool frame's pose (akarm.ik, akarm.cartesian)
+    # Cartesian: the tool frame's pose (akarm.dynamics.ik, akarm.motion.cartesian)
     # ------------------------------------------------------------------------------------------
     def _ik(self) -> IKSolver:
         """The IK solver, on a model of its own (the loop thread's is not shared)."""
@@ -435,7 +435,7 @@ class Arm:
         ``pose``: a 4×4 transform of the tool frame in the base frame (m), ``(xyz, quaternion xyzw)``,
         or a position ``(x, y, z)`` alone: the tool keeps its orientation (arms with fewer than six
         joints cannot, and go to the position whatever their orientation). The joint positions are
-        solved (:class:`akarm.ik.IKSolver`) nearest the commanded ones; ``speed`` as in :meth:`move_to`.
+        solved (:class:`akarm.dynamics.ik.IKSolver`) nearest the commanded ones; ``speed`` as in :meth:`move_to`.
 
         Raises:
             UnreachableError: out of reach (says how close the tool gets).
@@ -454,7 +454,7 @@ class Arm:
         The timing is jerk-limited along the line; every joint's velocity, acceleration and jerk stay
         within its limits times ``speed``, ``speed²``, ``speed³``, and ``max_velocity`` (m/s) /
         ``max_acceleration`` (m/s²) cap the tool's. The whole joint path is solved and checked
-        before anything moves (:mod:`akarm.cartesian`).
+        before anything moves (:mod:`akarm.motion.cartesian`).
 
         Raises:
             StateError: the arm is moving (a line starts from rest: wait for the motion, or stop()).
@@ -649,7 +649,7 @@ class Arm:
         if over:
             import warnings
 
-            from .errors import ConfigWarning
+            from akarm.errors import ConfigWarning
 
             text = "; ".join(f"{j.name} needs up to {p.torque:.1f} N·m (limit {j.limits.torque:g}) at {p.pose()}"
                              for p, j in over)
@@ -658,11 +658,11 @@ class Arm:
 
     def gravity_check(self) -> list[GravityPeak]:
         """``akarm check``'s gravity check with the payload the arm carries now: per joint, the largest
-        gravity torque over the joint ranges and where (:func:`akarm.gravity.gravity_peaks`)."""
+        gravity torque over the joint ranges and where (:func:`akarm.dynamics.gravity.gravity_peaks`)."""
         from dataclasses import replace
 
-        from .config import Payload
-        from .gravity import gravity_peaks
+        from akarm.config import Payload
+        from akarm.dynamics.gravity import gravity_peaks
 
         p = self.model.payload
         payload = None if p is None else Payload(p[0], (float(p[1][0]), float(p[1][1]), float(p[1][2])))
@@ -684,7 +684,7 @@ class Arm:
     def identify(self, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
                  center: Target | None = None, payload: bool = True, offsets: bool = True,
                  apply: bool = True) -> Identification:
-        """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify`).
+        """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify.procedure`).
 
         The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
         ``amplitude`` rad per joint at most (less near a limit, or where a large one would take the start and
@@ -694,13 +694,13 @@ class Arm:
         gains alternate between full and half every 3 s (how the fit tells friction from the bias
         of the torque samples). With ``apply`` the arm uses the results at once (payload, friction). The result
         suggests collision thresholds; ``.fragment()`` is YAML for the robot file
-        (:func:`akarm.robotfile.save_identification` writes it in, with a backup).
+        (:func:`akarm.robotfile.save.save_identification` writes it in, with a backup).
 
         Raises:
             LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
             StateError: the arm is moving, or the telemetry is too short for the duration.
         """
-        from .identify import identify
+        from akarm.identify.procedure import identify
 
         return identify(self, duration=duration, speed=speed, amplitude=amplitude, center=center, payload=payload,
                         offsets=offsets, apply=apply)
@@ -716,7 +716,7 @@ class Arm:
         mass, twice (the second time with the first estimate carried). The collision reflex only
         watches meanwhile. With ``apply`` the arm then carries it (:meth:`set_payload`).
         """
-        from .identify import estimate_payload
+        from akarm.identify.procedure import estimate_payload
 
         return estimate_payload(self, poses, speed=speed, settle=settle, apply=apply)
 

@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from .errors import AkarmError
+from akarm.errors import AkarmError
 
 if TYPE_CHECKING:
-    from .config import JointConfig, RobotConfig
+    from akarm.config import JointConfig, RobotConfig
 
 __all__ = ["PROFILES", "TimingProfile", "get_profile"]
 

@@ -18,8 +18,7 @@ import sys
 import time
 from collections.abc import Callable
 
-from akarm import motors
-from akarm.protocol import mit, servo, uart
+from akarm.protocol import mit, motors, servo, uart
 
 TARGET_PAIRS_PER_S = 300_000
 

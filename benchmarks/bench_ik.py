@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_ik.py [--targets N]
 
 Targets are the tool poses of random joint positions of arm6 (away from singularities), solved
-from the `home` pose: median and p99 solve time of :class:`akarm.ik.IKSolver`, how many needed the
+from the `home` pose: median and p99 solve time of :class:`akarm.dynamics.ik.IKSolver`, how many needed the
 other starts, the worst pose error; then the planning time of 20 straight lines (`plan_linear`).
 
 If ``pin-pink`` (PyPI) and a QP back-end (``daqp``) are installed in the same environment (they
@@ -24,11 +24,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from akarm import load_robot  # noqa: E402
-from akarm.cartesian import plan_linear  # noqa: E402
+from akarm.dynamics.ik import IKSolver, pose_error  # noqa: E402
+from akarm.dynamics.model import RobotModel  # noqa: E402
 from akarm.errors import LimitError  # noqa: E402
-from akarm.ik import IKSolver, pose_error  # noqa: E402
-from akarm.model import RobotModel  # noqa: E402
-from akarm.trajectory import JointLimits  # noqa: E402
+from akarm.motion.cartesian import plan_linear  # noqa: E402
+from akarm.motion.trajectory import JointLimits  # noqa: E402
 
 
 def stats(ms: list[float]) -> str:

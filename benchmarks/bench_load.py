@@ -8,8 +8,8 @@ file ``akarm init`` writes for it), best of R runs (other processes only ever ma
 - ``load``: :func:`akarm.load_robot`, the gravity check computed afresh;
 - ``cached``: the same with the gravity result kept from an earlier load of the same robot (what
   the test suite and long-lived programs mostly see);
-- ``gravity``: :func:`akarm.gravity.gravity_peaks` alone, and the gravity evaluations it makes;
-- ``init``: :func:`akarm.starter.suggest` (``akarm init``) for the corpus URDFs.
+- ``gravity``: :func:`akarm.dynamics.gravity.gravity_peaks` alone, and the gravity evaluations it makes;
+- ``init``: :func:`akarm.robotfile.starter.suggest` (``akarm init``) for the corpus URDFs.
 """
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from akarm import gravity, load_robot  # noqa: E402
-from akarm.model import RobotModel  # noqa: E402
-from akarm.starter import suggest  # noqa: E402
+from akarm import load_robot  # noqa: E402
+from akarm.dynamics import gravity  # noqa: E402
+from akarm.dynamics.model import RobotModel  # noqa: E402
+from akarm.robotfile.starter import suggest  # noqa: E402
 
 
 def best(fn, repeat: int) -> float:

@@ -102,7 +102,7 @@ def chain_config(n: int, folder: Path, channel: str) -> RobotConfig:
     urdf = folder / f"chain{n}.urdf"
     urdf.write_text(f'<robot name="chain{n}"><link name="l0"/>{links}\n</robot>\n')
     buses = {"a": BusConfig("a", "akarm_local", f"{channel}-a"), "b": BusConfig("b", "akarm_local", f"{channel}-b")}
-    motor = akarm.motors.get("AK80-9")
+    motor = akarm.protocol.motors.get("AK80-9")
     joints = tuple(JointConfig(name=f"j{i}", bus="a" if i <= 6 else "b", can_id=i, motor=motor, mode="mit",
                                limits=Limits(-2, 2, 3.0, 15.0, 150.0, 18.0), gains=Gains(60.0, 2.0))
                    for i in range(1, n + 1))

@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_model.py [--calls N] [--repeat R]
 
-For each robot in ``robots/`` it times N calls of each :class:`akarm.model.RobotModel` method at a
+For each robot in ``robots/`` it times N calls of each :class:`akarm.dynamics.model.RobotModel` method at a
 pose of the robot (best of R runs, since other processes only ever make a run slower) and prints
 µs per call: ``gravity`` (the loop's gravity-only feed-forward, and teach mode), ``inverse_dynamics``
 (RNEA, the default feed-forward), ``forward_dynamics`` (ABA, the simulator's plant) and
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from akarm import load_robot  # noqa: E402
-from akarm.model import RobotModel  # noqa: E402
+from akarm.dynamics.model import RobotModel  # noqa: E402
 
 
 def per_call(fn, fn_args: tuple, calls: int, repeat: int) -> float:

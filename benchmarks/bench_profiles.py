@@ -23,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from akarm.sim.process import stat_cpu_seconds
-from akarm.sim.rig import SimulatedArm
+from akarm.testing.rig import SimulatedArm
 from akarm.timing import PROFILES
 
 SETTLED = 0.03  # rad

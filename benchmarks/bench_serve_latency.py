@@ -33,8 +33,8 @@ sys.path.insert(0, str(ROOT))
 
 from cyclonedds.core import ReadCondition, WaitSet  # noqa: E402
 
-from akarm.config_loader import load_robot  # noqa: E402
 from akarm.protocol import mit  # noqa: E402
+from akarm.robotfile.load import load_robot  # noqa: E402
 from akarm.ros import dds, msgs  # noqa: E402
 from akarm.sim.process import SimulatorProcess  # noqa: E402
 

@@ -26,8 +26,8 @@ sys.path.insert(0, str(ROOT))
 
 import can  # noqa: E402
 
-from akarm.config_loader import load_robot  # noqa: E402
 from akarm.protocol import mit  # noqa: E402
+from akarm.robotfile.load import load_robot  # noqa: E402
 from akarm.sim import SimulatedRobot  # noqa: E402
 
 

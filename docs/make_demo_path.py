@@ -25,9 +25,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from akarm import recording  # noqa: E402
 from akarm.arm import Arm  # noqa: E402
-from akarm.config_loader import load_robot  # noqa: E402
+from akarm.motion import recording  # noqa: E402
+from akarm.robotfile.load import load_robot  # noqa: E402
 
 DURATION = 7.0  # s
 RATE = 100.0  # Hz

@@ -25,8 +25,8 @@ OBJECT = (0.4, (0.0, 0.0, 0.05))  # kg, centre of mass in the tool frame (m): 5 
 
 def main() -> int:
     args = parse_args("Pick an object with straight-line moves, carry it, place it (arm6).")
-    from akarm.ik import make_pose
-    from akarm.model import RobotModel
+    from akarm.dynamics.ik import make_pose
+    from akarm.dynamics.model import RobotModel
 
     def pose(xyz, up=0.0):
         return make_pose(np.add(xyz, (0.0, 0.0, up)), rpy=DOWN)

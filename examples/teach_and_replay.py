@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 from _setup import open_arm, parse_args, run
 
-from akarm import LimitError, recording
+from akarm import LimitError
+from akarm.motion import recording
 
 # The simulated hand: (torque per joint in N·m, how long in s); a keyframe is taken after each push,
 # once the arm has come to rest. arm6's joints: pan, lift, elbow, roll, wrist pitch, wrist roll.

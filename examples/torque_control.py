@@ -12,7 +12,7 @@ given a 3 N·m nudge for 0.3 s, swings out, and the spring brings it back.
 
 The Arm's feed-forward is the arm's weight at the *commanded* pose (still `ready`). Pushed away
 from it, the weight changes; the law adds the difference, ``g(q) - g(ready)``, from its own
-:class:`akarm.model.RobotModel` (the Arm's own model belongs to its control loop's thread).
+:class:`akarm.dynamics.model.RobotModel` (the Arm's own model belongs to its control loop's thread).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from _setup import open_arm, parse_args, run
 
-from akarm.model import RobotModel
+from akarm.dynamics.model import RobotModel
 
 STIFFNESS = 10.0  # N·m/rad, every joint
 DAMPING = 0.5  # N·m·s/rad: the motors' own kd (runs in the drive, at its loop rate)

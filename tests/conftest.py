@@ -12,7 +12,7 @@ from pathlib import Path
 import can
 import pytest
 
-from akarm.bus import drain as _drain
+from akarm.buses.bus import drain as _drain
 from akarm.errors import AkarmError
 
 # DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
@@ -104,7 +104,7 @@ def drain(bus: can.BusABC) -> list[can.Message]:
 @pytest.fixture(scope="module")
 def planar2():
     """robots/planar2.yaml, loaded once per module."""
-    from akarm.config_loader import load_robot
+    from akarm.robotfile.load import load_robot
 
     return load_robot(ROBOTS / "planar2.yaml")
 

@@ -359,7 +359,7 @@ def test_over_temperature_stops_the_arm(channel) -> None:
 # telemetry and statistics
 # ---------------------------------------------------------------------------------------------
 def test_telemetry_and_can_log_are_written(channel, tmp_path) -> None:
-    from akarm import telemetry
+    from akarm.telemetry import log as telemetry
 
     log_path = tmp_path / "raw.log"
     with rig("planar2", channel, q0=[0.0, 0.0], can_log=log_path) as (arm, _sim):

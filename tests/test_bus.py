@@ -12,11 +12,11 @@ import can
 import pytest
 
 from akarm import BusError, ConfigError
-from akarm.bus import no_answer_hint, open_bus, open_error
-from akarm.canconfig import python_can_settings
+from akarm.buses.bus import no_answer_hint, open_bus, open_error
 from akarm.cli import main
 from akarm.config import BusConfig
-from akarm.config_loader import load_robot
+from akarm.config.canconfig import python_can_settings
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS, wait_until
 

@@ -6,10 +6,10 @@ from dataclasses import replace
 
 import pytest
 
-from akarm.busload import LOAD_LIMIT, bus_loads, frame_bits, joint_traffic, load_of
 from akarm.config import Gains, JointConfig, Limits
-from akarm.config_loader import load_robot
-from akarm.motors import get
+from akarm.config.busload import LOAD_LIMIT, bus_loads, frame_bits, joint_traffic, load_of
+from akarm.protocol.motors import get
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS
 

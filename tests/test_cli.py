@@ -29,10 +29,10 @@ import yaml
 
 from akarm import load_robot
 from akarm.cli import VERBS, main
-from akarm.recording import Keyframe, Keyframes, PathRecording, load_keyframes, load_path
+from akarm.motion.recording import Keyframe, Keyframes, PathRecording, load_keyframes, load_path
 from akarm.sim import SimulatedRobot, faults
-from akarm.telemetry import TelemetryLog
-from akarm.telemetry import load as load_telemetry
+from akarm.telemetry.log import TelemetryLog
+from akarm.telemetry.log import load as load_telemetry
 
 from .conftest import ROBOTS, missing_socketcan_fix, wait_until
 

@@ -34,8 +34,8 @@ def test_negative_values_need_no_double_dash_and_options_after_them_parse() -> N
 
 def test_targets_are_read_as_poses_values_or_named_joints() -> None:
     from akarm.cli.move import parse_target
-    from akarm.config_loader import load_robot
     from akarm.errors import ConfigError, LimitError
+    from akarm.robotfile.load import load_robot
 
     arm6 = load_robot(ARM6)
     assert parse_target(["ready"], arm6) == "ready"

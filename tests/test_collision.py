@@ -19,12 +19,12 @@ import pytest
 
 import akarm
 from akarm.arm import Arm
-from akarm.collision import DEFAULT_GAIN, MomentumObserver
+from akarm.control.collision import DEFAULT_GAIN, MomentumObserver
+from akarm.control.modes import Mode
+from akarm.dynamics.model import RobotModel
 from akarm.errors import CollisionError, ConfigError, StateError
-from akarm.model import RobotModel
-from akarm.modes import Mode
 from akarm.sim import SimulatedRobot
-from akarm.telemetry import load as load_telemetry
+from akarm.telemetry.log import load as load_telemetry
 
 from .conftest import ROBOTS
 

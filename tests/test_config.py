@@ -8,8 +8,8 @@ import pytest
 
 from akarm import ConfigError, ConfigWarning
 from akarm.config import BusConfig
-from akarm.config_loader import load_robot
 from akarm.errors import ConfigProblem
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS
 
@@ -617,7 +617,7 @@ poses:
 
 def test_friction_per_joint_and_from_defaults(tmp_path) -> None:
     """`friction:` (identified values) overrides the catalogue's typical friction; bad values are reported."""
-    from akarm.config_loader import load_robot
+    from akarm.robotfile.load import load_robot
 
     src = (ROBOTS / "planar2.yaml").read_text()
     gains = "    gains: {kp: 40.0, kd: 1.5}"
@@ -642,7 +642,7 @@ def test_supervisor_limits_per_joint_and_from_defaults(tmp_path: Path) -> None:
     c = load_robot(write(tmp_path, text))
     el = c.joint("elbow")
     assert (el.following_error, el.stuck_travel) == (0.15, 0.03)
-    assert c.joints[0].following_error is None  # derived by the supervisor (akarm.safety)
+    assert c.joints[0].following_error is None  # derived by the supervisor (akarm.control.safety)
     bad = BASE.replace("motor: AK60-6", "motor: AK60-6\n    following_error: 0\n    stuck_travel: far")
     found = problems(tmp_path, bad)
     assert one(found, "following_error must be positive").line == line_of(bad, "following_error")

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import akarm
-from akarm import recording
-from akarm import telemetry as tel
 from akarm.arm import Arm
 from akarm.cli import demo, main
+from akarm.motion import recording
+from akarm.telemetry import log as tel
 
 from .conftest import ROBOTS
 

@@ -46,13 +46,13 @@ from akarm import (
     TrackingError,
 )
 from akarm.config import RobotConfig
-from akarm.control import UnsafeExitWarning
-from akarm.modes import Mode
+from akarm.control.controller import UnsafeExitWarning
+from akarm.control.modes import Mode
+from akarm.motion.recording import load as load_recording
 from akarm.protocol import mit
-from akarm.recording import load as load_recording
 from akarm.sim import SimulatedRobot, faults
 from akarm.sim.process import SimulatorProcess
-from akarm.telemetry import load as load_telemetry
+from akarm.telemetry.log import load as load_telemetry
 
 from .conftest import ROBOTS, wait_until
 from .wire import Wire, damping_then_exit, never_held

@@ -11,9 +11,9 @@ import pytest
 
 from akarm import ConfigError
 from akarm.cli import main
-from akarm.config_loader import load_robot
-from akarm.gravity import gravity_peaks, peak_abs
-from akarm.model import RobotModel
+from akarm.dynamics.gravity import gravity_peaks, peak_abs
+from akarm.dynamics.model import RobotModel
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS
 

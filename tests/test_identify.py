@@ -24,14 +24,21 @@ import yaml
 import akarm
 from akarm.arm import Arm
 from akarm.cli import main
+from akarm.dynamics.model import RobotModel
 from akarm.errors import LimitError, StateError
-from akarm.identify import Identification, JointFit, PayloadFit, apply_identification, excitation, torque_speed
-from akarm.identify import fit as identify_fit
-from akarm.model import RobotModel
-from akarm.robotfile import save_identification
+from akarm.identify.procedure import (
+    Identification,
+    JointFit,
+    PayloadFit,
+    apply_identification,
+    excitation,
+    torque_speed,
+)
+from akarm.identify.procedure import fit as identify_fit
+from akarm.robotfile.save import save_identification
 from akarm.sim import SimulatedRobot
 from akarm.sim.params import default_params
-from akarm.telemetry import TelemetryLog
+from akarm.telemetry.log import TelemetryLog
 
 from .conftest import ROBOTS, relaxed_robot, wait_until
 

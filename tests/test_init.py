@@ -20,10 +20,10 @@ import yaml
 import akarm
 from akarm import ConfigError
 from akarm.cli import main
-from akarm.config_loader import load_robot
-from akarm.motors import Catalogue, default_catalogue
+from akarm.protocol.motors import Catalogue, default_catalogue
+from akarm.robotfile.load import load_robot
+from akarm.robotfile.starter import suggest
 from akarm.sim import SimulatedRobot
-from akarm.starter import suggest
 
 URDFS = Path(__file__).resolve().parent / "urdfs"
 TRIED = ["arm7_gripper", "cad_arm4", "scara_ros2"]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from akarm import load_robot
-from akarm.joints import MitJoint, make_joint
+from akarm.control.joints import MitJoint, make_joint
 
 ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 

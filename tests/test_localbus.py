@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 import akarm
-from akarm import localbus
-from akarm.bus import open_bus
+from akarm.buses import localbus
+from akarm.buses.bus import open_bus
+from akarm.buses.localbus import LocalBus, channel_path
 from akarm.config import BusConfig
 from akarm.errors import BusError
-from akarm.localbus import LocalBus, channel_path
 from akarm.sim import SimulatedRobot
 
 
@@ -156,7 +156,7 @@ def test_filters_apply(bus):
 
 def test_frames_cross_processes(bus, channel):
     rx = bus()
-    code = ("import can, akarm.localbus as lb\n"
+    code = ("import can, akarm.buses.localbus as lb\n"
             f"b = lb.LocalBus({channel!r})\n"
             "for k in range(50):\n"
             "    b.send(can.Message(arbitration_id=0x300 + k, data=bytes([k] * 8), is_extended_id=False))\n"
@@ -258,7 +258,7 @@ def test_arm_moves_against_the_simulator_over_it(planar2, channel):
     (0x20000080, b"\x00" * 8, True, {"is_error_frame": True}),
 ])
 def test_fast_messages_equal_python_cans_own(fields):
-    from akarm import frames
+    from akarm.buses import frames
 
     arbitration_id, data, extended, kw = fields
     fast = frames._fast(arbitration_id, data, extended, **kw)

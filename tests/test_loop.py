@@ -11,7 +11,7 @@ import pytest
 
 from akarm import clock as clock_mod
 from akarm.clock import RealClock, SteppedClock
-from akarm.loop import ControlLoop, request_realtime
+from akarm.control.loop import ControlLoop, request_realtime
 
 
 def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():

@@ -11,8 +11,8 @@ import pytest
 
 from akarm import ModelError
 from akarm.config import Payload, RobotConfig
-from akarm.config_loader import load_robot
-from akarm.model import RobotModel
+from akarm.dynamics.model import RobotModel
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS
 

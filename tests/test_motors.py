@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from akarm import ConfigError, UnknownMotorError, motors
-from akarm.motors import Catalogue, MotorModel
+from akarm import ConfigError, UnknownMotorError
+from akarm.protocol import motors
+from akarm.protocol.motors import Catalogue, MotorModel
 
 REQUIRED = ["AK10-9", "AK60-6", "AK70-10", "AK80-6", "AK80-9", "AK80-64",
             "AK80-8", "AK70-9", "AK45-10", "AK45-36", "AK40-10"]

@@ -1,4 +1,4 @@
-"""akarm.plot.plot_log on small synthetic telemetry logs: a real PNG of the right size, drawn from
+"""akarm.telemetry.plot.plot_log on small synthetic telemetry logs: a real PNG of the right size, drawn from
 the data, written atomically, and clear errors for what cannot be plotted."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from akarm.errors import RecordingError
-from akarm.plot import plot_log
-from akarm.telemetry import TelemetryLog
+from akarm.telemetry.log import TelemetryLog
+from akarm.telemetry.plot import plot_log
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -1,4 +1,4 @@
-"""akarm.probe against the real-time simulator: scanning, reading joints, zeroing, releasing.
+"""akarm.control.probe against the real-time simulator: scanning, reading joints, zeroing, releasing.
 
 Each test runs a :class:`SimulatedRobot` in real time on a virtual bus of its own and talks to it
 over that bus exactly as to hardware. planar2 starts hanging straight down (shoulder -π/2, elbow 0),
@@ -20,7 +20,7 @@ import pytest
 
 from akarm import AkarmError, BusError, StateError, load_robot
 from akarm.config import BusConfig, RobotConfig
-from akarm.probe import Probe, read_state, release, scan, zero
+from akarm.control.probe import Probe, read_state, release, scan, zero
 from akarm.protocol import mit, servo
 from akarm.sim import SimulatedRobot, faults
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from akarm import FrameError, ProtocolError, UnknownMotorError, motors
-from akarm.protocol import mit
+from akarm import FrameError, ProtocolError, UnknownMotorError
+from akarm.protocol import mit, motors
 from akarm.protocol.mit import MitCodec, MitCommand, MitReply
 
 MODELS = motors.names()

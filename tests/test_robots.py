@@ -10,8 +10,8 @@ import pytest
 
 from akarm.cli import main
 from akarm.config import RobotConfig
-from akarm.config_loader import load_robot, read_urdf_joints
-from akarm.model import RobotModel
+from akarm.dynamics.model import RobotModel
+from akarm.robotfile.load import load_robot, read_urdf_joints
 
 from .conftest import ROBOTS
 

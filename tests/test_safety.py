@@ -21,9 +21,9 @@ from akarm import (
     TrackingError,
 )
 from akarm.config import RobotConfig
-from akarm.joints import MitJoint, make_joint
-from akarm.modes import Mode, ModeMachine
-from akarm.safety import (
+from akarm.control.joints import MitJoint, make_joint
+from akarm.control.modes import Mode, ModeMachine
+from akarm.control.safety import (
     FOLLOWING_CYCLES,
     IMPLAUSIBLE_PER_WINDOW,
     REPLY_WINDOW,

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 
 import akarm
+from akarm.buses import ownership as registry
 from akarm.errors import AkarmError, LimitError, MotorFault, StateError
-from akarm.server import registry
-from akarm.server.control import ControlClient, ControlServer
+from akarm.server.socket import ControlClient, ControlServer
 from akarm.sim import SimulatedRobot
 
 from .conftest import ROBOTS
@@ -30,7 +30,7 @@ def test_a_bus_lock_is_exclusive_across_processes_and_gone_with_its_holder(chann
     assert registry.find_server(config) is None
     holder = subprocess.Popen([sys.executable, "-c", f"""
 import sys, akarm
-from akarm.server.registry import BusLock
+from akarm.buses.ownership import BusLock
 lock = BusLock(akarm.load_robot({str(ROBOTS / 'planar2.yaml')!r}).with_bus(interface="akarm_local",
                channel={channel!r}), {{"robot": "planar2", "socket": "/nowhere"}})
 print("locked", flush=True)

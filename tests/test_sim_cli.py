@@ -14,9 +14,9 @@ import can
 import pytest
 
 from akarm.cli import main
-from akarm.config_loader import load_robot
 from akarm.errors import BusError, StateError
 from akarm.protocol import mit
+from akarm.robotfile.load import load_robot
 from akarm.sim import SimulatedRobot
 
 from .conftest import ROBOTS, ROOT, has_vcan, missing_socketcan_fix

@@ -16,7 +16,7 @@ import pytest
 
 from akarm import AkarmError, StateError, load_robot
 from akarm.sim import SimulatedRobot, faults
-from akarm.sim.control import ControlServer, SimulatorControl, fault_from_json, fault_to_json
+from akarm.sim.channel import ControlServer, SimulatorControl, fault_from_json, fault_to_json
 
 from .conftest import ROBOTS
 

@@ -11,9 +11,9 @@ import pinocchio as pin
 import pytest
 
 from akarm.config import RobotConfig
-from akarm.config_loader import load_robot
 from akarm.errors import AkarmError
 from akarm.protocol import mit, servo
+from akarm.robotfile.load import load_robot
 from akarm.sim import MitDriver, SimulatedRobot, faults
 from akarm.sim.params import default_params
 

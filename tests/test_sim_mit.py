@@ -13,10 +13,9 @@ from dataclasses import replace
 import can
 import pytest
 
-from akarm import units
 from akarm.config import RobotConfig
-from akarm.config_loader import load_robot
-from akarm.protocol import mit, servo
+from akarm.protocol import mit, servo, units
+from akarm.robotfile.load import load_robot
 from akarm.sim import MitDriver, SimulatedRobot
 
 from .conftest import ROBOTS, drain, send

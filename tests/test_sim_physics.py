@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from akarm.config import RobotConfig
-from akarm.config_loader import load_robot
-from akarm.model import RobotModel
+from akarm.dynamics.model import RobotModel
 from akarm.protocol import mit
+from akarm.robotfile.load import load_robot
 from akarm.sim import SimulatedRobot, default_params
 
 from .conftest import ROBOTS, drain

@@ -1,4 +1,4 @@
-"""SimulatedArm (akarm.sim.rig): what the pytest plugin's fixtures are, used directly.
+"""SimulatedArm (akarm.testing.rig): what the pytest plugin's fixtures are, used directly.
 
 In lock step everything is exact: the frames recorded are compared with the simulated drivers' own
 counts. The akarm_local runs put ``akarm sim`` in a process of its own, in real time, with the slow
@@ -18,7 +18,7 @@ import pytest
 from akarm import BusError, FeedbackTimeout, MotorFault, StateError, load_robot
 from akarm.protocol import mit
 from akarm.sim import faults
-from akarm.sim.rig import LeftEnabledWarning, SimulatedArm, default_channel, missing_interfaces
+from akarm.testing.rig import LeftEnabledWarning, SimulatedArm, default_channel, missing_interfaces
 
 from .conftest import ROBOTS
 

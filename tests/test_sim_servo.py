@@ -13,11 +13,10 @@ import can
 import numpy as np
 import pytest
 
-from akarm import units
 from akarm.config import RobotConfig
-from akarm.config_loader import load_robot
-from akarm.motors import MotorModel
-from akarm.protocol import servo
+from akarm.protocol import servo, units
+from akarm.protocol.motors import MotorModel
+from akarm.robotfile.load import load_robot
 from akarm.sim import ServoDriver, SimulatedRobot, default_params, faults
 
 from .conftest import ROBOTS, drain

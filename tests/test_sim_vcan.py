@@ -17,13 +17,13 @@ from typing import TYPE_CHECKING
 import can
 import pytest
 
-from akarm.config_loader import load_robot
 from akarm.protocol import mit, servo
+from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS, ROOT, has_vcan
 
 if TYPE_CHECKING:
-    from akarm.motors import MotorModel
+    from akarm.protocol.motors import MotorModel
 
 pytestmark = [pytest.mark.vcan, pytest.mark.skipif(not has_vcan(), reason="no vcan0 on this machine")]
 

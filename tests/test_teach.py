@@ -10,7 +10,7 @@ import pytest
 
 import akarm
 from akarm import LimitError, RecordingError
-from akarm import recording as rec
+from akarm.motion import recording as rec
 
 from .test_arm import rig
 
@@ -209,7 +209,7 @@ def test_a_recording_with_a_duration_stops_itself(channel) -> None:
 
 
 def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
-    from akarm.control import PathRecorder as _PathRecorder
+    from akarm.control.controller import PathRecorder as _PathRecorder
 
     rec = _PathRecorder(100.0, duration=0.1)
     cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms
@@ -222,7 +222,7 @@ def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
 
 
 def test_a_stall_across_the_end_of_a_timed_recording_does_not_stretch_it() -> None:
-    from akarm.control import PathRecorder
+    from akarm.control.controller import PathRecorder
 
     rec = PathRecorder(100.0, duration=0.1)
     for now in [k * 0.002 for k in range(49)] + [0.1768]:  # a 79 ms stall across the last grid point

@@ -1,4 +1,4 @@
-"""The pytest plugin (akarm.testing) as a user's project meets it: a folder of its own with its own robot
+"""The pytest plugin (akarm.testing.plugin) as a user's project meets it: a folder of its own with its own robot
 file and the README's example test, run by pytest in a process of its own, on each transport.
 
 The SocketCAN runs are marked vcan: CI runs them inside vcan-vm, where the guest is emulated and
@@ -60,12 +60,12 @@ def project(tmp_path: Path, tests: dict[str, str], ini: str | None = None) -> Pa
 def pytest_in(folder: Path, *args: str, timeout: float = 600.0) -> subprocess.CompletedProcess[str]:
     """``python -m pytest ARGS`` in ``folder``, as the user would run it there."""
     return subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-rs", "-W",
-                           "error::akarm.testing.LeftEnabledWarning", *args],
+                           "error::akarm.testing.plugin.LeftEnabledWarning", *args],
                           cwd=folder, capture_output=True, text=True, timeout=timeout)
 
 
 def test_the_plugin_is_registered_through_the_pytest11_entry_point() -> None:
-    found = [ep for ep in entry_points(group="pytest11") if ep.value == "akarm.testing"]
+    found = [ep for ep in entry_points(group="pytest11") if ep.value == "akarm.testing.plugin"]
     assert [ep.name for ep in found] == ["akarm"], "reinstall akarm (pip install -e .) to register its entry point"
 
 
@@ -74,9 +74,9 @@ def test_the_plugin_adds_options_and_fixtures_and_nothing_else(pytestconfig: pyt
     assert pytestconfig.pluginmanager.has_plugin("akarm")
     for key in ("robot", "interface", "channel", "profile", "pose"):
         assert pytestconfig.getoption(f"akarm_{key}") is None
-    import akarm.testing
+    import akarm.testing.plugin
 
-    hooks = sorted(n for n in vars(akarm.testing) if n.startswith("pytest_"))
+    hooks = sorted(n for n in vars(akarm.testing.plugin) if n.startswith("pytest_"))
     assert hooks == ["pytest_addoption", "pytest_report_header"]
 
 

@@ -13,7 +13,7 @@ import pytest
 from akarm import AkarmError, Arm, FeedbackTimeout, load_robot
 from akarm.cli import main
 from akarm.sim import SimulatedRobot, faults
-from akarm.telemetry import load as load_telemetry
+from akarm.telemetry.log import load as load_telemetry
 from akarm.timing import PROFILES, TimingProfile, get_profile
 
 from .conftest import ROBOTS
@@ -142,7 +142,7 @@ def test_akarm_teach_with_the_slow_profile_samples_at_the_loop_rate(channel: str
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     import os
 
-    from akarm.recording import load_path
+    from akarm.motion.recording import load_path
 
     out = tmp_path / "path.csv"
     config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from akarm import LimitError, TrajectoryError
-from akarm.trajectory import JointLimits, Plan, Planner
+from akarm.motion.trajectory import JointLimits, Plan, Planner
 
 NAMES = ("a", "b", "c")
 
@@ -139,7 +139,7 @@ def test_through_checks_waypoints_and_sizes() -> None:
 def test_exact_extrema_see_a_reversal_at_constant_acceleration_that_ruckig_misses() -> None:
     """A move that starts moving away from its target (a retarget) turns around inside a phase of
     constant acceleration; ruckig's own extrema (Community Version) miss that reversal."""
-    from akarm.trajectory import position_extrema
+    from akarm.motion.trajectory import position_extrema
 
     p = Planner(limits())
     start = (np.array([0.0, 0.0, 0.0]), np.array([-2.0, 0.0, 0.0]), np.zeros(3))

@@ -6,8 +6,9 @@ import math
 
 import pytest
 
-from akarm import ConfigError, motors, units
-from akarm.motors import Catalogue
+from akarm import ConfigError
+from akarm.protocol import motors, units
+from akarm.protocol.motors import Catalogue
 
 
 def test_erpm_of_the_output_speed() -> None:

@@ -21,11 +21,11 @@ import pytest
 
 import akarm
 from akarm import ConfigError, ConfigWarning
-from akarm.config_loader import load_robot
+from akarm.config.urdf import read_urdf
+from akarm.dynamics.model import RobotModel
 from akarm.errors import ConfigProblem
-from akarm.model import RobotModel
+from akarm.robotfile.load import load_robot
 from akarm.sim import SimulatedRobot
-from akarm.urdf import read_urdf
 
 URDFS = Path(__file__).resolve().parent / "urdfs"
 CORPUS = sorted(URDFS.glob("*.urdf"))

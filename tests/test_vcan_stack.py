@@ -24,10 +24,10 @@ import numpy as np
 import pytest
 
 from akarm import FeedbackTimeout, load_robot
+from akarm.motion.recording import PathRecording
 from akarm.protocol import mit
-from akarm.recording import PathRecording
 from akarm.sim import faults
-from akarm.sim.rig import SimulatedArm
+from akarm.testing.rig import SimulatedArm
 
 from .conftest import ROBOTS, ROOT, has_vcan
 

@@ -14,9 +14,9 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
-from .. import signals
-from .._version import __version__
-from ..errors import AkarmError
+from akarm import signals
+from akarm._version import __version__
+from akarm.errors import AkarmError
 
 #: verb → (module, one-line description). Verbs whose module is not there yet are not offered.
 VERBS: dict[str, tuple[str, str]] = {

@@ -28,13 +28,13 @@ import os
 import threading
 import time
 
-from .common import add_profile_argument
+from akarm.cli.common import add_profile_argument
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from .common import add_robot_arguments
-    from .options import renamed
+    from akarm.cli.common import add_robot_arguments
+    from akarm.cli.options import renamed
 
     add_robot_arguments(parser)
     parser.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long to run (default 5)")
@@ -50,7 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _thread_cpu() -> dict[str, float]:
     """CPU seconds per thread name (Linux /proc; empty elsewhere), summed over threads of the same name."""
-    from ..sim.process import stat_cpu_seconds
+    from akarm.sim.process import stat_cpu_seconds
 
     out: dict[str, float] = {}
     for th in threading.enumerate():
@@ -72,13 +72,13 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ..arm import Arm
-    from ..config_loader import load_robot
-    from ..errors import AkarmError
-    from ..sim import SimulatedRobot
-    from ..sim.process import SimulatorProcess
-    from ..timing import get_profile
-    from .common import controlled, parse_channel
+    from akarm.arm import Arm
+    from akarm.cli.common import controlled, parse_channel
+    from akarm.errors import AkarmError
+    from akarm.robotfile.load import load_robot
+    from akarm.sim import SimulatedRobot
+    from akarm.sim.process import SimulatorProcess
+    from akarm.timing import get_profile
 
     if not args.seconds > 0:
         raise AkarmError(f"--seconds {args.seconds} must be positive")

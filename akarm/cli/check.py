@@ -17,14 +17,14 @@ import math
 import sys
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, load_from_args
+from akarm.cli.common import add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
-    from ..errors import ConfigProblem
+    from akarm.errors import ConfigProblem
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from .options import renamed
+    from akarm.cli.options import renamed
 
     add_robot_arguments(parser)
     parser.add_argument("--loop-rate", type=float, metavar="HZ",
@@ -50,9 +50,9 @@ def _hz(x: float) -> str:
 def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0) -> list[str]:
     """Print the arm's table (gravity included), bus load and the loader's warnings to ``out``
     (default stdout); return the warnings printed."""
-    from ..busload import LOAD_LIMIT, bus_loads
-    from ..config import RobotConfig
-    from ..gravity import gravity_peaks
+    from akarm.config import RobotConfig
+    from akarm.config.busload import LOAD_LIMIT, bus_loads
+    from akarm.dynamics.gravity import gravity_peaks
 
     out = out if out is not None else sys.stdout
     assert isinstance(config, RobotConfig)
@@ -118,7 +118,7 @@ def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0
 
 def _gravity_cell(torque: float, joint: object) -> str:
     """``"14.7, above rated 8.3"``: the largest gravity torque against the joint's limit and rated torque."""
-    from ..config import JointConfig
+    from akarm.config import JointConfig
 
     assert isinstance(joint, JointConfig)
     if torque > joint.limits.torque:
@@ -144,9 +144,9 @@ def _print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> N
 def run(args: argparse.Namespace) -> int:
     import warnings
 
-    from ..busload import LOAD_LIMIT, bus_loads
-    from ..errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
-    from ..gravity import gravity_peaks
+    from akarm.config.busload import LOAD_LIMIT, bus_loads
+    from akarm.dynamics.gravity import gravity_peaks
+    from akarm.errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
 
     if not args.payload >= 0:
         raise AkarmError(f"--payload {args.payload:g} must not be negative", fix="the extra mass in kg, e.g. 0.5")

@@ -13,13 +13,13 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import numpy as np
 
-    from ..arm import Arm
-    from ..config import RobotConfig
+    from akarm.arm import Arm
+    from akarm.config import RobotConfig
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = True) -> None:
     """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``, ``--bus-kwargs``."""
-    from .options import add_bus_kwargs
+    from akarm.cli.options import add_bus_kwargs
 
     parser.add_argument("robot", metavar="ROBOT.yaml", nargs=None if robot_required else "?",
                         help="the robot's YAML configuration")
@@ -31,7 +31,7 @@ def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = 
 
 def add_profile_argument(parser: argparse.ArgumentParser) -> None:
     """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a simulator."""
-    from ..timing import PROFILES
+    from akarm.timing import PROFILES
 
     parser.add_argument("--profile", default="normal", choices=list(PROFILES), metavar="NAME",
                         help="timing profile: " + "; ".join(f"{p.name}: {p.description}" for p in PROFILES.values()))
@@ -50,8 +50,8 @@ def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> Ro
     printed as ``warning: ...`` lines on stderr."""
     import warnings
 
-    from ..config_loader import load_robot
-    from ..errors import ConfigWarning
+    from akarm.errors import ConfigWarning
+    from akarm.robotfile.load import load_robot
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConfigWarning)
@@ -88,7 +88,7 @@ def format_table(rows: Sequence[Sequence[str]], right: Sequence[bool] | None = N
 def deferred_signals(message: str = "stopping the arm safely; please wait") -> contextlib.AbstractContextManager[None]:
     """While inside, Ctrl-C, SIGTERM and SIGHUP do not interrupt (``message`` is printed instead):
     the arm's stop must not be cut short. Main thread only (:func:`akarm.signals.deferred`)."""
-    from .. import signals
+    from akarm import signals
 
     return signals.deferred(message)
 
@@ -97,7 +97,7 @@ def deferred_signals(message: str = "stopping the arm safely; please wait") -> c
 def controlled(arm: Arm | RobotConfig, **options: Any) -> Iterator[Arm]:
     """``arm`` (or a new :class:`~akarm.Arm` for a config, with ``options``), opened; on leaving (error
     and Ctrl-C included) it is damped, disabled and closed, and a Ctrl-C meanwhile does not cut that short."""
-    from ..arm import Arm
+    from akarm.arm import Arm
 
     if not isinstance(arm, Arm):
         arm = Arm(arm, **options)
@@ -114,7 +114,7 @@ def stop_smoothly(arm: Arm) -> None:
 
     Errors while stopping (a joint that faulted meanwhile) are not raised: the arm ends disabled anyway.
     """
-    from ..errors import AkarmError
+    from akarm.errors import AkarmError
 
     with deferred_signals():
         if arm.enabled and arm.moving:
@@ -126,7 +126,7 @@ def stop_smoothly(arm: Arm) -> None:
 
 def interrupted(e: KeyboardInterrupt) -> int:
     """The exit status of a verb ended by Ctrl-C (130) or a signal (128 + its number)."""
-    from .. import signals
+    from akarm import signals
 
     return signals.exit_code(e)
 

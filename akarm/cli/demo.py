@@ -12,7 +12,7 @@ to it exactly as it would to the motors on ``can0``. The session: enable (no kic
 the YAML's named poses, one smooth move through waypoints, a replay of the bundled continuous
 recording (``akarm/data/demo_path.csv``, a figure eight), disable. Then it prints the tracking
 error per joint (mrad) and the control loop's timing, and plots the telemetry
-(:func:`akarm.plot.plot_log`).
+(:func:`akarm.telemetry.plot.plot_log`).
 
 With ``--fast`` the arm and the simulator run in lock step (``realtime=False``: the loop's clock
 *is* the simulator's), so the motion and the tracking are the same but time is simulated: loop
@@ -29,12 +29,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import AkarmError, RecordingError
-from .common import add_profile_argument
+from akarm.cli.common import add_profile_argument
+from akarm.errors import AkarmError, RecordingError
 
 if TYPE_CHECKING:
-    from ..arm import Arm
-    from ..telemetry import TelemetryLog
+    from akarm.arm import Arm
+    from akarm.telemetry.log import TelemetryLog
 
 #: the bundled recording the demo replays (joints of arm6, rad, 100 Hz)
 DEMO_PATH = Path(__file__).resolve().parent.parent / "data" / "demo_path.csv"
@@ -84,14 +84,14 @@ def _arm6_yaml() -> Path:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Fail before the session, not after it, on an output that cannot be written."""
-    from .options import TELEMETRY_SUFFIXES, check_output
+    from akarm.cli.options import TELEMETRY_SUFFIXES, check_output
 
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
     if not args.no_plot:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
         check_output(args.output, (".png",), "the plot")
-        from ..plot import _figure_classes
+        from akarm.telemetry.plot import _figure_classes
 
         _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
 
@@ -150,10 +150,10 @@ def run(args: argparse.Namespace) -> int:
     """Run the demo session; 0 on success."""
     import time
 
-    from ..arm import Arm
-    from ..config_loader import load_robot
-    from ..sim import SimulatedRobot
-    from ..timing import get_profile
+    from akarm.arm import Arm
+    from akarm.robotfile.load import load_robot
+    from akarm.sim import SimulatedRobot
+    from akarm.timing import get_profile
 
     _check_outputs(args)
     if not DEMO_PATH.is_file():
@@ -212,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
     if args.log is not None:
         print(f"telemetry: {log.save(args.log)} ({len(log)} cycles)")
     if not args.no_plot:
-        from ..plot import plot_log
+        from akarm.telemetry.plot import plot_log
 
         print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6', events=events)}")
     print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then the README's "

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, load_from_args
+from akarm.cli.common import add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,12 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Send the exit frames; list per joint what was sent and whether it answered."""
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
-    from ..probe import release
-    from .common import format_table
+    from akarm.cli.common import format_table
+    from akarm.control.probe import release
 
     config = load_from_args(args)
     states = release(config, args.timeout)
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(rows, [False, False, False, False, False, True]))
     missing = [s.name for s in states if s.missing]
     if missing:
-        from ..bus import no_answer_hint
+        from akarm.buses.bus import no_answer_hint
 
         print(f"akarm disable: no answer from {', '.join(missing)} (its frames were sent; do not trust that it is "
               "off before it answers)", file=sys.stderr)

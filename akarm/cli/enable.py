@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (
+from akarm.cli.common import (
     add_profile_argument,
     add_robot_arguments,
     controlled,
@@ -37,11 +37,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, hold until Ctrl-C or ``--seconds``, disable."""
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
-    from ..errors import AkarmError
+    from akarm.errors import AkarmError
 
     if args.seconds is not None and not args.seconds >= 0:
         raise AkarmError(f"--seconds {args.seconds} must not be negative")

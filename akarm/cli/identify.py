@@ -8,7 +8,7 @@
 
 The arm is enabled where it is and follows a slow multi-sine excitation around that pose (each
 joint at most ``--amplitude`` rad, less near its limits), planned and checked against every limit
-before anything moves, then comes back to rest (:mod:`akarm.identify`). Clear the arm's reach
+before anything moves, then comes back to rest (:mod:`akarm.identify.procedure`). Clear the arm's reach
 first: every joint moves. Ctrl-C stops smoothly and disables (exit 130).
 """
 
@@ -17,7 +17,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, controlled, deferred_signals, interrupted, load_from_args, stop_smoothly
+from akarm.cli.common import (
+    add_robot_arguments,
+    controlled,
+    deferred_signals,
+    interrupted,
+    load_from_args,
+    stop_smoothly,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,9 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, identify, report (or save), disable."""
-    from ..errors import AkarmError
-    from ..identify import Identification, yaml_payload
-    from ..robotfile import save_identification
+    from akarm.errors import AkarmError
+    from akarm.identify.procedure import Identification, yaml_payload
+    from akarm.robotfile.save import save_identification
 
     if args.speed is not None and not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")

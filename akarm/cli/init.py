@@ -8,7 +8,7 @@
 Every movable joint in chain order with CAN IDs 1..n on one bus, a suggested motor per joint (the
 smallest catalogue model whose rated torque covers the joint's gravity maximum with the margin),
 conservative limits, gains scaled to each joint's inertia, poses ``zero`` and ``rest``, the bus load
-at the chosen rate: every suggestion commented as one (see :mod:`akarm.starter`). The file is then
+at the chosen rate: every suggestion commented as one (see :mod:`akarm.robotfile.starter`). The file is then
 loaded as ``akarm check`` would load it. Exit status 0 when it loads; 1 when a joint is short of torque
 (no catalogue motor holds it, with ``--payload``: the file is written anyway, the joint marked), or on
 a URDF problem (nothing is written).
@@ -37,11 +37,11 @@ def run(args: argparse.Namespace) -> int:
     """Suggest, write atomically, load it back; print what was chosen."""
     import warnings
 
-    from ..config_loader import load_robot
-    from ..errors import AkarmError, ConfigError, ConfigWarning
-    from ..starter import suggest
-    from ..telemetry import atomic_write, check_writable
-    from .check import _print_problems
+    from akarm.cli.check import _print_problems
+    from akarm.errors import AkarmError, ConfigError, ConfigWarning
+    from akarm.robotfile.load import load_robot
+    from akarm.robotfile.starter import suggest
+    from akarm.telemetry.log import atomic_write, check_writable
 
     urdf = Path(args.urdf)
     out = Path(args.output) if args.output else urdf.with_suffix(".yaml")

@@ -25,12 +25,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from .common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from .options import negative_values_are_positional
+    from akarm.cli.options import negative_values_are_positional
 
     add_robot_arguments(parser)
     parser.add_argument("target", metavar="TARGET", nargs="*",
@@ -86,9 +86,9 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
         ConfigError: no such pose or joint (with a did-you-mean).
         LimitError: numbers of the wrong count, or words that are none of these.
     """
-    from ..config import RobotConfig
-    from ..errors import LimitError
-    from ..motors import did_you_mean
+    from akarm.config import RobotConfig
+    from akarm.errors import LimitError
+    from akarm.protocol.motors import did_you_mean
 
     assert isinstance(config, RobotConfig)
     names = config.joint_names
@@ -131,7 +131,7 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
-    from ..errors import AkarmError
+    from akarm.errors import AkarmError
 
     if not args.target and args.xyz is None:
         raise AkarmError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
@@ -141,13 +141,13 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
     if args.xyz is not None:
         return _move_tool(args)
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     import numpy as np
 
-    from .common import format_q
+    from akarm.cli.common import format_q
 
     config = _checked_config(args)
     target = parse_target(args.target, config)
@@ -181,8 +181,8 @@ def run(args: argparse.Namespace) -> int:
 
 def check_options(args: argparse.Namespace) -> None:
     """The options every move checks before anything is enabled (here or through akarm serve)."""
-    from ..errors import AkarmError
-    from .options import TELEMETRY_SUFFIXES, check_output
+    from akarm.cli.options import TELEMETRY_SUFFIXES, check_output
+    from akarm.errors import AkarmError
 
     if not 0 < args.speed <= 1:
         raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
@@ -200,7 +200,7 @@ def _checked_config(args: argparse.Namespace):
 def _session(args: argparse.Namespace, config, start, arrived) -> int:
     """Enable, ``start(arm)`` a motion and wait for it (and hold), print ``arrived(arm)``, disable;
     Ctrl-C stops smoothly. Always ends disabled; the telemetry saved with ``--log``."""
-    from .common import controlled, deferred_signals, interrupted, stop_smoothly
+    from akarm.cli.common import controlled, deferred_signals, interrupted, stop_smoothly
 
     code = 0
     with controlled(config, timing=args.profile) as arm:
@@ -230,9 +230,9 @@ def _move_tool(args: argparse.Namespace) -> int:
     """--xyz [--rpy] [--linear]: solved and checked once the arm's pose is known (after enabling)."""
     import numpy as np
 
-    from ..errors import StateError
-    from ..ik import make_pose, pose_error
-    from ..server.registry import any_server, find_server
+    from akarm.buses.ownership import any_server, find_server
+    from akarm.dynamics.ik import make_pose, pose_error
+    from akarm.errors import StateError
 
     config = _checked_config(args)
     if any_server() and find_server(config) is not None:

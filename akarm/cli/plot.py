@@ -26,8 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load the log, draw it, print where the PNG went."""
-    from ..plot import plot_log
-    from ..telemetry import load
+    from akarm.telemetry.log import load
+    from akarm.telemetry.plot import plot_log
 
     log = load(args.log)
     out = Path(args.output) if args.output else Path(args.log).with_suffix(".png")

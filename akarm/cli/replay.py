@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def check_options(args: argparse.Namespace) -> None:
     """The options a replay checks before anything moves (here or through akarm serve)."""
-    from ..errors import AkarmError
-    from .options import TELEMETRY_SUFFIXES, check_output
+    from akarm.cli.options import TELEMETRY_SUFFIXES, check_output
+    from akarm.errors import AkarmError
 
     if not args.speed > 0:
         raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
@@ -43,15 +43,15 @@ def check_options(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load and check the recording, then enable, replay with progress, disable."""
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     from tqdm import tqdm
 
-    from ..arm import Arm
-    from ..recording import Keyframes, load
-    from .common import controlled, deferred_signals, interrupted, stop_smoothly
+    from akarm.arm import Arm
+    from akarm.cli.common import controlled, deferred_signals, interrupted, stop_smoothly
+    from akarm.motion.recording import Keyframes, load
 
     check_options(args)
     config = load_from_args(args)

@@ -21,10 +21,10 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from .common import add_robot_arguments, load_from_args
+from akarm.cli.common import add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
-    from ..config import BusConfig
+    from akarm.config import BusConfig
 
 
 def parse_ids(text: str) -> list[int]:
@@ -62,8 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _bus_from_args(args: argparse.Namespace) -> BusConfig:
     """Without a robot file: the bus of ``-i/-c/-b/--bus-kwargs``, completed from python-can's own
     configuration (CAN_INTERFACE, CAN_CHANNEL, can.conf, ...), as python-can's tools do."""
-    from ..canconfig import python_can_settings, resolve_bus
-    from ..errors import AkarmError
+    from akarm.config.canconfig import python_can_settings, resolve_bus
+    from akarm.errors import AkarmError
 
     if args.channel and "=" in args.channel:
         raise AkarmError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
@@ -85,9 +85,9 @@ def _bus_from_args(args: argparse.Namespace) -> BusConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Scan the bus(es); print a table of what answered."""
-    from ..errors import AkarmError
-    from ..probe import scan
-    from .common import format_table
+    from akarm.cli.common import format_table
+    from akarm.control.probe import scan
+    from akarm.errors import AkarmError
 
     if args.listen < 0 or args.timeout < 0:
         raise AkarmError("--listen and --timeout must not be negative")
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         buses = [config.buses[name] for name in config.buses if any(j.bus == name for j in config.joints)]
         joints = list(config.joints)
 
-    from ..server.registry import refuse_if_served
+    from akarm.buses.ownership import refuse_if_served
 
     refuse_if_served(buses, "akarm scan")  # its EXIT frames would disable the arm a running server holds
     rows = [["bus", "CAN ID", "mode", "reply ID", "position (rad)", "temperature (°C)", "fault", "joint"]]
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     for j in lost:
         print(f"not found: joint {j.name!r} ({j.mode}, ID {j.can_id} on bus {j.bus!r})", file=sys.stderr)
     if len(rows) == 1:
-        from ..bus import no_answer_hint
+        from akarm.buses.bus import no_answer_hint
 
         hints = "; ".join(dict.fromkeys(no_answer_hint(b) for b in buses))
         raise AkarmError("no motor answered", fix=f"{hints}; servo motors must have status frames on (or listen "

@@ -19,7 +19,7 @@ import argparse
 import signal
 import sys
 
-from .common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,9 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until SIGINT/SIGTERM; then damp and disable the arm; exit 0."""
-    from ..arm import Arm
-    from ..server import ArmServer
-    from .common import format_q
+    from akarm.arm import Arm
+    from akarm.cli.common import format_q
+    from akarm.server import ArmServer
 
     config = load_from_args(args)
     arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)

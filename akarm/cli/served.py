@@ -15,12 +15,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .common import format_q, interrupted, load_from_args
+from akarm.cli.common import format_q, interrupted, load_from_args
 
 if TYPE_CHECKING:
-    from ..config import RobotConfig
-    from ..recording import Keyframe, PathRecording
-    from ..server.control import ControlClient
+    from akarm.config import RobotConfig
+    from akarm.motion.recording import Keyframe, PathRecording
+    from akarm.server.socket import ControlClient
 
 __all__ = ["RemoteArm", "via_server"]
 
@@ -29,7 +29,7 @@ class RemoteArm:
     """The part of the :class:`~akarm.Arm` API the CLI verbs use, carried out by a running server."""
 
     def __init__(self, config: RobotConfig, info: dict[str, Any]) -> None:
-        from ..server.control import ControlClient
+        from akarm.server.socket import ControlClient
 
         self.config = config
         self.names = config.joint_names
@@ -42,7 +42,7 @@ class RemoteArm:
 
     def interrupt(self) -> None:
         """Bring the arm to rest (on a connection of its own: the first may be waiting for a reply)."""
-        from ..server.control import ControlClient
+        from akarm.server.socket import ControlClient
 
         with ControlClient(self.info["socket"], timeout=10.0) as c:
             c.call("stop")
@@ -57,7 +57,7 @@ class RemoteArm:
         return bool(self.call("recording_finished"))
 
     def keyframe(self, name: str | None = None) -> Keyframe:
-        from ..recording import Keyframe
+        from akarm.motion.recording import Keyframe
 
         return Keyframe(tuple(self.call("keyframe", name=name)), name)
 
@@ -67,7 +67,7 @@ class RemoteArm:
     def stop_recording(self) -> PathRecording:
         import numpy as np
 
-        from ..recording import PathRecording
+        from akarm.motion.recording import PathRecording
 
         doc = self.call("stop_recording")
         return PathRecording(tuple(doc["names"]), np.array(doc["t"]), np.array(doc["q"]))
@@ -78,7 +78,7 @@ class RemoteArm:
 
 def via_server(args: argparse.Namespace) -> int | None:
     """Run ``args.verb`` through the server that drives this robot's buses; ``None`` when there is none."""
-    from ..server.registry import any_server, find_server
+    from akarm.buses.ownership import any_server, find_server
 
     if not any_server():  # the common case, decided without loading the robot
         return None
@@ -87,7 +87,7 @@ def via_server(args: argparse.Namespace) -> int | None:
     if info is None:
         return None
     if not info.get("socket"):
-        from ..errors import StateError
+        from akarm.errors import StateError
 
         raise StateError(f"another controller holds this robot's bus ({info.get('bus')})", fix="stop it first")
     arm = RemoteArm(config, info)
@@ -108,7 +108,7 @@ def _wait(arm: RemoteArm, motion: dict[str, Any]) -> dict[str, Any]:
 def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .move import check_options, parse_target
+    from akarm.cli.move import check_options, parse_target
 
     check_options(args)
     target = parse_target(args.target, arm.config)  # a pose name, a vector, or {joint: rad}
@@ -144,7 +144,7 @@ def _move(arm: RemoteArm, args: argparse.Namespace) -> int:
 def _enable(arm: RemoteArm, args: argparse.Namespace) -> int:
     """Enable and return: the server holds the arm. With ``--seconds``, as without a server: hold
     that long, then disable."""
-    from ..errors import AkarmError
+    from akarm.errors import AkarmError
 
     if args.seconds is not None and not args.seconds >= 0:
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
@@ -173,8 +173,8 @@ def _disable(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _status(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from ..probe import JointStatus
-    from .status import check_options, watch
+    from akarm.cli.status import check_options, watch
+    from akarm.control.probe import JointStatus
 
     check_options(args)
     last: dict[str, Any] = {}
@@ -197,7 +197,7 @@ def _status(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from .teach import _reader, _teach_keyframes, _teach_path, default_sample_rate
+    from akarm.cli.teach import _reader, _teach_keyframes, _teach_path, default_sample_rate
 
     out = Path(args.out)  # checked by the verb before it asked the server
     lines = _reader(sys.stdin)
@@ -216,7 +216,7 @@ def _teach(arm: RemoteArm, args: argparse.Namespace) -> int:
 
 
 def _replay(arm: RemoteArm, args: argparse.Namespace) -> int:
-    from .replay import check_options
+    from akarm.cli.replay import check_options
 
     check_options(args)  # before anything moves
     path = os.path.abspath(args.file)

@@ -9,7 +9,7 @@ Point a controller (or ``candump``) at the bus exactly as at the hardware::
 ``--profile slow`` integrates at a rate a slow or shared machine keeps up with (see
 :mod:`akarm.timing`). ``--control PATH`` serves a control channel on that Unix-domain socket, through
 which another program injects and clears faults, reads the drivers and disables them while the
-simulator runs (:class:`akarm.sim.control.SimulatorControl`).
+simulator runs (:class:`akarm.sim.channel.SimulatorControl`).
 
 Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--seconds``, with a live status
 line (per joint position, torque, temperature, state): updated in place a few times a second on a
@@ -22,16 +22,16 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from .common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
-    from ..config import RobotConfig
+    from akarm.config import RobotConfig
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from ..sim.faults import KINDS  # light: no numpy, no python-can
-    from .options import renamed
+    from akarm.cli.options import renamed
+    from akarm.sim.faults import KINDS  # light: no numpy, no python-can
 
     add_robot_arguments(parser)
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:KIND[:ARG]",
@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_profile_argument(parser)
     parser.add_argument("--control", metavar="PATH",
                         help="serve a control channel on this Unix-domain socket: inject and clear faults, read "
-                             "and disable the drivers from another program (akarm.sim.control)")
+                             "and disable the drivers from another program (akarm.sim.channel)")
     parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
     parser.add_argument("--zero-silence", type=float, default=1.0, metavar="S",
                         help="MIT: seconds off-line after a ZERO frame (default 1.0)")
@@ -82,9 +82,9 @@ def run(args: argparse.Namespace) -> int:
     import threading
     import time
 
-    from ..errors import AkarmError
-    from ..sim import SimulatedRobot, faults
-    from ..sim.control import ControlServer
+    from akarm.errors import AkarmError
+    from akarm.sim import SimulatedRobot, faults
+    from akarm.sim.channel import ControlServer
 
     config = load_from_args(args)
     injected = [faults.parse(spec) for spec in args.fault]

@@ -20,10 +20,10 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_robot_arguments, format_table, load_from_args
+from akarm.cli.common import add_robot_arguments, format_table, load_from_args
 
 if TYPE_CHECKING:
-    from ..probe import JointStatus
+    from akarm.control.probe import JointStatus
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,7 +72,7 @@ def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO,
 
 def check_options(args: argparse.Namespace) -> None:
     """The options status checks before it reads anything (here or through akarm serve)."""
-    from ..errors import AkarmError
+    from akarm.errors import AkarmError
 
     if args.watch and not args.interval > 0:
         raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
@@ -102,11 +102,11 @@ def watch(args: argparse.Namespace, read: Callable[[], list[JointStatus]],
 
 def run(args: argparse.Namespace) -> int:
     """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
-    from ..probe import Probe
+    from akarm.control.probe import Probe
 
     check_options(args)
     config = load_from_args(args)
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         states = watch(args, lambda: probe.read_state(args.timeout))
     missing = [s.name for s in states if s.missing]
     if missing:
-        from ..bus import no_answer_hint
+        from akarm.buses.bus import no_answer_hint
 
         for bus in dict.fromkeys(config.joint(name).bus for name in missing):
             names = [n for n in missing if config.joint(n).bus == bus]

@@ -23,16 +23,16 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from .common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
 
 if TYPE_CHECKING:
-    from ..arm import Arm
-    from ..recording import Keyframe
+    from akarm.arm import Arm
+    from akarm.motion.recording import Keyframe
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from .options import renamed
+    from akarm.cli.options import renamed
 
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
@@ -79,9 +79,9 @@ def _next_line(arm: Arm, lines: queue.Queue[str | None], timed: bool = False) ->
 
 
 def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int:
-    from ..errors import RecordingError
-    from ..recording import Keyframes
-    from .common import format_q
+    from akarm.cli.common import format_q
+    from akarm.errors import RecordingError
+    from akarm.motion.recording import Keyframes
 
     frames: list[Keyframe] = []
 
@@ -119,7 +119,7 @@ def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int
 
 
 def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
-    from ..errors import AkarmError, StateError
+    from akarm.errors import AkarmError, StateError
 
     arm.start_recording(rate, seconds)
     what = "Enter" + (f" or {seconds:g} s" if seconds is not None else "")
@@ -155,10 +155,10 @@ def default_sample_rate(loop_rate_hz: float) -> float:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
-    from ..errors import AkarmError
-    from ..telemetry import check_writable
-    from ..timing import get_profile
-    from .common import controlled, deferred_signals
+    from akarm.cli.common import controlled, deferred_signals
+    from akarm.errors import AkarmError
+    from akarm.telemetry.log import check_writable
+    from akarm.timing import get_profile
 
     out = Path(args.out)
     if out.suffix not in (".yaml", ".yml", ".csv"):
@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError("--sample-rate and --seconds must be positive")
     check_writable(out)  # before anything is enabled: a file that cannot be written is said now, not after
     config = get_profile(args.profile).apply(load_from_args(args))
-    from .served import via_server
+    from akarm.cli.served import via_server
 
     if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
         return served

@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import add_robot_arguments, load_from_args
+from akarm.cli.common import add_robot_arguments, load_from_args
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,13 +33,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Zero the joint; print the motor position read back."""
-    from ..errors import AkarmError
-    from ..probe import Probe
+    from akarm.control.probe import Probe
+    from akarm.errors import AkarmError
 
     if args.wait < 0 or not args.timeout > 0:
         raise AkarmError("--wait must not be negative and --timeout must be positive")
     config = load_from_args(args)
-    from ..server.registry import refuse_if_served
+    from akarm.buses.ownership import refuse_if_served
 
     refuse_if_served(config, "akarm zero")  # it would make a joint limp under a running server
     j = config.joint(args.joint)

@@ -5,7 +5,10 @@
 - :mod:`akarm.protocol.servo`: servo mode over CAN (extended IDs ``packet << 8 | id``), in the
   firmware's units (degrees, ERPM, A); commands and the ``0x29xx`` status frames.
 - :mod:`akarm.protocol.uart`: servo mode over the serial port: framing with CRC-16/XMODEM, a
-  resynchronising stream decoder, every command of the manual and its replies.
+  resynchronising stream decoder, every command of the manual and its replies. Imported only where
+  it is used (``from akarm.protocol import uart``).
+- :mod:`akarm.protocol.motors`: the catalogue of AK models (ranges, gear ratios, constants), and
+  :mod:`akarm.protocol.units`: joint-side SI ⇄ motor units. The codecs' scales come from them.
 
 The manual (V1.0.9) has errata; these codecs follow ``shared/docs/ak-protocol.md`` where they differ
 (each module's docstring says where). Every malformed input raises :class:`akarm.ProtocolError` or
@@ -14,14 +17,11 @@ its subclass :class:`akarm.FrameError`, never a bare IndexError or struct.error.
 
 from __future__ import annotations
 
-from . import mit, servo, uart
-from .mit import MitCodec, MitCommand, MitReply
-from .servo import ServoCommand, ServoErrorCode, ServoPacket, ServoStatus, describe_error
-from .uart import FaultCode, FrameDecoder, UartPacket, ValueField
+from akarm.protocol import mit, servo
+from akarm.protocol.mit import MitCodec, MitCommand, MitReply
+from akarm.protocol.servo import ServoCommand, ServoErrorCode, ServoPacket, ServoStatus, describe_error
 
 __all__ = [
-    "FaultCode",
-    "FrameDecoder",
     "MitCodec",
     "MitCommand",
     "MitReply",
@@ -29,10 +29,7 @@ __all__ = [
     "ServoErrorCode",
     "ServoPacket",
     "ServoStatus",
-    "UartPacket",
-    "ValueField",
     "describe_error",
     "mit",
     "servo",
-    "uart",
 ]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from ..errors import ProtocolError
+from akarm.errors import ProtocolError
 
 
 class Field(NamedTuple):

@@ -33,10 +33,9 @@ import math
 import struct
 from typing import Literal, NamedTuple
 
-from .. import motors, units
-from ..errors import FrameError, ProtocolError
-from ..motors import MotorModel
-from . import servo
+from akarm.errors import FrameError, ProtocolError
+from akarm.protocol import motors, servo, units
+from akarm.protocol.motors import MotorModel
 
 __all__ = [
     "ENTER",
@@ -158,7 +157,7 @@ class MitCodec:
     """The MIT codec of one motor model, with every scale computed once.
 
     Build one with :func:`codec` (cached) or ``MitCodec(model)``; ``model`` is a
-    :class:`~akarm.motors.MotorModel` or a catalogue name.
+    :class:`~akarm.protocol.motors.MotorModel` or a catalogue name.
 
     Attributes:
         model: the model whose ranges it uses.
@@ -286,7 +285,7 @@ class MitCodec:
     def decode_reply_v3(self, arbitration_id: int, data: bytes | bytearray, *, is_extended: bool = True) -> MitReply:
         """Decode a V3 board's reply, a servo-style status frame (extended ID ``0x2900 | driver id``).
 
-        Position (0.1°) → rad at the output (:func:`akarm.units.servo_deg_to_rad`, honouring the model's
+        Position (0.1°) → rad at the output (:func:`akarm.protocol.units.servo_deg_to_rad`, honouring the model's
         ``servo_position``), speed (10 ERPM) → rad/s, current (0.01 A) → N·m through kt · gear ratio,
         temperature °C as sent, driver id from the ID's low byte.
 
@@ -386,9 +385,9 @@ _CACHE_MAX = 256
 
 
 def codec(model: MotorModel | str) -> MitCodec:
-    """The cached :class:`MitCodec` of ``model`` (a :class:`~akarm.motors.MotorModel` or catalogue name).
+    """The cached :class:`MitCodec` of ``model`` (a :class:`~akarm.protocol.motors.MotorModel` or catalogue name).
 
-    A name is resolved in the current default catalogue: after :func:`akarm.motors.load` replaces it,
+    A name is resolved in the current default catalogue: after :func:`akarm.protocol.motors.load` replaces it,
     the name's codec is rebuilt from the new entry.
     """
     if model.__class__ is str:

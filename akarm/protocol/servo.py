@@ -6,7 +6,7 @@ Controller side: one encoder per command, each returning ``(arbitration_id, data
 :func:`encode_status`.
 
 Units are the firmware's own, as the function and argument names say: degrees (at the output or at
-the rotor, per the catalogue's ``servo_position``; :mod:`akarm.units` converts), electrical RPM
+the rotor, per the catalogue's ``servo_position``; :mod:`akarm.protocol.units` converts), electrical RPM
 (ERPM = rotor RPM × pole pairs), ERPM/s, amps of Iq, duty as a fraction (0.2 = 20 %).
 
 Scalings follow the protocol notes (``shared/docs/ak-protocol.md`` §2), which correct the seed manual:
@@ -38,8 +38,8 @@ from collections.abc import Callable
 from enum import IntEnum
 from typing import NamedTuple
 
-from ..errors import FrameError, ProtocolError
-from ._fields import Field, as_number, checked, fmt
+from akarm.errors import FrameError, ProtocolError
+from akarm.protocol._fields import Field, as_number, checked, fmt
 
 __all__ = [
     "ACCEL_MAX_ERPM_S",

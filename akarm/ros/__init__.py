@@ -9,7 +9,7 @@
 See ``docs/ros2.md``.
 """
 
-from ..errors import AkarmError
+from akarm.errors import AkarmError
 
 try:
     import cyclonedds  # noqa: F401

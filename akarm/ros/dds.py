@@ -29,8 +29,8 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-from ..errors import AkarmError
-from . import msgs
+from akarm.errors import AkarmError
+from akarm.ros import msgs
 
 __all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "service_topics",
            "topic_name"]

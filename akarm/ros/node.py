@@ -23,12 +23,12 @@ from typing import TYPE_CHECKING
 
 from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
-from ..errors import AkarmError
-from . import msgs
-from .dds import ANY, Node, TriggerServer, _info
+from akarm.errors import AkarmError
+from akarm.ros import msgs
+from akarm.ros.dds import ANY, Node, TriggerServer, _info
 
 if TYPE_CHECKING:
-    from ..server.server import ArmServer
+    from akarm.server.server import ArmServer
 
 __all__ = ["RosNode", "trajectory_arrays"]
 

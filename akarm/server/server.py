@@ -11,7 +11,7 @@
 :class:`ArmServer` claims the robot's buses (a second controller on them is refused), enables the
 arm, and holds it. It serves
 
-- the ``akarm`` CLI of this machine through a Unix socket (:mod:`akarm.server.control`): ``move``,
+- the ``akarm`` CLI of this machine through a Unix socket (:mod:`akarm.server.socket`): ``move``,
   ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` use the server when one runs;
 - ROS 2 over Cyclone DDS (:mod:`akarm.ros.node`, with the ``ros`` extra): ``joint_states``,
   ``joint_trajectory``, ``akarm/status`` and the ``akarm/enable|disable|hold`` services.
@@ -33,15 +33,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import signals as _signals
-from ..errors import AkarmError, LimitError, StateError
-from ..modes import Mode
-from .control import ControlServer
-from .registry import BusLock, runtime_dir, sweep_sockets
+from akarm import signals as _signals
+from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
+from akarm.control.modes import Mode
+from akarm.errors import AkarmError, LimitError, StateError
+from akarm.server.socket import ControlServer
 
 if TYPE_CHECKING:
-    from ..arm import Arm, Motion
-    from ..ros.node import RosNode
+    from akarm.arm import Arm, Motion
+    from akarm.ros.node import RosNode
 
 __all__ = ["ArmServer", "serve"]
 
@@ -115,7 +115,7 @@ class ArmServer:
                                                "namespace": self.namespace})
         try:
             if self.ros:  # first: a missing extra or a bad domain or namespace is said before anything is enabled
-                from ..ros import node as ros_node
+                from akarm.ros import node as ros_node
 
                 self._node = ros_node.RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
             if self.arm.mode is Mode.CLOSED:
@@ -414,7 +414,7 @@ class ArmServer:
             self._end_teach()
 
     def _op_replay(self, path: str, speed: float = 1.0) -> dict[str, Any]:
-        from ..recording import Keyframes
+        from akarm.motion.recording import Keyframes
 
         with self._cmd:
             rec = self.arm.check_replay(path, speed)

@@ -23,13 +23,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from . import faults
-from .params import MotorSimParams, default_params
+from akarm.sim import faults
+from akarm.sim.params import MotorSimParams, default_params
 
 if TYPE_CHECKING:
-    from .drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
-    from .plant import Plant
-    from .robot import SimulatedRobot
+    from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
+    from akarm.sim.plant import Plant
+    from akarm.sim.robot import SimulatedRobot
 
 __all__ = [
     "MitDriver",

@@ -4,7 +4,7 @@ One driver per configured joint. A driver receives the frames addressed to it, a
 firmware does (through the project's codecs, motor side), and every plant step returns the torque
 its firmware would apply. Drivers work in motor units: motor position ``p = (joint - offset) ·
 direction`` (rad at the output shaft, before the driver's own zero), joint torque = direction · motor
-torque. Motor-side units (servo degrees, ERPM, amps) appear only here, through :mod:`akarm.units`.
+torque. Motor-side units (servo degrees, ERPM, amps) appear only here, through :mod:`akarm.protocol.units`.
 
 :class:`MitDriver` (MIT mode, V1/V2 frames or V3 boards) and :class:`ServoDriver` (servo mode over
 CAN) share :class:`SimulatedDriver`: faults, temperature, the output gate.
@@ -17,12 +17,11 @@ import random
 from collections.abc import Callable
 from typing import Protocol
 
-from .. import units
-from ..config import JointConfig
-from ..errors import AkarmError, ProtocolError
-from ..protocol import mit, servo
-from . import faults as _f
-from .params import MotorSimParams
+from akarm.config import JointConfig
+from akarm.errors import AkarmError, ProtocolError
+from akarm.protocol import mit, servo, units
+from akarm.sim import faults as _f
+from akarm.sim.params import MotorSimParams
 
 __all__ = ["MitDriver", "ServoDriver", "SimulatedDriver", "TrapezoidProfile", "make_driver"]
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import AkarmError
+from akarm.errors import AkarmError
 
 __all__ = [
     "KINDS",

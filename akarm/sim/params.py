@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from ..motors import MotorModel
+    from akarm.protocol.motors import MotorModel
 
 __all__ = ["MotorSimParams", "default_params"]
 

@@ -1,6 +1,6 @@
 """The simulated arm: whole-arm rigid-body dynamics, friction, hard stops and motor heating.
 
-Dynamics come from the URDF through :class:`akarm.model.RobotModel` with the motors' reflected rotor
+Dynamics come from the URDF through :class:`akarm.dynamics.model.RobotModel` with the motors' reflected rotor
 inertia (``armature=True``), gravity and the payload, solved with Pinocchio's ABA.
 
 Integrator: **linearly implicit (semi-implicit) Euler at a fixed step** ``dt`` (2 kHz by default).
@@ -39,13 +39,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ModelError
-from ..model import RobotModel
-from .params import MotorSimParams
+from akarm.dynamics.model import RobotModel
+from akarm.errors import ModelError
+from akarm.sim.params import MotorSimParams
 
 if TYPE_CHECKING:
-    from ..config import RobotConfig
-    from .drivers import SimulatedDriver
+    from akarm.config import RobotConfig
+    from akarm.sim.drivers import SimulatedDriver
 
 __all__ = ["Plant"]
 
@@ -59,7 +59,7 @@ class Plant:
         dt: integration step, s (default 0.5 ms = 2 kHz).
 
     Attributes:
-        model: the :class:`~akarm.model.RobotModel` (with armature) the plant integrates.
+        model: the :class:`~akarm.dynamics.model.RobotModel` (with armature) the plant integrates.
         q: joint positions, rad. dq: joint velocities, rad/s. ddq: last accelerations, rad/s².
         tau: torques the motors apply at the joints (after saturation), N·m.
         dt: the step, s. steps: steps taken.

@@ -13,7 +13,7 @@
 
 It runs ``akarm sim`` (real time) and waits until the simulated drivers are on the bus. With
 ``control=True`` it opens the simulator's control channel (:attr:`SimulatorProcess.control`, a
-:class:`~akarm.sim.control.SimulatorControl`) to inject faults and read the drivers while it runs. An
+:class:`~akarm.sim.channel.SimulatorControl`) to inject faults and read the drivers while it runs. An
 in-process :class:`~akarm.sim.SimulatedRobot` shares the controller's interpreter lock, so each
 delays the other; in its own process the simulator costs the controller nothing but the bus.
 """
@@ -31,9 +31,9 @@ import threading
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from ..errors import StateError
-from ..timing import PROFILES, TimingProfile, get_profile
-from .control import SimulatorControl
+from akarm.errors import StateError
+from akarm.sim.channel import SimulatorControl
+from akarm.timing import PROFILES, TimingProfile, get_profile
 
 __all__ = ["SimulatorProcess", "stat_cpu_seconds"]
 
@@ -65,7 +65,7 @@ class SimulatorProcess:
             the socket's path.
 
     Attributes:
-        control: the :class:`~akarm.sim.control.SimulatorControl` (``None`` without ``control``).
+        control: the :class:`~akarm.sim.channel.SimulatorControl` (``None`` without ``control``).
 
     Raises:
         StateError: the simulator did not start (with what it printed).

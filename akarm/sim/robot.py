@@ -31,20 +31,20 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..bus import close_buses, open_bus
-from ..clock import RealClock, SteppedClock
-from ..errors import ConfigError, ConfigProblem, StateError
-from ..timing import TimingProfile, get_profile
-from . import faults as _faults
-from .control import DriverState, Frame
-from .drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
-from .params import MotorSimParams, default_params
-from .plant import Plant
+from akarm.buses.bus import close_buses, open_bus
+from akarm.clock import RealClock, SteppedClock
+from akarm.errors import ConfigError, ConfigProblem, StateError
+from akarm.sim import faults as _faults
+from akarm.sim.channel import DriverState, Frame
+from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
+from akarm.sim.params import MotorSimParams, default_params
+from akarm.sim.plant import Plant
+from akarm.timing import TimingProfile, get_profile
 
 if TYPE_CHECKING:
     import can
 
-    from ..config import RobotConfig
+    from akarm.config import RobotConfig
 
 __all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
 
@@ -82,7 +82,7 @@ class SimulatedRobot:
 
     Attributes:
         config: the configuration in force (with the bus override).
-        plant: the :class:`~akarm.sim.plant.Plant`; model: its :class:`~akarm.model.RobotModel`.
+        plant: the :class:`~akarm.sim.plant.Plant`; model: its :class:`~akarm.dynamics.model.RobotModel`.
         drivers: the simulated drivers, config order.
         clock: a :class:`~akarm.clock.SteppedClock` driving :meth:`advance_to` (lock step), or a
             :class:`~akarm.clock.RealClock` (real time).

@@ -1,0 +1,311 @@
+"""The collision reflex: an estimate of the external torque on every joint, and a stop when one is too large.
+
+**Estimate: a generalized-momentum observer** (De Luca et al., 2003), not a filtered residual of
+inverse dynamics: it needs no joint acceleration (which would have to be differentiated from the
+motors' quantised velocity), and its output is a first-order filter of the true external torque,
+``ṙ = K·(τ_ext - r)``, whatever the controller does. With the arm's momentum ``p = M(q)·q̇``::
+
+    ṗ = τ_m + C(q, q̇)ᵀ·q̇ - g(q) - τ_f(q̇) + τ_ext
+    r = K·(p - p(0) - ∫ (τ_m + Cᵀq̇ - g - τ_f + r) dt)
+
+``τ_m`` is the torque the motors report, ``τ_f = c·tanh(q̇/0.02) + b·q̇ + offset`` the joint's
+friction (its ``friction:`` in the YAML: identified, or the catalogue's typical values), ``M``,
+``C``, ``g`` the arm's model with the payload it is told about (:meth:`akarm.Arm.set_payload`), so
+a payload that is set or identified is not a collision. ``K`` (1/s) sets the time constant: with
+the default 50/s a step of external torque shows 63 % of itself after 20 ms; a larger ``K`` reacts
+sooner and passes on more of the velocity quantisation (``K·M·Δq̇``).
+
+**Reflex.** A joint whose ``|r|`` passes its threshold (YAML ``collision: {threshold: N·m}``;
+``akarm identify`` suggests one from the residual's noise) stops the arm with a
+:class:`~akarm.CollisionError` naming the joint and the torque: damped and disabled (the default),
+or, with ``reaction="hold"``, brought to rest jerk-limited and held. Joints without a threshold
+are not checked. Teach mode is never checked (the hand is an expected external torque); after
+teach mode, and after a stop-and-hold, the reflex re-arms once every joint's estimate is back
+under half its threshold (the hand let go, the contact ended).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+
+from akarm.config import JointConfig
+from akarm.dynamics.model import ArrayLike, RobotModel
+from akarm.errors import CollisionError, StateError
+from akarm.protocol import mit
+from akarm.protocol.units import erpm_to_rad_s
+
+__all__ = ["DEFAULT_GAIN", "CollisionReflex", "MomentumObserver", "Reaction", "friction_torque",
+           "velocity_resolution"]
+
+Reaction = Literal["disable", "hold"]
+#: 1/s: the observer's default bandwidth (time constant 20 ms).
+DEFAULT_GAIN = 50.0
+#: rad/s: the Coulomb friction model's smoothing speed (the same as the feed-forward's and the simulator's).
+FRICTION_SMOOTHING = 0.02
+_LAG_SMOOTHING = 0.02  # s: low-pass of the measured velocity's difference to the command (see velocity())
+#: loop periods between two complete sets of feedback after which the observer starts over rather
+#: than integrate across the gap (a stall of the loop or of the drivers, a mode without it)
+RESET_GAP = 3.5
+_POSITION_STEP = 1e-3  # rad: twice the MIT position field's step (0.38 mrad), the travel a timing check trusts
+
+
+def friction_torque(v: np.ndarray, coulomb: np.ndarray, viscous: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Joint friction (N·m) at velocities ``v`` (rad/s): ``c·tanh(v/0.02) + b·v + offset``."""
+    return coulomb * np.tanh(v / FRICTION_SMOOTHING) + viscous * v + offset
+
+
+def velocity_resolution(joint: JointConfig) -> float:
+    """The step of a joint's velocity feedback, rad/s: the 12-bit MIT field over ±v_max (it has no
+    zero: a joint at rest reads ±half a step), or 10 ERPM in servo status frames (V3 MIT replies too)."""
+    if joint.mode == "servo" or joint.firmware == "v3":
+        return erpm_to_rad_s(joint.motor, 10.0)
+    return float(mit.codec(joint.motor).steps.velocity)
+
+
+class MomentumObserver:
+    """The generalized-momentum observer of the module's docstring (config joint order, SI).
+
+    Args:
+        model: the arm's model (the payload included); used from one thread only.
+        coulomb, viscous, offset: per joint friction, N·m, N·m·s/rad, N·m.
+        gain: K, 1/s.
+        deadband: rad/s per joint: a measured speed this small is a joint at rest as far as the
+            Coulomb friction goes (one step of the velocity feedback: :func:`velocity_resolution`;
+            at rest a joint's friction is anywhere within ±coulomb, and the smooth model says 0).
+        saturation: N·m per joint, the motors' torque range (a torque there does not decay).
+    """
+
+    def __init__(self, model: RobotModel, coulomb: Sequence[float], viscous: Sequence[float],
+                 offset: Sequence[float], gain: float = DEFAULT_GAIN, deadband: Sequence[float] | None = None,
+                 saturation: Sequence[float] | None = None) -> None:
+        if not (gain > 0 and math.isfinite(gain)):
+            raise StateError(f"the collision observer's gain must be a positive number (1/s), got {gain!r}")
+        self.model = model
+        self.gain = float(gain)
+        self.coulomb = np.asarray(coulomb, dtype=float)
+        self.viscous = np.asarray(viscous, dtype=float)
+        self.offset = np.asarray(offset, dtype=float)
+        self.deadband = np.zeros(len(self.coulomb)) if deadband is None else np.asarray(deadband, dtype=float)
+        #: N·m per joint: a reported torque this large is the motor at its limit
+        self.saturation = np.full(len(self.coulomb), np.inf) if saturation is None else \
+            0.999 * np.asarray(saturation, dtype=float)
+        self._lag: np.ndarray | None = None
+        self.estimate = np.zeros(len(self.coulomb))
+        self._p0 = np.zeros_like(self.estimate)
+        self._integral = np.zeros_like(self.estimate)
+        self._last = (self.estimate, self.estimate, self.estimate)
+        self.started = False
+
+    def velocity(self, dq: np.ndarray, v_des: np.ndarray | None, dt: float = 0.0) -> np.ndarray:
+        """The velocity the observer works with: the measured one, or, when the arm tracks a command,
+        the command plus its (low-passed, 20 ms) difference to the measurement, kept within the
+        measurement's quantisation step (the feedback rounds to the nearest step, so the truth is
+        within half a step of it). That is smooth where the feedback jumps by whole steps, and each
+        jump would pass ``K·M·step`` into the estimate."""
+        if v_des is None:
+            self._lag = None
+            return dq
+        if self._lag is None:  # from the command: the first reading is off by up to half a step
+            self._lag = np.zeros(len(dq))
+        self._lag += min(1.0, dt / _LAG_SMOOTHING) * ((dq - v_des) - self._lag)
+        half = 0.5 * self.deadband
+        return np.clip(v_des + self._lag, dq - half, dq + half)
+
+    def _smooth(self, q: np.ndarray, v: np.ndarray, dq: np.ndarray, v_des: np.ndarray | None) -> np.ndarray:
+        """``τ_f - Cᵀq̇ + g`` at (q, v): what the model and friction take from the momentum's rate of
+        change. The friction's speed: the commanded one where the joint tracks it (within two steps of
+        the feedback: slow motions, whose feedback flips between "at rest" and "moving", follow the
+        smooth command, as the feed-forward does); else the measured one, a speed within one step of
+        it counting as at rest for the Coulomb friction (at rest it is anywhere within ±coulomb, and
+        the smooth model says 0)."""
+        model = self.model
+        beta = model.gravity(q) - model.coriolis_matrix(q, v).T @ v
+        tracks = np.zeros(len(dq), bool) if v_des is None else np.abs(v_des - dq) <= 2.0 * self.deadband
+        v_f = np.where(tracks, v_des, dq) if v_des is not None else dq
+        coulomb = np.where(~tracks & (np.abs(dq) <= self.deadband), 0.0, self.coulomb)
+        return friction_torque(v_f, coulomb, self.viscous, self.offset) + beta
+
+    def reset(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, v_des: np.ndarray | None = None) -> None:
+        """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
+        self._lag = None
+        v = self.velocity(dq, v_des)
+        self._p0 = self.model.mass_matrix(q) @ v
+        self._integral[:] = 0.0
+        self._last = (np.array(tau, dtype=float), v, self._smooth(q, v, dq, v_des))
+        self.estimate = np.zeros_like(self.estimate)
+        self.started = True
+
+    def update(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, dt: float,
+               kp: np.ndarray | None = None, kd: np.ndarray | None = None,
+               v_des: np.ndarray | None = None) -> np.ndarray:
+        """One step: positions (rad), velocities (rad/s), motor torques (N·m) measured now, ``dt`` s
+        since the last step; ``kp``, ``kd``: the MIT gains in force (N·m/rad, N·m·s/rad; 0 for servo
+        joints); ``v_des``: the velocity commanded when the feedback was taken (see :meth:`velocity`).
+        Returns the external torque estimate (N·m).
+
+        The torque between two samples: an MIT command is held for a whole period, and the reply
+        carries the torque of the command just received, so the PD part decays from the sample by
+        ``kp·q̇ + kd·q̈`` per second until the next command: over the period it averages the last
+        sample less half that decay. Gravity, Coriolis and friction change smoothly: trapezoidal.
+        (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)"""
+        tau_prev, v_prev, smooth_prev = self._last
+        v = self.velocity(dq, v_des, dt)
+        smooth = self._smooth(q, v, dq, v_des)
+        torque = tau_prev
+        if kp is not None:  # (a saturated motor holds its limit: no decay)
+            decay = 0.5 * (kp * v_prev * dt + (kd if kd is not None else 0.0) * (v - v_prev))
+            torque = np.where(np.abs(tau_prev) >= self.saturation, tau_prev, tau_prev - decay)
+        self._integral += (torque - 0.5 * (smooth + smooth_prev) + self.estimate) * dt
+        self._last = (np.array(tau, dtype=float), v, smooth)
+        self.estimate = self.gain * (self.model.mass_matrix(q) @ v - self._p0 - self._integral)
+        return self.estimate
+
+
+class CollisionReflex:
+    """Thresholds, the reaction, and when to check (see the module's docstring).
+
+    Args:
+        names: joint names, config order.
+        observer: the estimate.
+        thresholds: N·m per joint, ``None`` where a joint is not checked.
+        reaction: ``"disable"`` (damp, then disable: the default) or ``"hold"``.
+        fresh: s per joint: feedback older than this is not new this cycle (a reply missed): the
+            observer waits for a complete set and then spans the gap, or starts over after
+            :data:`RESET_GAP` loop periods (the supervisor judges missing feedback). Default: none is stale.
+        period: s, the loop's period.
+
+    Attributes:
+        estimate: the latest external torque estimate per joint, N·m (zeros before the first step).
+        last: the last :class:`~akarm.CollisionError`, or ``None``.
+        armed: whether the next step may stop the arm.
+        peak: the largest ``|estimate|`` per joint while checking since :meth:`clear_peak`, N·m.
+    """
+
+    def __init__(self, names: Sequence[str], observer: MomentumObserver,
+                 thresholds: Sequence[float | None], reaction: Reaction = "disable",
+                 fresh: Sequence[float] | None = None, period: float = 0.002) -> None:
+        self.names = tuple(names)
+        self.reset_gap = RESET_GAP * period
+        self.late = 1.5 * period
+        self._q_last = np.zeros(len(self.names))
+        self._v_last = np.zeros(len(self.names))
+        self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
+        self.observer = observer
+        self.set_thresholds(thresholds)
+        self.set_reaction(reaction)
+        self.last: CollisionError | None = None
+        self.armed = False
+        self._cycle = -math.inf  # the loop time of the last step
+        self._sample_last = -math.inf  # when the feedback of the last update was taken
+        self._v_des: np.ndarray | None = None  # the velocity the last cycle commanded
+        self._quiet_until = -math.inf  # no judging before (a motor was at its torque limit)
+        self.peak = np.zeros(len(self.names))
+
+    @property
+    def estimate(self) -> np.ndarray:
+        return self.observer.estimate
+
+    def set_thresholds(self, thresholds: Sequence[float | None]) -> None:
+        """N·m per joint (``None``: not checked); each positive and finite."""
+        th = list(thresholds)
+        if len(th) != len(self.names):
+            raise StateError(f"{len(th)} collision thresholds for {len(self.names)} joints",
+                             fix="one per joint, config order (None where a joint is not checked)")
+        for name, x in zip(self.names, th, strict=True):
+            if x is not None and not (isinstance(x, int | float) and x > 0 and math.isfinite(x)):
+                raise StateError(f"collision threshold {x!r} must be a positive number of N·m, or None",
+                                 joint=name, fix="e.g. the threshold `akarm identify` suggests")
+        self.thresholds = np.array([math.inf if x is None else float(x) for x in th])
+
+    def set_reaction(self, reaction: str) -> None:
+        if reaction not in ("disable", "hold"):
+            raise StateError(f"collision reaction must be 'disable' or 'hold', got {reaction!r}")
+        self.reaction: Reaction = reaction  # type: ignore[assignment]
+
+    @property
+    def active(self) -> bool:
+        """Whether any joint has a threshold."""
+        return bool(np.any(np.isfinite(self.thresholds)))
+
+    def _on_time(self, q: np.ndarray, v: np.ndarray, dt: float) -> bool:
+        """Whether the feedback's motion fits the time assumed between the two samples: the fastest
+        joint's travel over its mean measured speed gives the time that really passed (a simulator or
+        adapter that answered late shows here; the estimate would take the difference for a push).
+        Within a period the motion is not exactly of constant acceleration (the commands' steps):
+        a millisecond or two position steps of slack."""
+        v_mean = 0.5 * (v + self._v_last)
+        i = int(np.argmax(np.abs(v_mean)))
+        speed = abs(float(v_mean[i]))
+        if speed < 0.3:  # too slow to time (and a timing error matters little then)
+            return True
+        passed = float(q[i] - self._q_last[i]) / float(v_mean[i])
+        return abs(passed - dt) <= max(1e-3, 2.0 * _POSITION_STEP / speed)
+
+    def restart(self) -> None:
+        """Start the estimate over at the next step (the model changed: a payload, friction): the
+        momentum it tracks would otherwise jump by the change of inertia times the velocity."""
+        self.observer.started = False
+
+    def clear_peak(self) -> None:
+        self.peak = np.zeros(len(self.names))
+
+    def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
+             kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
+             stamps: Sequence[float] | None = None, v_des: ArrayLike | None = None) -> CollisionError | None:
+        """Update the estimate with the feedback of this cycle (and the MIT gains in force: see
+        :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s;
+        ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with
+        ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
+        mode) the reflex disarms."""
+        qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
+        if not (np.all(np.isfinite(qa)) and np.all(np.isfinite(va)) and np.all(np.isfinite(ta))):
+            return None  # no feedback yet: the supervisor deals with missing feedback
+        # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
+        sample, self._cycle = self._cycle, now
+        v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))
+        if now - sample > self.late:  # a late cycle: when the feedback was taken is not known
+            self.observer.started = False
+        if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
+            return None  # a joint without new feedback: wait for a complete set (the next step spans the gap)
+        obs = self.observer
+        dt = sample - self._sample_last
+        self._sample_last = sample
+        if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
+            obs.reset(qa, va, ta, v_then)
+            self._q_last, self._v_last = qa, va
+            r = obs.estimate
+        else:
+            r = obs.update(qa, va, ta, dt, None if kp is None else np.asarray(kp, dtype=float),
+                           None if kd is None else np.asarray(kd, dtype=float), v_then)
+            self._q_last, self._v_last = qa, va
+        if not check:
+            self.armed = False
+            return None
+        if np.any(np.abs(ta) >= obs.saturation):  # a motor at its limit: within a period its torque is not known
+            self._quiet_until = now + 2.0 / obs.gain
+        if now < self._quiet_until:
+            return None
+        mag = np.abs(r)
+        np.maximum(self.peak, mag, out=self.peak)
+        if not self.armed:
+            self.armed = bool(np.all(mag < 0.5 * self.thresholds))
+            return None
+        over = mag > self.thresholds
+        if not np.any(over):
+            return None
+        k = int(np.argmax(np.where(over, mag / self.thresholds, 0.0)))
+        err = CollisionError(
+            f"collision: an external torque of {r[k]:+.2f} N·m (threshold {self.thresholds[k]:.2f} N·m); "
+            + ("the arm was damped and disabled" if self.reaction == "disable" else
+               "the arm was brought to rest and holds there"),
+            torque=float(r[k]), threshold=float(self.thresholds[k]), reaction=self.reaction, joint=self.names[k],
+            fix="clear the obstacle (move the arm away from it); if nothing was hit, check the payload "
+                "(arm.set_payload), run `akarm identify`, or raise the joint's collision threshold")
+        err.at = now
+        self.last = err
+        self.armed = False
+        return err

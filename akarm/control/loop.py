@@ -1,0 +1,333 @@
+"""The fixed-rate control loop: absolute deadlines, skipped slots, statistics.
+
+One cycle function is called once per period. With a real clock it runs in its own thread, sleeping
+to absolute deadlines and spinning the last stretch (:class:`~akarm.clock.RealClock`); a cycle that
+starts late skips the slots it missed instead of bursting frames, and counts them. With a stepped
+clock there is no thread: the caller runs cycles with :meth:`ControlLoop.step`, each of which
+advances simulated time to the next deadline (the simulator runs up to that instant) first.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import gc
+import logging
+import os
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from akarm.clock import Clock
+
+__all__ = ["ControlLoop", "LoopStats", "StatsSummary", "pin_thread", "request_realtime"]
+
+log = logging.getLogger(__name__)
+
+
+def request_realtime(priority: int = 80, lock_memory: bool = True, switch_interval: float | None = None) -> str:
+    """Ask for SCHED_FIFO for the calling thread, lock the process's memory, and keep Python's own
+    pauses short: the garbage collector stops re-scanning the objects that exist now (``gc.freeze``:
+    a full collection of a process with Pinocchio and numpy loaded takes milliseconds), and, if
+    ``switch_interval`` (s) is given, another thread holding the interpreter lock is made to hand it
+    over within that time instead of Python's default 5 ms (``sys.setswitchinterval``).
+
+    Returns a one-line report of what was granted. Never raises: a refusal is reported (and
+    logged) with what would allow it (root, or ``ulimit -r``/RLIMIT_RTPRIO and ``ulimit -l``).
+    """
+    parts = []
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))  # type: ignore[attr-defined]
+        parts.append(f"SCHED_FIFO priority {priority} granted")
+    except (AttributeError, PermissionError, OSError) as e:
+        parts.append(f"real-time priority refused ({e.__class__.__name__}: {e}); run as root or raise "
+                     f"RLIMIT_RTPRIO (ulimit -r {priority}) to get it")
+    if lock_memory:
+        libc_name = ctypes.util.find_library("c")
+        try:
+            libc = ctypes.CDLL(libc_name, use_errno=True)
+            if libc.mlockall(3) != 0:  # MCL_CURRENT | MCL_FUTURE
+                raise OSError(ctypes.get_errno(), os.strerror(ctypes.get_errno()))
+            parts.append("memory locked")
+        except (OSError, AttributeError, TypeError) as e:
+            parts.append(f"mlockall refused ({e}); raise RLIMIT_MEMLOCK (ulimit -l unlimited) to get it")
+    gc.collect()
+    gc.freeze()
+    parts.append("garbage collector frozen")
+    if switch_interval is not None and switch_interval < sys.getswitchinterval():
+        sys.setswitchinterval(switch_interval)
+        parts.append(f"switch interval {switch_interval * 1e6:.0f} µs")
+    report = "; ".join(parts)
+    log.info("control loop: %s", report)
+    return report
+
+
+def pin_thread(cpu: int) -> str:
+    """Run the calling thread on CPU ``cpu`` only (Linux). Returns a report; never raises."""
+    try:
+        os.sched_setaffinity(0, {cpu})  # type: ignore[attr-defined]
+    except (AttributeError, OSError, ValueError) as e:
+        return f"pinning to CPU {cpu} refused ({e})"
+    return f"pinned to CPU {cpu}"
+
+
+@dataclass(frozen=True)
+class StatsSummary:
+    """What the loop measured (times in s).
+
+    Attributes:
+        cycles: cycles run. missed: slots skipped because a cycle started late.
+        rate: achieved cycles per second of clock time.
+        period_p50, period_p99, period_max: time between cycle starts.
+        late_p50, late_p99, late_max: how long after its deadline a cycle started.
+        stage_mean, stage_p99: compute time per stage (name → s).
+        compute_mean, compute_p99, compute_max: whole cycle compute time.
+    """
+
+    cycles: int
+    missed: int
+    rate: float
+    period_p50: float
+    period_p99: float
+    period_max: float
+    late_p50: float
+    late_p99: float
+    late_max: float
+    stage_mean: dict[str, float]
+    stage_p99: dict[str, float]
+    compute_mean: float
+    compute_p99: float
+    compute_max: float
+
+    def table(self) -> str:
+        """A human-readable table (µs)."""
+        us = 1e6
+        lines = [f"cycles {self.cycles}, missed slots {self.missed}, rate {self.rate:.1f} Hz",
+                 f"period  p50 {self.period_p50 * us:8.1f} µs  p99 {self.period_p99 * us:8.1f} µs  "
+                 f"max {self.period_max * us:8.1f} µs",
+                 f"late    p50 {self.late_p50 * us:8.1f} µs  p99 {self.late_p99 * us:8.1f} µs  "
+                 f"max {self.late_max * us:8.1f} µs",
+                 f"compute mean {self.compute_mean * us:7.1f} µs  p99 {self.compute_p99 * us:8.1f} µs  "
+                 f"max {self.compute_max * us:8.1f} µs"]
+        for name in self.stage_mean:
+            lines.append(f"  {name:<10} mean {self.stage_mean[name] * us:7.1f} µs  "
+                         f"p99 {self.stage_p99[name] * us:7.1f} µs")
+        return "\n".join(lines)
+
+
+class LoopStats:
+    """Ring buffers of per-cycle timings (the last ``capacity`` cycles) and counters."""
+
+    def __init__(self, stages: Sequence[str], capacity: int = 1 << 16) -> None:
+        self.stages = tuple(stages)
+        self.capacity = capacity
+        self.period = np.zeros(capacity)
+        self.late = np.zeros(capacity)
+        self.stage = np.zeros((capacity, len(self.stages)))
+        self.cycles = 0
+        self.missed = 0
+        self.first_start: float | None = None
+        self.last_start: float | None = None
+
+    def reset(self) -> None:
+        """Forget everything measured so far."""
+        self.period[:] = 0
+        self.late[:] = 0
+        self.stage[:] = 0
+        self.cycles = self.missed = 0
+        self.first_start = self.last_start = None
+
+    def begin(self, now: float, lateness: float) -> int:
+        """Record a cycle start; return its ring index."""
+        i = self.cycles % self.capacity
+        self.period[i] = now - self.last_start if self.last_start is not None else 0.0
+        self.late[i] = lateness
+        self.stage[i] = 0.0
+        if self.first_start is None:
+            self.first_start = now
+        self.last_start = now
+        self.cycles += 1
+        return i
+
+    def summary(self) -> StatsSummary:
+        """Percentiles over the cycles in the ring."""
+        n = min(self.cycles, self.capacity)
+        if n == 0:
+            zero = {s: 0.0 for s in self.stages}
+            return StatsSummary(0, self.missed, 0.0, 0, 0, 0, 0, 0, 0, zero, dict(zero), 0, 0, 0)
+        period = self.period[:n] if self.cycles <= self.capacity else self.period
+        periods = period[period > 0] if np.any(period > 0) else np.zeros(1)
+        late = self.late[:n]
+        stage = self.stage[:n]
+        compute = stage.sum(axis=1)
+        span = (self.last_start or 0.0) - (self.first_start or 0.0)
+        rate = (self.cycles - 1) / span if span > 0 else 0.0
+        return StatsSummary(
+            cycles=self.cycles, missed=self.missed, rate=rate,
+            period_p50=float(np.percentile(periods, 50)), period_p99=float(np.percentile(periods, 99)),
+            period_max=float(periods.max()),
+            late_p50=float(np.percentile(late, 50)), late_p99=float(np.percentile(late, 99)),
+            late_max=float(late.max()),
+            stage_mean={s: float(stage[:, k].mean()) for k, s in enumerate(self.stages)},
+            stage_p99={s: float(np.percentile(stage[:, k], 99)) for k, s in enumerate(self.stages)},
+            compute_mean=float(compute.mean()), compute_p99=float(np.percentile(compute, 99)),
+            compute_max=float(compute.max()),
+        )
+
+
+class _SwitchInterval:
+    """The process's thread switch interval, shared by the loops running in it: while any runs it is
+    the smallest they asked for (never raised above what it was); the last to stop restores it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._wanted: dict[int, float] = {}
+        self._before = 0.0
+
+    def want(self, key: int, interval: float) -> None:
+        with self._lock:
+            if not self._wanted:
+                self._before = sys.getswitchinterval()
+            self._wanted[key] = interval
+            sys.setswitchinterval(min([self._before, *self._wanted.values()]))
+
+    def release(self, key: int) -> None:
+        with self._lock:
+            if self._wanted.pop(key, None) is None:
+                return
+            sys.setswitchinterval(min([self._before, *self._wanted.values()]))
+
+
+_switch_interval = _SwitchInterval()
+
+
+class ControlLoop:
+    """Calls ``cycle(now, slot)`` at ``rate_hz`` on ``clock``.
+
+    With a real clock, a running loop lowers the process's thread switch interval to a twentieth of
+    the period (``sys.setswitchinterval``; restored when the last loop stops): otherwise any thread
+    that computes in Python holds the interpreter lock for up to 5 ms when the loop wakes.
+
+    ``cycle`` receives the clock time at which it started and the ring index for its stage timings
+    (``loop.stats.stage[slot, k]``, s). It must not raise; if it does, the loop stops and calls
+    ``on_crash(exception)`` (the Arm uses that to send exit frames).
+    """
+
+    def __init__(self, rate_hz: float, clock: Clock, cycle: Callable[[float, int], None], *,
+                 stages: Sequence[str] = ("cycle",), realtime_priority: bool = False, cpu: int | None = None,
+                 on_crash: Callable[[BaseException], None] | None = None) -> None:
+        if not rate_hz > 0:
+            raise ValueError("rate_hz must be positive")
+        self.rate_hz = float(rate_hz)
+        self.period = 1.0 / self.rate_hz
+        self.clock = clock
+        self.cycle = cycle
+        self.stats = LoopStats(stages)
+        self.realtime_priority = realtime_priority
+        self.cpu = cpu
+        self.realtime_report = "not requested"
+        self.on_crash = on_crash
+        self.crashed: BaseException | None = None
+        self._next: float | None = None
+        self._thread: threading.Thread | None = None
+        self._running = threading.Event()
+        self.cycled = threading.Condition()
+
+    @property
+    def stepped(self) -> bool:
+        """True when the clock is stepped: cycles run only through :meth:`step`."""
+        return self.clock.stepped
+
+    @property
+    def running(self) -> bool:
+        """True while the real-time thread runs."""
+        return self._running.is_set()
+
+    # -- one cycle ----------------------------------------------------------------------------
+    def _one(self) -> None:
+        if self._next is None:
+            self._next = self.clock.now() + self.period
+        deadline = self._next
+        self.clock.sleep_until(deadline)
+        now = self.clock.now()
+        late = now - deadline
+        if late >= self.period:  # skip the slots we missed rather than burst
+            skipped = int(late // self.period)
+            self.stats.missed += skipped
+            deadline += skipped * self.period
+            late = now - deadline
+        slot = self.stats.begin(now, late)
+        self.cycle(now, slot)
+        self._next = deadline + self.period
+
+    def step(self, cycles: int = 1) -> None:
+        """Run ``cycles`` cycles now (stepped clocks; also usable before :meth:`start`)."""
+        for _ in range(cycles):
+            self._one()
+
+    # -- the real-time thread -----------------------------------------------------------------
+    def start(self) -> None:
+        """Start the loop thread (real clocks only; a stepped loop runs through :meth:`step`)."""
+        if self.stepped or self._thread is not None:
+            return
+        self._running.set()
+        self._thread = threading.Thread(target=self._run, name="akarm-loop", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        # a thread of the process holding the interpreter lock must give it up within a twentieth of
+        # a period, not Python's default 5 ms (which would cost 2 cycles at 500 Hz)
+        switch = max(20e-6, self.period / 20)
+        _switch_interval.want(id(self), switch)
+        reports = []
+        if self.cpu is not None:
+            reports.append(pin_thread(self.cpu))
+        if self.realtime_priority:
+            reports.append(request_realtime())
+            reports.append(f"switch interval {sys.getswitchinterval() * 1e6:.0f} µs")
+        if reports:
+            self.realtime_report = "; ".join(reports)
+        self._next = None
+        try:
+            while self._running.is_set():
+                self._one()
+                with self.cycled:
+                    self.cycled.notify_all()
+        except BaseException as e:  # a bug in a cycle: stop the loop, let the owner make it safe
+            self.crashed = e
+            self._running.clear()
+            log.exception("control loop crashed")
+            if self.on_crash is not None:
+                self.on_crash(e)
+            with self.cycled:
+                self.cycled.notify_all()
+        finally:
+            _switch_interval.release(id(self))
+
+    @property
+    def thread(self) -> threading.Thread | None:
+        """The loop's thread while it runs (``None`` in lock step: cycles run in the caller's thread)."""
+        return self._thread
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop the loop thread (after its current cycle)."""
+        self._running.clear()
+        t = self._thread
+        if t is not None and t is not threading.current_thread():
+            t.join(timeout)
+        if t is not None and self.realtime_priority:
+            gc.unfreeze()  # what request_realtime froze may be collected again
+        self._thread = None
+        self._next = None
+
+    def wait_cycle(self, timeout: float) -> None:
+        """Block until the next cycle has run (real clocks), or run one (stepped clocks)."""
+        if self.stepped:
+            self.step()
+            return
+        with self.cycled:
+            self.cycled.wait(timeout)
+

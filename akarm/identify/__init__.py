@@ -1,0 +1,1 @@
+"""Identification of friction, offsets and payload, and the collision thresholds they suggest."""

@@ -1,0 +1,291 @@
+"""A control channel into a simulator running in another process: inject faults, read the drivers, disable them.
+
+``akarm sim ROBOT.yaml ... --control PATH`` serves it on a Unix-domain socket at ``PATH``;
+:class:`SimulatorControl` is the client (and :class:`~akarm.sim.process.SimulatorProcess` opens one
+for you with ``control=True``)::
+
+    from akarm.sim import faults
+    from akarm.sim.channel import SimulatorControl
+
+    sim = SimulatorControl("/tmp/arm6-sim.sock")
+    sim.inject("elbow", faults.Unplugged())      # or sim.inject("elbow", "drop:0.3"), as --fault spells it
+    sim.state()                                  # per joint: enabled, position, error, faults, ...
+    frames, _ = sim.frames()                     # every frame the drivers took in and sent
+    sim.clear_faults()
+    sim.disable_drivers()                        # every output limp; returns the joints that were enabled
+
+The protocol is one JSON object per line each way, so any language (or ``socat``) can use it:
+
+- ``{"cmd": "inject", "joint": "elbow", "fault": {"type": "DropReplies", "fraction": 0.3, "seed": 0}}``
+  (a class of :mod:`akarm.sim.faults` and its fields), or ``{"cmd": "inject", "spec": "elbow:drop:0.3"}``
+  (the ``--fault`` form);
+- ``{"cmd": "clear"}`` or ``{"cmd": "clear", "joint": "elbow"}``;
+- ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
+- ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
+- ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
+  data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
+
+``state``, ``disable`` and ``frames`` first take in every frame already sent to the simulator, so
+what a program sent before asking counts.
+
+Every answer has ``"ok"``; a refused request answers ``{"ok": false, "error": "..."}`` and changes nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import socket
+import socketserver
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from akarm.errors import AkarmError, StateError
+from akarm.sim import faults as _faults
+
+if TYPE_CHECKING:
+    from akarm.sim.robot import SimulatedRobot
+
+__all__ = ["ControlServer", "DriverState", "Frame", "SimulatorControl", "fault_from_json", "fault_to_json"]
+
+
+@dataclass(frozen=True)
+class DriverState:
+    """One simulated driver as it is now (joint side, SI).
+
+    Attributes:
+        name: the joint. enabled: its output is driven (MIT: motor mode; servo: not released).
+        position: rad. velocity: rad/s. torque: N·m the motor applies. temperature: °C.
+        error: the error code it reports (0: none). faults: the faults in force, as text.
+        frames_in: frames addressed to it that it took in. frames_out: frames it sent.
+    """
+
+    name: str
+    enabled: bool
+    position: float
+    velocity: float
+    torque: float
+    temperature: float
+    error: int
+    faults: tuple[str, ...]
+    frames_in: int
+    frames_out: int
+
+
+class Frame(NamedTuple):
+    """A CAN frame a simulated driver took in or sent.
+
+    Attributes:
+        t: simulated time, s. bus: the bus's name in the robot file.
+        arbitration_id, is_extended, data: the frame.
+        joint: the driver it was addressed to or sent by (``None``: nobody's).
+        to_motor: ``True`` taken in (a command to the motor), ``False`` sent (a reply or status frame).
+    """
+
+    t: float
+    bus: str
+    arbitration_id: int
+    is_extended: bool
+    data: bytes
+    joint: str | None
+    to_motor: bool
+
+
+def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:
+    """A fault as a JSON object: its class name under ``"type"`` and its fields."""
+    if not dataclasses.is_dataclass(fault) or not isinstance(fault, _faults.Fault):
+        raise AkarmError(f"{fault!r} is not a fault", fix="use a fault from akarm.sim.faults, e.g. faults.Unplugged()")
+    return {"type": type(fault).__name__, **dataclasses.asdict(fault)}
+
+
+def fault_from_json(obj: Any) -> _faults.Fault:
+    """The fault a JSON object of :func:`fault_to_json` describes.
+
+    Raises:
+        AkarmError: not a fault of :mod:`akarm.sim.faults`, or fields it does not take.
+    """
+    name = obj.get("type") if isinstance(obj, dict) else None
+    cls = getattr(_faults, name, None) if isinstance(name, str) and name in _faults.__all__ else None
+    if not (isinstance(cls, type) and issubclass(cls, _faults.Fault) and dataclasses.is_dataclass(cls)):
+        kinds = ", ".join(n for n in _faults.__all__ if dataclasses.is_dataclass(getattr(_faults, n)))
+        raise AkarmError(f"unknown fault {obj!r}", fix=f'give {{"type": KIND, ...fields}}, KIND one of: {kinds}')
+    try:
+        return cls(**{k: v for k, v in obj.items() if k != "type"})
+    except TypeError as e:
+        raise AkarmError(f"bad fault {obj!r}: {e}", fix=f"the fields of {name} are: "
+                         + ", ".join(f.name for f in dataclasses.fields(cls))) from None
+
+
+# --------------------------------------------------------------------------- server (in the simulator)
+
+class _Server(socketserver.ThreadingMixIn, socketserver.UnixStreamServer):
+    daemon_threads = True
+    sim: SimulatedRobot
+
+
+class _Handler(socketserver.StreamRequestHandler):
+    server: _Server
+
+    def handle(self) -> None:
+        for line in self.rfile:
+            if not line.strip():
+                continue
+            try:
+                answer = {"ok": True, **_serve(self.server.sim, json.loads(line))}
+            except AkarmError as e:
+                answer = {"ok": False, "error": str(e)}
+            except Exception as e:  # a malformed request must not end the simulator
+                answer = {"ok": False, "error": f"{type(e).__name__}: {e}"}
+            self.wfile.write(json.dumps(answer).encode() + b"\n")
+            self.wfile.flush()
+
+
+def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
+    cmd = req.get("cmd") if isinstance(req, dict) else None
+    if cmd == "inject":
+        if "spec" in req:
+            joint, fault = _faults.parse(str(req["spec"]))
+        else:
+            joint, fault = str(req.get("joint")), fault_from_json(req.get("fault"))
+        sim.inject(joint, fault)
+        return {}
+    if cmd == "clear":
+        sim.clear_faults(req.get("joint"))
+        return {}
+    if cmd in ("state", "disable", "frames"):
+        sim.wait_received(10.0)  # what was sent to the drivers before the request counts
+        if cmd == "state":
+            return {"t": sim.t, "slip": sim.slip, "joints": [dataclasses.asdict(s) for s in sim.driver_states()]}
+        if cmd == "disable":
+            return {"joints": sim.disable_drivers()}
+        frames, next_index = sim.logged_frames(int(req.get("since", 0)))
+        return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
+                                                 f.to_motor] for f in frames]}
+    raise AkarmError(f"unknown request {req!r}",
+                     fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
+
+
+class ControlServer:
+    """Serves :class:`SimulatorControl` requests for ``sim`` on the Unix-domain socket ``path`` (threads
+    of its own; :meth:`close` stops them and removes the socket).
+
+    Raises:
+        StateError: the socket cannot be created (no Unix sockets here, a path too long, another
+            simulator serving it).
+    """
+
+    def __init__(self, sim: SimulatedRobot, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        if not hasattr(socket, "AF_UNIX"):
+            raise StateError("the simulator's control channel needs Unix-domain sockets, which this system lacks",
+                             fix="inject faults at start instead: akarm sim --fault JOINT:KIND[:ARG]")
+        if self.path.exists():
+            if _answers(self.path):
+                raise StateError(f"another simulator serves {self.path}", fix="give --control another path")
+            with contextlib.suppress(OSError):
+                self.path.unlink()  # left behind by a simulator that was killed
+        try:
+            self._server = _Server(str(self.path), _Handler)
+        except OSError as e:
+            raise StateError(f"cannot create the control socket {self.path}: {e}",
+                             fix="give --control a short path in a directory you can write, e.g. /tmp/sim.sock") \
+                from None
+        self._server.sim = sim
+        os.chmod(self.path, 0o600)  # only this user may inject faults
+        self._thread = threading.Thread(target=self._server.serve_forever, kwargs={"poll_interval": 0.1},
+                                        name="akarm-sim-control", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop serving and remove the socket. Safe to call twice."""
+        if self._thread.is_alive():
+            self._server.shutdown()
+            self._thread.join(2.0)
+        self._server.server_close()
+        with contextlib.suppress(OSError):
+            self.path.unlink()
+
+    def __enter__(self) -> ControlServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _answers(path: Path) -> bool:
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        try:
+            s.connect(str(path))
+        except OSError:
+            return False
+        return True
+
+
+# --------------------------------------------------------------------------- client
+
+class SimulatorControl:
+    """The client of a simulator's control channel (``akarm sim --control PATH``).
+
+    Args:
+        path: the socket. timeout: s to wait for an answer (a simulator in an emulated machine is slow).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], timeout: float = 30.0) -> None:
+        self.path = Path(path)
+        self.timeout = timeout
+
+    def request(self, **req: Any) -> dict[str, Any]:
+        """Send one request; its answer.
+
+        Raises:
+            StateError: the simulator cannot be reached. AkarmError: it refused the request (its reason).
+        """
+        try:
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+                s.settimeout(self.timeout)
+                s.connect(str(self.path))
+                s.sendall(json.dumps(req).encode() + b"\n")
+                with s.makefile("rb") as f:
+                    line = f.readline()
+        except OSError as e:
+            raise StateError(f"cannot reach the simulator's control channel {self.path}: {e}",
+                             fix="is the simulator running, with --control at this path?") from None
+        if not line:
+            raise StateError(f"the simulator at {self.path} closed the control channel without answering",
+                             fix="see the simulator's output: it may have stopped")
+        answer = json.loads(line)
+        if not answer.get("ok"):
+            raise AkarmError(f"the simulator refused {req!r}: {answer.get('error')}")
+        return answer
+
+    def inject(self, joint: str, fault: _faults.Fault | str) -> None:
+        """Start ``fault`` on ``joint`` now: a fault of :mod:`akarm.sim.faults`, or the ``--fault`` text
+        after the joint (``"drop:0.3"``, ``"unplugged"``)."""
+        if isinstance(fault, str):
+            self.request(cmd="inject", spec=f"{joint}:{fault}")
+        else:
+            self.request(cmd="inject", joint=joint, fault=fault_to_json(fault))
+
+    def clear_faults(self, joint: str | None = None) -> None:
+        """End the faults of ``joint`` (default: of every joint)."""
+        self.request(cmd="clear", joint=joint)
+
+    def state(self) -> list[DriverState]:
+        """Every driver as it is now, config order."""
+        return [DriverState(**{**j, "faults": tuple(j["faults"])}) for j in self.request(cmd="state")["joints"]]
+
+    def disable_drivers(self) -> list[str]:
+        """Every driver's output off now (see :meth:`~akarm.sim.SimulatedRobot.disable_drivers`); the
+        joints that were enabled."""
+        return list(self.request(cmd="disable")["joints"])
+
+    def frames(self, since: int = 0) -> tuple[list[Frame], int]:
+        """The frames the drivers took in and sent from the ``since``-th on, and the index to ask from next
+        (see :meth:`~akarm.sim.SimulatedRobot.logged_frames`)."""
+        answer = self.request(cmd="frames", since=since)
+        return [Frame(t, bus, aid, ext, bytes.fromhex(data), joint, to_motor)
+                for t, bus, aid, ext, data, joint, to_motor in answer["frames"]], int(answer["next"])

@@ -2,30 +2,8 @@
 
 :mod:`akarm.robotfile.schema` has read the file (keys, types, ranges, required keys); these checks
 take what it read and report, each at its line with a fix, into the same
-:class:`~akarm.robotfile.nodes.Findings`:
-
-- The URDF is read as exporters write it: only the robot's own ``<joint>``/``<link>`` elements count
-  (not those named in ``<transmission>``, ``<gazebo>`` or ``<ros2_control>``); meshes are never
-  opened. Its problems are reported at their URDF line (:mod:`akarm.config.urdf`).
-- ``joints:`` are the joints motors drive (revolute or continuous), each listed once, with a CAN ID
-  used once on its bus, a known bus (which may be left out when there is one) and a known motor model.
-  Every other movable URDF joint (a gripper's fingers, a prismatic axis, a ``<mimic>`` joint) is held
-  still in the dynamics model: at its ``locked:`` position, where its mimic master puts it, or at 0
-  within its limits with a warning.
-- Position limits come from the URDF; ``lower``/``upper`` under ``limits`` may only narrow them. A
-  **continuous** URDF joint has none, so its file must give both ``lower`` and ``upper`` (the MIT
-  position field wraps at ±p_max, so an unbounded range cannot be tracked).
-- MIT joints: the position range, seen from the motor (``motor = (joint - offset) * direction``), must
-  lie within ±p_max. Servo joints: within the status frame's ±3276.7° (at the output, or at the rotor
-  for ``servo_position: rotor`` models).
-- ``velocity`` at most the motor's v_max; ``torque`` defaults to, and may not exceed, the motor's
-  t_max; MIT joints need ``kp`` and ``kd``, within the motor's kp_max and kd_max.
-- Poses have one value per joint, within the joint's limits.
-- Bus load: rejected when the nominal load of a bus exceeds 80 % at ``rate_hz`` (see
-  :mod:`akarm.config.busload`).
-- Gravity (:mod:`akarm.dynamics.gravity`): the largest gravity torque of every joint over the joint
-  ranges, payload included, may not exceed the joint's torque limit; above the motor's rated torque it
-  is a warning.
+:class:`~akarm.robotfile.nodes.Findings`. :data:`RULES` says what they check, in the words the
+reference (``docs/robot-file.md``) prints.
 """
 
 from __future__ import annotations
@@ -60,8 +38,8 @@ from akarm.robotfile.schema import (
     missing,
 )
 
-__all__ = ["DEFAULT_BUS", "SERVO_POSITION_RANGE", "Joints", "bus_load", "buses", "catalogue", "gravity", "locked",
-           "payload", "poses", "rate", "tool_frame", "urdf_file"]
+__all__ = ["DEFAULT_BUS", "RULES", "SERVO_POSITION_RANGE", "Joints", "bus_load", "buses", "catalogue", "gravity",
+           "locked", "payload", "poses", "rate", "tool_frame", "urdf_file"]
 
 DEFAULT_BUS = "arm"
 #: Servo status frames carry position as int16 × 0.1°.
@@ -73,6 +51,32 @@ _GAIN_RANGE: dict[str, float] = {f.name: f.default for f in dataclass_fields(Mot
 _SETTINGS = tuple(k.name for k in JOINT.keys if not isinstance(k.kind, Section)
                   and k.name in {f.name for f in dataclass_fields(JointConfig)}
                   and k.name not in ("name", "bus", "can_id", "motor"))
+
+
+#: What the checks refuse (or warn about), one rule an item, for the reference (markdown).
+RULES = (
+    "The URDF is read as exporters write it: only the robot's own `<joint>` and `<link>` elements count (not "
+    "those named in `<transmission>`, `<gazebo>` or `<ros2_control>`); meshes are never opened. Its problems are "
+    "reported at their URDF line.",
+    "`joints:` are the joints motors drive (revolute, or continuous), each listed once, with a CAN ID used once "
+    "on its bus, a known bus (which may be left out when there is one) and a known motor model.",
+    "Every other movable URDF joint (a gripper's fingers, a prismatic axis, a `<mimic>` joint) is held still in "
+    "the dynamics model, its mass still counted: at its `locked:` position, where its mimic master puts it, or "
+    "at 0 within its limits with a warning.",
+    "Position limits come from the URDF; `lower`/`upper` under `limits` may only narrow them. A continuous URDF "
+    "joint has none, so the file must give both (the MIT position field wraps at ±p_max: an unbounded range "
+    "cannot be tracked).",
+    "MIT joints: the position range, seen from the motor (`motor = (joint - offset) * direction`), must lie "
+    "within ±p_max. Servo joints: within the status frame's ±3276.7° (at the output, or at the rotor for "
+    "`servo_position: rotor` models).",
+    "`velocity` at most the motor's v_max; `torque` defaults to, and may not exceed, the motor's t_max; MIT "
+    "joints need `kp` and `kd`, within the motor's kp_max and kd_max.",
+    "A pose has one value per joint, each within the joint's limits.",
+    "Bus load: a bus whose nominal load would pass 80 % at `rate_hz` is refused (see `akarm.config.busload`; "
+    "`akarm check` prints the load and the highest rate each bus carries).",
+    "Gravity: the largest gravity torque of every joint over the joint ranges, payload included, may not exceed "
+    "the joint's torque limit; above the motor's rated (continuous) torque it is a warning.",
+)
 
 
 def _clip(x: float, joint: UrdfJoint) -> float:

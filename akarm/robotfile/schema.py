@@ -399,7 +399,7 @@ class Section(Kind):
         return _join(owner, self.term.format(key=key))
 
     def text(self) -> str:
-        return f"mapping (`{self.title}`, below)"
+        return "mapping (below)"
 
     def read(self, node: yaml.Node, what: str, fix: str, found: Findings, ctx: Context) -> Any:
         owner = ctx.owner if self.nested else what
@@ -627,10 +627,10 @@ JOINT = Section("joint", named_by="name", nested=False, required=False, doc=(
     Key("direction", Choice((1, -1)), "joint = direction × motor + offset", default=_JOINT["direction"],
         fix="1 when joint and motor turn the same way, -1 when opposite"),
     Key("offset", Number(unit="rad"), "the joint's position when the motor reads zero", default=_JOINT["offset"]),
-    Key("limits", LIMITS, "position range and motion limits (below)", required=True),
-    Key("gains", GAINS, "MIT gains (below); required for MIT joints"),
-    Key("friction", FRICTION, "identified friction (below)", default_text="the catalogue's typical values"),
-    Key("collision", COLLISION, "the collision reflex (below)"),
+    Key("limits", LIMITS, "position range and motion limits", required=True),
+    Key("gains", GAINS, "MIT gains; required for MIT joints"),
+    Key("friction", FRICTION, "identified friction", default_text="the catalogue's typical values"),
+    Key("collision", COLLISION, "the collision reflex"),
     Key("reply_id", Integer(0, 0x7FF), "the arbitration ID MIT replies come on (the motor's own ID on some units)",
         default=_JOINT["reply_id"], fix="0 (the firmware default) or the motor's own CAN ID"),
     Key("feedback_timeout", Number(positive=True, unit="s", null=True), "watchdog: the arm stops when this "
@@ -681,22 +681,22 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
         default_text="the last link", fix="a link of the URDF, e.g. the flange link"),
     Key("gravity", Vector(3, unit="m/s²"), "gravity in the URDF's base frame (wall or ceiling mounts)",
         default=_ROBOT["gravity"]),
-    Key("payload", PAYLOAD, "a load at the tool frame (below)"),
+    Key("payload", PAYLOAD, "a load at the tool frame"),
     Key("rate_hz", Number(positive=True, unit="Hz"), "the control loop's rate; the bus load must carry it",
         default=_ROBOT["rate_hz"], fix="give the loop rate in Hz, e.g. 500"),
-    Key("buses", Table(BUS, "bus {name!r}", "bus name → bus (below)"), "the CAN buses, by the name joints use",
+    Key("buses", Table(BUS, "bus {name!r}", "bus name → bus"), "the CAN buses, by the name joints use",
         default_text="one bus `arm`: socketcan, can0, 1 Mbit/s"),
     Key("poses", Table(Vector(unit="rad"), "pose {name!r}", "pose name → one position per joint (rad)"),
         "named poses, in the order of `joints:`"),
     Key("motors", Table(Raw("the catalogue's fields"), "motor {name!r}", "model name → catalogue fields "
         "(akarm/data/motors.yaml; `base: MODEL` to start from another)"),
         "catalogue models added or overridden for this robot"),
-    Key("defaults", DEFAULTS, "joint keys shared by every joint (below)"),
-    Key("joints", ListOf(JOINT), "the joints motors drive (below)", required=True,
+    Key("defaults", DEFAULTS, "joint keys shared by every joint"),
+    Key("joints", ListOf(JOINT), "the joints motors drive", required=True,
         fix="list the actuated joints under `joints:`"),
     Key("locked", Table(Number(unit="rad or m"), "locked: {name}", "URDF joint → position (rad, or m for prismatic "
         "joints)"), "URDF joints no motor drives, held at a position",
-        default_text="where a <mimic> master puts them, else 0 with a warning",
+        default_text="where a `<mimic>` master puts them, else 0 with a warning",
         fix="the position to hold it at: rad, or m for a prismatic joint"),
 ))
 

@@ -53,6 +53,14 @@ class Findings:
         self.warnings: list[ConfigProblem] = []
         #: warnings :func:`~akarm.robotfile.load.load_robot` also issues as :class:`~akarm.errors.ConfigWarning`
         self.issued: list[ConfigProblem] = []
+        self._constructor: yaml.SafeLoader | None = None
+
+    @property
+    def constructor(self) -> yaml.SafeLoader:
+        """The safe loader that builds this file's plain values (one per file: it keeps what it built)."""
+        if self._constructor is None:
+            self._constructor = yaml.SafeLoader("")
+        return self._constructor
 
     def add(self, at: yaml.Node | int | None, message: str, fix: str = "", *, file: str | None = None,
             warning: bool = False, issue: bool = False) -> None:
@@ -110,7 +118,7 @@ def compose(path: Path) -> yaml.Node | None:
 def plain(node: yaml.Node, found: Findings) -> Any:
     """The node as a plain Python value (``None``, reported, when the safe loader cannot build it)."""
     try:
-        return yaml.SafeLoader("").construct_object(node, deep=True)
+        return found.constructor.construct_object(node, deep=True)
     except yaml.YAMLError as e:
         found.add(node, f"cannot read this value: {getattr(e, 'problem', e)}", "write a plain YAML value")
         return None

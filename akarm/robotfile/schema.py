@@ -46,6 +46,7 @@ __all__ = [
     "PAYLOAD",
     "ROBOT_FILE",
     "Choice",
+    "Context",
     "Fields",
     "Integer",
     "Item",
@@ -699,6 +700,3 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
         default_text="where a `<mimic>` master puts them, else 0 with a warning",
         fix="the position to hold it at: rad, or m for a prismatic joint"),
 ))
-
-#: every section, in the order the reference lists them
-SECTIONS = (ROBOT_FILE, BUS, JOINT, LIMITS, GAINS, FRICTION, COLLISION, PAYLOAD, DEFAULTS)

@@ -612,7 +612,7 @@ COLLISION = Section("collision", term="collision {key}", doc="The collision refl
 _NAME = Key("name", Name(), "the URDF joint it drives (revolute, or continuous with lower and upper limits)",
             required=True, fix="give the URDF joint name: `- name: JOINT`", shared=False)
 _CAN_ID = Key("can_id", Integer(1, 127), "the motor's CAN ID, unique on its bus", required=True, shared=False,
-              fix="CAN IDs 1-127 (0 is the host's); set the motor's ID with CubeMars' tool")
+              fix="the motor's CAN ID, 1-127 (0 is the host's); set a motor's ID with CubeMars' tool")
 
 JOINT = Section("joint", named_by="name", nested=False, required=False, doc=(
     "One item of `joints:`, a joint a motor drives, in the order of every joint vector (poses, telemetry). "

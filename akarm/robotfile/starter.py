@@ -371,7 +371,7 @@ def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion],
         "defaults:",
         "  bus: arm",
         "  mode: mit   # suggested: MIT (force control) mode; `mode: servo` for servo-mode motors",
-        f"  max_temperature: {JOINT['max_temperature'].default_shown()}   # {JOINT['max_temperature'].doc}",
+        f"  max_temperature: {JOINT['max_temperature'].default!r}",   # °C, the schema's default
         *_also(JOINT, {"name", "bus", "can_id", "motor", "mode", "max_temperature", "limits", "gains"}, "  ",
                "also possible here or per joint"),
     ]

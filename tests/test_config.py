@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
+import re
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
+import yaml
 
 from akarm import ConfigError, ConfigWarning
-from akarm.config import BusConfig
+from akarm.config import BusConfig, JointConfig
 from akarm.errors import ConfigProblem
+from akarm.robotfile import reference
 from akarm.robotfile.load import load_robot
+from akarm.robotfile.nodes import Findings
+from akarm.robotfile.schema import JOINT, NO_DEFAULT, PAYLOAD, ROBOT_FILE, Context, Section
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, ROOT
 
 URDF = (ROBOTS / "planar2.urdf").resolve()
 
@@ -647,3 +653,75 @@ def test_supervisor_limits_per_joint_and_from_defaults(tmp_path: Path) -> None:
     found = problems(tmp_path, bad)
     assert one(found, "following_error must be positive").line == line_of(bad, "following_error")
     assert one(found, "stuck_travel must be a number").line == line_of(bad, "stuck_travel")
+
+
+def test_problems_in_defaults_are_reported_once_and_fail_every_joint(tmp_path: Path) -> None:
+    text = BASE.replace("jerk: 150.0}", "jerk: -1}").replace("kd: 1.0}", "kd: 1.0}\n  max_temperature: hot")
+    found = problems(tmp_path, text)
+    assert one(found, "defaults: jerk limit must be positive, got -1").line == line_of(text, "jerk: -1")
+    assert one(found, "defaults: max_temperature must be a number").line == line_of(text, "max_temperature")
+    # the joints that take them are not built: no pose, bus load or gravity finding follows from them
+    assert len(found) == 2
+
+
+@pytest.mark.parametrize("key", ["1", "null", "[a]", "true"])
+def test_a_key_that_is_not_text_is_a_problem_not_a_traceback(tmp_path: Path, key: str) -> None:
+    for where in ("poses:\n  {key}: [0, 0]", "buses:\n  {key}: can0", "locked:\n  {key}: 0.1",
+                  "buses:\n  arm: {{{key}: 1}}"):
+        entry = where.format(key=key)
+        text = BASE.replace("rate_hz: 500", "rate_hz: 500\n" + entry)
+        p = one(problems(tmp_path, text), "is not a name")
+        assert p.line == line_of(text, entry.splitlines()[-1]), entry
+
+
+# ----------------------------------------------------------------------------- the schema, the one description
+
+
+def test_the_schema_defaults_are_what_the_loader_gives(tmp_path: Path) -> None:
+    config = load_robot(write(tmp_path, BASE.replace("rate_hz: 500\n", "") + "payload: {mass: 1.0}\n"))
+    joint = config.joints[0]
+    plain = [k for k in JOINT.keys if k.default is not NO_DEFAULT]
+    assert {k.name for k in plain} >= {"mode", "direction", "offset", "max_temperature", "status_rate_hz"}
+    for key in plain:
+        assert getattr(joint, key.name) == key.default, key.name
+    assert config.rate_hz == ROBOT_FILE["rate_hz"].default and config.gravity == ROBOT_FILE["gravity"].default
+    assert config.payload is not None and config.payload.com == PAYLOAD["com"].default
+
+
+def test_every_joint_setting_is_a_key_of_the_schema() -> None:
+    """A JointConfig field the file cannot set is a schema key forgotten (or one to name here)."""
+    from_sections = {"limits", "gains", "friction", "collision_threshold"}  # collision_threshold: collision: threshold
+    assert {f.name for f in fields(JointConfig)} - set(JOINT.names) <= from_sections
+    assert {"collision", "limits", "gains", "friction"} <= {k.name for k in JOINT.keys if isinstance(k.kind, Section)}
+
+
+def test_the_reference_is_written_from_the_schema() -> None:
+    written = (ROOT / "docs" / "robot-file.md").read_text(encoding="utf-8")
+    assert written == reference.markdown(), "run: python -m akarm.robotfile.reference > docs/robot-file.md"
+    for section in (ROBOT_FILE, JOINT, PAYLOAD):
+        for key in section.keys:
+            assert f"| `{key.name}` |" in written
+
+
+def readme_example() -> str:
+    """The README's annotated robot file, with its commented-out entries (`# locked:`) taken in."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    match = re.search(r"An annotated example.*?```yaml\n(.*?)```", readme, re.S)
+    assert match is not None
+    return re.sub(r"^(\s*)# ?(?=\s*\w+:)", r"\1", match.group(1), flags=re.M)
+
+
+def schema_problems(text: str) -> list[ConfigProblem]:
+    found = Findings("README.md")
+    ROBOT_FILE.read(yaml.compose(text, Loader=yaml.SafeLoader), "", "", found, Context())
+    return found.problems
+
+
+def test_the_readme_example_uses_only_the_schemas_keys() -> None:
+    text = readme_example()
+    assert "locked:" in text and "joints:" in text and "status_rate_hz:" in text
+    assert schema_problems(text) == []
+    # and the check can fail: a key the schema lacks is found, wherever it is
+    for key in ("offset:", "kp:", "bitrate:", "mass:", "locked:"):
+        typo = re.sub(rf"\b{key}", key[:-1] + "s:", text, count=1)
+        assert any("unknown key" in p.message for p in schema_problems(typo)), key

@@ -164,6 +164,40 @@ def _float(text: str | None) -> float | None:
     return v
 
 
+class _Scan:
+    """A streaming parse that keeps line numbers: the robot's direct children (<joint>, <link>) and
+    their direct children (<parent>, <child>, <limit>, <mimic>, <inertial>), and <mass> one deeper."""
+
+    def __init__(self) -> None:
+        self.stack: list[str] = []
+        self.root: _Element | None = None
+        self.tops: list[tuple[_Element, list[_Element]]] = []
+        #: index in tops -> <inertial>'s <mass>, <inertia>, <origin>
+        self.inertials: dict[int, dict[str, _Element]] = {}
+        self.xacro_line: int | None = None
+        self.parser = expat.ParserCreate()
+        self.parser.StartElementHandler = self.start
+        self.parser.EndElementHandler = self.end
+
+    def start(self, tag: str, attrs: dict[str, str]) -> None:
+        line = self.parser.CurrentLineNumber
+        depth, stack = len(self.stack), self.stack
+        stack.append(tag)
+        if tag.startswith("xacro:") and self.xacro_line is None:
+            self.xacro_line = line
+        if depth == 0:
+            self.root = _Element(tag, attrs, line)
+        elif depth == 1 and tag in ("joint", "link"):
+            self.tops.append((_Element(tag, attrs, line), []))
+        elif depth == 2 and stack[1] in ("joint", "link") and self.tops:
+            self.tops[-1][1].append(_Element(tag, attrs, line))
+        elif depth == 3 and stack[1] == "link" and stack[2] == "inertial" and self.tops:
+            self.inertials.setdefault(len(self.tops) - 1, {}).setdefault(tag, _Element(tag, attrs, line))
+
+    def end(self, tag: str) -> None:
+        self.stack.pop()
+
+
 def read_urdf(path: str | os.PathLike[str]) -> tuple[Urdf | None, list[UrdfProblem]]:
     """Read the robot of a URDF file.
 
@@ -176,58 +210,29 @@ def read_urdf(path: str | os.PathLike[str]) -> tuple[Urdf | None, list[UrdfProbl
         data = p.read_bytes()
     except OSError as e:
         return None, [UrdfProblem(None, f"cannot read the URDF: {e.strerror or e}", "check the path and permissions")]
-
-    # A streaming parse that keeps line numbers: the robot's direct children (<joint>, <link>) and
-    # their direct children (<parent>, <child>, <limit>, <mimic>, <inertial>), and <mass> one deeper.
-    stack: list[str] = []
-    root: _Element | None = None
-    tops: list[tuple[_Element, list[_Element]]] = []
-    inertials: dict[int, dict[str, _Element]] = {}  # index in tops -> <inertial>'s <mass>, <inertia>, <origin>
-    xacro_line: int | None = None
-    parser = expat.ParserCreate()
-
-    def start(tag: str, attrs: dict[str, str]) -> None:
-        nonlocal root, xacro_line
-        line = parser.CurrentLineNumber
-        depth = len(stack)
-        stack.append(tag)
-        if tag.startswith("xacro:") and xacro_line is None:
-            xacro_line = line
-        if depth == 0:
-            root = _Element(tag, attrs, line)
-        elif depth == 1 and tag in ("joint", "link"):
-            tops.append((_Element(tag, attrs, line), []))
-        elif depth == 2 and stack[1] in ("joint", "link") and tops:
-            tops[-1][1].append(_Element(tag, attrs, line))
-        elif depth == 3 and stack[1] == "link" and stack[2] == "inertial" and tops:
-            inertials.setdefault(len(tops) - 1, {}).setdefault(tag, _Element(tag, attrs, line))
-
-    def end(tag: str) -> None:
-        stack.pop()
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
+    scan = _Scan()
     try:
-        parser.Parse(data, True)
+        scan.parser.Parse(data, True)
     except expat.ExpatError as e:
         return None, [UrdfProblem(e.lineno, f"not well-formed XML: {expat.ErrorString(e.code)}",
                                   "fix the XML on or just before this line (an unclosed or mistyped tag, a stray "
                                   "'<' or '&')")]
+    root = scan.root
     if root is None or root.tag != "robot":
         tag = root.tag if root is not None else "nothing"
         return None, [UrdfProblem(root.line if root else None, f"the root element is <{tag}>, not <robot>",
                                   "give akarm the robot's URDF (a file whose top element is <robot name=...>)")]
     problems: list[UrdfProblem] = []
-    if xacro_line is not None:
-        problems.append(UrdfProblem(xacro_line, "this is a xacro file, not yet a URDF (it has xacro: elements)",
+    if scan.xacro_line is not None:
+        problems.append(UrdfProblem(scan.xacro_line, "this is a xacro file, not yet a URDF (it has xacro: elements)",
                                     "expand it first: `xacro ROBOT.urdf.xacro > ROBOT.urdf` (ROS), or export the "
                                     "URDF from your CAD tool, and give akarm the result"))
 
     links: dict[str, UrdfLink] = {}
     joints: dict[str, UrdfJoint] = {}
-    for k, (el, children) in enumerate(tops):
+    for k, (el, children) in enumerate(scan.tops):
         if el.tag == "link":
-            _read_link(el, inertials.get(k, {}), links, problems)
+            _read_link(el, scan.inertials.get(k, {}), links, problems)
         else:
             _read_joint(el, children, joints, problems)
 
@@ -312,26 +317,36 @@ def _smallest_eigenvalue(m: tuple[tuple[float, float, float], ...]) -> float:
     return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
 
 
-def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJoint],
-                problems: list[UrdfProblem]) -> None:
+def _joint_kind(el: _Element, joints: dict[str, UrdfJoint], problems: list[UrdfProblem]) -> tuple[str, str] | None:
+    """A <joint>'s name and type; ``None`` (reported) without a name or a known type, or with a name used before."""
     name, jtype = el.attrs.get("name"), el.attrs.get("type")
     if not name:
         problems.append(UrdfProblem(el.line, "a <joint> without a name", 'give it one: <joint name="..." type="...">'))
-        return
+        return None
     label = f"joint {name!r}"
     if name in joints:
         problems.append(UrdfProblem(el.line, f"{label} is declared twice (first on line {joints[name].line})",
                                     "give every joint its own name"))
-        return
+        return None
     if not jtype:
         problems.append(UrdfProblem(el.line, f"{label} has no type", "add type=\"revolute\" (or continuous, "
                                     "prismatic, fixed)"))
-        return
+        return None
     if jtype not in JOINT_TYPES:
         hint = did_you_mean(jtype, JOINT_TYPES)
         problems.append(UrdfProblem(el.line, f"{label} has the unknown type {jtype!r}{hint}",
                                     "URDF joint types: " + ", ".join(JOINT_TYPES)))
+        return None
+    return name, jtype
+
+
+def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJoint],
+                problems: list[UrdfProblem]) -> None:
+    kind = _joint_kind(el, joints, problems)
+    if kind is None:
         return
+    name, jtype = kind
+    label = f"joint {name!r}"
     first: dict[str, _Element] = {}
     for c in children:
         first.setdefault(c.tag, c)
@@ -342,6 +357,15 @@ def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJo
         if not ends[key]:
             problems.append(UrdfProblem(end.line if end is not None else el.line, f"{label} has no {key} link",
                                         f'add <{key} link="LINK"/> inside the <joint>'))
+    _joint_frame(first, label, jtype, problems)
+    lower, upper, velocity, effort = _joint_limit(el, first.get("limit"), label, jtype, problems)
+    mimic = _joint_mimic(first.get("mimic"), label, problems)
+    joints[name] = UrdfJoint(name=name, type=jtype, parent=ends["parent"], child=ends["child"], lower=lower,
+                             upper=upper, velocity=velocity, effort=effort, mimic=mimic, line=el.line)
+
+
+def _joint_frame(first: dict[str, _Element], label: str, jtype: str, problems: list[UrdfProblem]) -> None:
+    """A joint's <origin> and <axis> are numbers; its axis is not zero."""
     if (origin := first.get("origin")) is not None:
         for key in ("xyz", "rpy"):
             _vector(origin, key, label, problems)
@@ -350,50 +374,58 @@ def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJo
         if xyz is not None and not any(xyz):
             problems.append(UrdfProblem(axis.line, f"{label}: its <axis> is zero", 'give the direction it turns '
                                         'or slides about, e.g. <axis xyz="0 0 1"/>'))
-    lower = upper = velocity = effort = None
-    lim = first.get("limit")
-    if jtype in ("revolute", "prismatic") and lim is None:
-        unit = "rad" if jtype == "revolute" else "m"
-        problems.append(UrdfProblem(el.line, f"{label} is {jtype} but has no <limit>",
-                                    f'add <limit lower="..." upper="..." effort="..." velocity="..."/> ({unit}); '
-                                    "or make it continuous"))
-    if lim is not None and jtype in ("revolute", "prismatic"):
-        missing = [k for k in ("effort", "velocity") if k not in lim.attrs]
-        if missing:
-            problems.append(UrdfProblem(lim.line, f"{label}: its <limit> has no {' and no '.join(missing)} (URDF "
-                                        "requires both)", "add " + " and ".join(f'{k}="..."' for k in missing) +
-                                        " (the maximum effort and velocity; akarm takes its own from the YAML)"))
-    if lim is not None:
-        values = {}
-        for key in ("lower", "upper", "velocity", "effort"):
-            v = _float(lim.attrs.get(key))
-            if v is not None and not math.isfinite(v):
-                problems.append(UrdfProblem(lim.line, f"{label}: <limit {key}={lim.attrs[key]!r}> is not a number",
-                                            f"write {key} as a number"))
-                v = None
-            values[key] = v
-        velocity, effort = values["velocity"], values["effort"]
-        if jtype in ("revolute", "prismatic"):
-            lower = values["lower"] if values["lower"] is not None else 0.0  # urdfdom's defaults
-            upper = values["upper"] if values["upper"] is not None else 0.0
-            if lower > upper:
-                problems.append(UrdfProblem(lim.line, f"{label}: <limit> lower {lower:g} is above upper {upper:g}",
-                                            "swap them, or fix the signs"))
-    mimic = None
-    mel = first.get("mimic")
-    if mel is not None:
-        target = mel.attrs.get("joint", "")
-        mult = _float(mel.attrs.get("multiplier"))
-        off = _float(mel.attrs.get("offset"))
-        if not target:
-            problems.append(UrdfProblem(mel.line, f"{label}: <mimic> names no joint", 'add joint="..." to <mimic>'))
-        elif (mult is not None and not math.isfinite(mult)) or (off is not None and not math.isfinite(off)):
-            problems.append(UrdfProblem(mel.line, f"{label}: <mimic> multiplier/offset are not numbers",
-                                        "write them as numbers (defaults: multiplier 1, offset 0)"))
-        else:
-            mimic = Mimic(target, 1.0 if mult is None else mult, 0.0 if off is None else off)
-    joints[name] = UrdfJoint(name=name, type=jtype, parent=ends["parent"], child=ends["child"], lower=lower,
-                             upper=upper, velocity=velocity, effort=effort, mimic=mimic, line=el.line)
+
+
+_Limit = tuple[float | None, float | None, float | None, float | None]
+
+
+def _joint_limit(el: _Element, lim: _Element | None, label: str, jtype: str, problems: list[UrdfProblem]) -> _Limit:
+    """A joint's <limit>: lower, upper (of revolute and prismatic joints), velocity, effort."""
+    bounded = jtype in ("revolute", "prismatic")
+    if lim is None:
+        if bounded:
+            unit = "rad" if jtype == "revolute" else "m"
+            problems.append(UrdfProblem(el.line, f"{label} is {jtype} but has no <limit>",
+                                        f'add <limit lower="..." upper="..." effort="..." velocity="..."/> ({unit}); '
+                                        "or make it continuous"))
+        return None, None, None, None
+    missing = [k for k in ("effort", "velocity") if k not in lim.attrs]
+    if bounded and missing:
+        problems.append(UrdfProblem(lim.line, f"{label}: its <limit> has no {' and no '.join(missing)} (URDF "
+                                    "requires both)", "add " + " and ".join(f'{k}="..."' for k in missing) +
+                                    " (the maximum effort and velocity; akarm takes its own from the YAML)"))
+    values = {}
+    for key in ("lower", "upper", "velocity", "effort"):
+        v = _float(lim.attrs.get(key))
+        if v is not None and not math.isfinite(v):
+            problems.append(UrdfProblem(lim.line, f"{label}: <limit {key}={lim.attrs[key]!r}> is not a number",
+                                        f"write {key} as a number"))
+            v = None
+        values[key] = v
+    if not bounded:
+        return None, None, values["velocity"], values["effort"]
+    lower = values["lower"] if values["lower"] is not None else 0.0  # urdfdom's defaults
+    upper = values["upper"] if values["upper"] is not None else 0.0
+    if lower > upper:
+        problems.append(UrdfProblem(lim.line, f"{label}: <limit> lower {lower:g} is above upper {upper:g}",
+                                    "swap them, or fix the signs"))
+    return lower, upper, values["velocity"], values["effort"]
+
+
+def _joint_mimic(mel: _Element | None, label: str, problems: list[UrdfProblem]) -> Mimic | None:
+    if mel is None:
+        return None
+    target = mel.attrs.get("joint", "")
+    mult = _float(mel.attrs.get("multiplier"))
+    off = _float(mel.attrs.get("offset"))
+    if not target:
+        problems.append(UrdfProblem(mel.line, f"{label}: <mimic> names no joint", 'add joint="..." to <mimic>'))
+    elif (mult is not None and not math.isfinite(mult)) or (off is not None and not math.isfinite(off)):
+        problems.append(UrdfProblem(mel.line, f"{label}: <mimic> multiplier/offset are not numbers",
+                                    "write them as numbers (defaults: multiplier 1, offset 0)"))
+    else:
+        return Mimic(target, 1.0 if mult is None else mult, 0.0 if off is None else off)
+    return None
 
 
 def _check_tree(urdf: Urdf, problems: list[UrdfProblem], robot_line: int) -> None:
@@ -401,6 +433,25 @@ def _check_tree(urdf: Urdf, problems: list[UrdfProblem], robot_line: int) -> Non
     if not links:
         problems.append(UrdfProblem(robot_line, "the robot has no <link>", "describe the robot's links and joints"))
         return
+    parent_of = _check_joint_links(urdf, problems)
+    _check_mimic_loops(joints, problems)
+    roots = [n for n in links if n not in parent_of]
+    if len(roots) == 1:
+        _check_reach(urdf, roots[0], problems)
+    elif roots:
+        shown = ", ".join(f"{n!r} (line {links[n].line})" for n in roots[:6])
+        problems.append(UrdfProblem(links[roots[1]].line, f"the URDF has {len(roots)} root links: {shown}",
+                                    "connect every link to the tree with a joint (a URDF has one root, e.g. "
+                                    "base_link or world)"))
+    else:
+        problems.append(UrdfProblem(robot_line, "every link is some joint's child: the joints form a loop",
+                                    "a URDF is a tree: remove the joint that closes the loop"))
+
+
+def _check_joint_links(urdf: Urdf, problems: list[UrdfProblem]) -> dict[str, UrdfJoint]:
+    """Every joint names declared links (a link has one parent joint) and an existing mimic master;
+    returns the parent joint of each link."""
+    links, joints = urdf.links, urdf.joints
     parent_of: dict[str, UrdfJoint] = {}
     for j in joints.values():
         for key, link in (("parent", j.parent), ("child", j.child)):
@@ -420,23 +471,16 @@ def _check_tree(urdf: Urdf, problems: list[UrdfProblem], robot_line: int) -> Non
                                         f"{did_you_mean(j.mimic.joint, list(joints))}", "name an existing joint"))
         elif j.mimic is not None and j.mimic.joint == j.name:
             problems.append(UrdfProblem(j.line, f"joint {j.name!r} mimics itself", "name the joint it follows"))
-    _check_mimic_loops(joints, problems)
-    roots = [n for n in links if n not in parent_of]
-    if len(roots) != 1:
-        if roots:
-            shown = ", ".join(f"{n!r} (line {links[n].line})" for n in roots[:6])
-            problems.append(UrdfProblem(links[roots[1]].line, f"the URDF has {len(roots)} root links: {shown}",
-                                        "connect every link to the tree with a joint (a URDF has one root, e.g. "
-                                        "base_link or world)"))
-        else:
-            problems.append(UrdfProblem(robot_line, "every link is some joint's child: the joints form a loop",
-                                        "a URDF is a tree: remove the joint that closes the loop"))
-        return
-    # loops hanging below the root: every link must be reachable from it
-    reach = {roots[0]}
-    todo = [roots[0]]
+    return parent_of
+
+
+def _check_reach(urdf: Urdf, root: str, problems: list[UrdfProblem]) -> None:
+    """Loops hanging below the root: every link must be reachable from it."""
+    links = urdf.links
+    reach = {root}
+    todo = [root]
     by_parent: dict[str, list[UrdfJoint]] = {}
-    for j in joints.values():
+    for j in urdf.joints.values():
         by_parent.setdefault(j.parent, []).append(j)
     while todo:
         for j in by_parent.get(todo.pop(), []):

@@ -50,6 +50,7 @@ from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 from akarm.dynamics.gravity import GravityPeak, gravity_peaks, sample_box
 from akarm.errors import ConfigError, ConfigProblem
 from akarm.protocol.motors import Catalogue, MotorModel, default_catalogue
+from akarm.robotfile.schema import JOINT, PAYLOAD, ROBOT_FILE, Section
 
 __all__ = ["A_REF", "F_NATURAL", "JointSuggestion", "Suggestion", "suggest"]
 
@@ -302,6 +303,26 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     return Suggestion(text, tuple(joints), locked, tool, rate, short)
 
 
+def _units(section: Section) -> str:
+    """``mass (kg), com (m)``: a section's keys with their units, from the schema."""
+    units = ((k.name, getattr(k.kind, "unit", "")) for k in section.keys)
+    return ", ".join(f"{name} ({unit})" for name, unit in units if unit)
+
+
+def _also(section: Section, written: set[str], indent: str, where: str) -> list[str]:
+    """Comment lines naming the section's keys the starter does not write: the schema's others."""
+    rest = [k.name for k in section.keys if k.name not in written]
+    if not rest:
+        return []
+    lines, line = [], f"{indent}# {where} (docs/robot-file.md):"
+    for name in rest:
+        if len(line) + len(name) + 2 > 100:
+            lines.append(line + ",")
+            line = f"{indent}#  "
+        line += ("" if line.endswith(":") or line.endswith("#  ") else ",") + " " + name
+    return [*lines, line]
+
+
 def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion], locked: dict[str, float],
             held: dict[str, float], tool: str | None, rate: float, load: object, zero: np.ndarray, rest: np.ndarray,
             payload: float, margin: float) -> str:
@@ -335,8 +356,8 @@ def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion],
         lines.append(f"tool_frame: {_name(tool)}   # suggested: the end of the chain (payload, Cartesian queries)")
     pay = f"payload: {{mass: {payload:g}, com: [0.0, 0.0, 0.0]}}"
     lines.append(f"# {pay}   # the motors were sized for this (--payload): uncomment it while it is carried"
-                 if payload else "# payload: {mass: 0.5, com: [0.0, 0.0, 0.0]}   # kg, m in the tool frame, "
-                 "when the gripper carries something")
+                 if payload else f"# payload: {{mass: 0.5, com: [0.0, 0.0, 0.0]}}   # {ROBOT_FILE['payload'].doc}: "
+                 f"{_units(PAYLOAD)}, when the gripper carries something")
     ceiling = math.floor(load.max_rate_hz)
     lines += [
         f"rate_hz: {rate:g}   # suggested: {n} MIT joints on one 1 Mbit/s bus use {load.percent_nominal:.0f} % "
@@ -344,14 +365,18 @@ def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion],
         "buses:",
         "  arm: {interface: socketcan, channel: can0, bitrate: 1000000}   # suggested: your adapter "
         "(python-can interface and channel)",
+        *_also(ROBOT_FILE, {"name", "urdf", "tool_frame", "payload", "rate_hz", "buses", "defaults", "locked", "poses",
+                            "joints"}, "", "also possible"),
         "",
         "defaults:",
         "  bus: arm",
         "  mode: mit   # suggested: MIT (force control) mode; `mode: servo` for servo-mode motors",
-        "  max_temperature: 80.0",
+        f"  max_temperature: {JOINT['max_temperature'].default!r}",   # °C, the schema's default
+        *_also(JOINT, {"name", "bus", "can_id", "motor", "mode", "max_temperature", "limits", "gains"}, "  ",
+               "also possible here or per joint"),
     ]
     if locked:
-        lines += ["", "locked:   # URDF joints no motor drives, held still at a position (rad, or m)"]
+        lines += ["", f"locked:   # {ROBOT_FILE['locked'].doc} (rad, or m)"]
         for name, x in held.items():
             j = urdf.joints[name]
             followers = [f.name for f in urdf.joints.values() if f.mimic is not None and f.mimic.joint == name]
@@ -364,7 +389,7 @@ def _render(urdf: Urdf, path: Path, output: Path, joints: list[JointSuggestion],
             lines.append(f"  {_name(name)}: {_num(x)}   # suggested: where it is held ({j.type}{rng}){also}")
     lines += [
         "",
-        f"poses:   # {names} (rad)",
+        f"poses:   # {ROBOT_FILE['poses'].doc}: {names} (rad)",
         f"  zero: [{', '.join(_num(x) for x in zero)}]   # every joint at 0, within its range",
         f"  rest: [{', '.join(_num(x) for x in rest)}]   # suggested: of sampled poses away from zero, "
         "the least gravity load on the motors; check that it is clear of obstacles",

@@ -35,10 +35,10 @@ from akarm.buses.bus import close_buses, open_bus
 from akarm.clock import RealClock, SteppedClock
 from akarm.errors import ConfigError, ConfigProblem, StateError
 from akarm.sim import faults as _faults
-from akarm.sim.channel import DriverState, Frame
 from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
 from akarm.sim.params import MotorSimParams, default_params
 from akarm.sim.plant import Plant
+from akarm.sim.records import DriverState, Frame
 from akarm.timing import TimingProfile, get_profile
 
 if TYPE_CHECKING:

@@ -15,7 +15,7 @@ import pytest
 import akarm
 from akarm.buses import ownership as registry
 from akarm.errors import AkarmError, LimitError, MotorFault, StateError
-from akarm.server.socket import ControlClient, ControlServer
+from akarm.server.socket import SocketClient, SocketServer
 from akarm.sim import SimulatedRobot
 
 from .conftest import ROBOTS
@@ -70,9 +70,9 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
             raise MotorFault("over-temperature", code=1, joint="elbow", fix="let it cool")
         raise KeyError(op)
 
-    server = ControlServer(tmp_path / "c.sock", dispatch)
+    server = SocketServer(tmp_path / "c.sock", dispatch)
     try:
-        with ControlClient(tmp_path / "c.sock", timeout=10) as c:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
             assert c.call("add", a=2, b=3) == 5
             with pytest.raises(LimitError) as e:
                 c.call("limit")
@@ -87,7 +87,7 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
         server.close()
     assert not (tmp_path / "c.sock").exists()
     with pytest.raises(StateError, match="cannot reach akarm serve"):
-        ControlClient(tmp_path / "c.sock")
+        SocketClient(tmp_path / "c.sock")
 
 
 def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_path):
@@ -102,9 +102,9 @@ def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_pa
             return "the slow call's answer"
         return {"echo": op, "client": client}
 
-    server = ControlServer(tmp_path / "c.sock", dispatch, closed=left.append)
+    server = SocketServer(tmp_path / "c.sock", dispatch, closed=left.append)
     try:
-        with ControlClient(tmp_path / "c.sock", timeout=10) as c:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
             timer = threading.Timer(0.2, lambda: (release.set(), _thread.interrupt_main()))
             timer.start()
             with pytest.raises(KeyboardInterrupt):
@@ -114,7 +114,7 @@ def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_pa
             assert first["echo"] == "first"  # not "the slow call's answer"
             assert c.call("second")["echo"] == "second"
             client = first["client"]
-        with ControlClient(tmp_path / "c.sock", timeout=10) as other:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as other:
             assert other.call("x")["client"] != client  # each connection has its own number
         deadline = time.monotonic() + 5
         while len(left) < 2 and time.monotonic() < deadline:

@@ -20,7 +20,7 @@ from akarm.cli.common import format_q, interrupted, load_from_args
 if TYPE_CHECKING:
     from akarm.config import RobotConfig
     from akarm.motion.recording import Keyframe, PathRecording
-    from akarm.server.socket import ControlClient
+    from akarm.server.socket import SocketClient
 
 __all__ = ["RemoteArm", "via_server"]
 
@@ -29,22 +29,22 @@ class RemoteArm:
     """The part of the :class:`~akarm.Arm` API the CLI verbs use, carried out by a running server."""
 
     def __init__(self, config: RobotConfig, info: dict[str, Any]) -> None:
-        from akarm.server.socket import ControlClient
+        from akarm.server.socket import SocketClient
 
         self.config = config
         self.names = config.joint_names
         self.info = info
         self.pid = info.get("pid")
-        self.client: ControlClient = ControlClient(info["socket"])
+        self.client: SocketClient = SocketClient(info["socket"])
 
     def call(self, op: str, **args: Any) -> Any:
         return self.client.call(op, **args)
 
     def interrupt(self) -> None:
         """Bring the arm to rest (on a connection of its own: the first may be waiting for a reply)."""
-        from akarm.server.socket import ControlClient
+        from akarm.server.socket import SocketClient
 
-        with ControlClient(self.info["socket"], timeout=10.0) as c:
+        with SocketClient(self.info["socket"], timeout=10.0) as c:
             c.call("stop")
 
     # what teach's helpers use

@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
 
     from akarm.errors import AkarmError
     from akarm.sim import SimulatedRobot, faults
-    from akarm.sim.channel import ControlServer
+    from akarm.sim.channel import ChannelServer
 
     config = load_from_args(args)
     injected = [faults.parse(spec) for spec in args.fault]
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
                 sim.inject(joint, fault)
                 print(f"  fault on {joint}: {fault}", flush=True)
             if args.control:
-                stack.enter_context(ControlServer(sim, args.control))
+                stack.enter_context(ChannelServer(sim, args.control))
                 print(f"  control channel: {args.control}", flush=True)
             print("running; Ctrl-C to stop", flush=True)
             start = time.monotonic()

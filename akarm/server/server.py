@@ -37,7 +37,7 @@ from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
 from akarm.control.modes import Mode
 from akarm.errors import AkarmError, LimitError, StateError
-from akarm.server.socket import ControlServer
+from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion
@@ -96,7 +96,7 @@ class ArmServer:
         self._teacher: int | None = None  # the control connection that started teach mode (None: ROS, Python)
         self._opened_arm = False
         self._lock: BusLock | None = None
-        self._control: ControlServer | None = None
+        self._socket: SocketServer | None = None
         self._node: RosNode | None = None
         self.socket_path = runtime_dir() / f"serve-{os.getpid()}-{id(self):x}.sock"
         self.last_refusal = ""
@@ -123,7 +123,7 @@ class ArmServer:
                 self._opened_arm = True
             if self._enable_at_start:
                 self.arm.enable()
-            self._control = ControlServer(self.socket_path, self.dispatch, closed=self._client_left)
+            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left)
             threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
             if self._node is not None:
                 self._node.start()
@@ -144,9 +144,9 @@ class ArmServer:
             node, self._node = self._node, None
             if node is not None:
                 node.stop()
-            control, self._control = self._control, None
-            if control is not None:
-                control.close()
+            sock, self._socket = self._socket, None
+            if sock is not None:
+                sock.close()
             if self._opened_arm:
                 self.arm.close()
                 self._opened_arm = False

@@ -50,7 +50,7 @@ from akarm.sim.records import DriverState, Frame
 if TYPE_CHECKING:
     from akarm.sim.robot import SimulatedRobot
 
-__all__ = ["ControlServer", "SimulatorControl", "fault_from_json", "fault_to_json"]
+__all__ = ["ChannelServer", "SimulatorControl", "fault_from_json", "fault_to_json"]
 
 
 def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:
@@ -127,7 +127,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
                      fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
 
 
-class ControlServer:
+class ChannelServer:
     """Serves :class:`SimulatorControl` requests for ``sim`` on the Unix-domain socket ``path`` (threads
     of its own; :meth:`close` stops them and removes the socket).
 
@@ -167,7 +167,7 @@ class ControlServer:
         with contextlib.suppress(OSError):
             self.path.unlink()
 
-    def __enter__(self) -> ControlServer:
+    def __enter__(self) -> ChannelServer:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -28,7 +28,7 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from akarm.errors import AkarmError
 from akarm.ros import msgs
-from akarm.ros.dds import ANY, Node, TriggerServer, _info
+from akarm.ros.dds import ANY, Node, TriggerServer, sample_info
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
@@ -144,7 +144,7 @@ class RosNode:
         if not self._running.is_set():
             return
         for msg in self._traj.take(16):
-            if _info(msg).valid_data:
+            if sample_info(msg).valid_data:
                 with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
                     times, positions, velocities = trajectory_arrays(msg)
                     if msg.points and not times:

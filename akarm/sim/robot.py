@@ -333,7 +333,7 @@ class SimulatedRobot:
         with self._lock:
             was = [d for d in self.drivers if _driving(d)]
             for d in was:
-                d._power_off()  # the output off; the driver stays powered and on the bus
+                d.output_off()
             return [d.name for d in was]
 
     def status_line(self) -> str:

@@ -62,18 +62,18 @@ class ArmServer(ArmServerCore):
     def __init__(self, arm: Arm, *, domain: int | None = None, namespace: str = "", ros: bool = True,
                  joint_states_hz: float | None = None, status_hz: float = 2.0, enable: bool = True,
                  log: Callable[[str], None] | None = None) -> None:
-        self.domain = _default_domain() if domain is None else int(domain)
-        self.namespace = namespace.strip("/")
-        self.ros = ros
-        super().__init__(arm, frontends=[self._ros_node] if ros else [], enable=enable, log=log,
-                         about={"domain": self.domain, "namespace": self.namespace})
         for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
             if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
                 raise StateError(f"{what} must be a positive number of Hz, got {hz!r}",
                                  fix="e.g. --joint-states-hz 100 --status-hz 2")
+        self.domain = _default_domain() if domain is None else int(domain)
+        self.namespace = namespace.strip("/")
+        self.ros = ros
         rate = arm.config.rate_hz
         self.joint_states_hz = joint_states_hz if joint_states_hz is not None else rate / max(1, round(rate / 100.0))
         self.status_hz = status_hz
+        super().__init__(arm, frontends=[self._ros_node] if ros else [], enable=enable, log=log,
+                         about={"domain": self.domain, "namespace": self.namespace})
 
     def _ros_node(self, server: ArmServerCore) -> Frontend:
         from akarm.ros.node import RosNode  # akarm.ros says so (AkarmError) when Cyclone DDS is not installed

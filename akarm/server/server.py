@@ -7,7 +7,7 @@ the arm, and holds it. It runs one command at a time on the arm, and serves
   ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` use the server when one runs;
 - its :class:`Frontend` objects, made from the factories it is given: each gets the server, calls
   its commands (:meth:`~ArmServerCore.follow`, :meth:`~ArmServerCore.enable`, ...), and is started
-  once the arm is held and stopped first when the server stops.
+  once the arm is held and stopped once the server has disabled it.
 
 Users build :class:`akarm.ArmServer` (:mod:`akarm.serving`), which is this core with the ROS 2
 node of :mod:`akarm.ros.node` as its frontend; this layer knows nothing of ROS.

@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
     from akarm.robotfile.load import load_robot
-    from akarm.server import ArmServer, serve
+    from akarm.serving import ArmServer, serve
 
 __all__ = [
     "AkarmError",
@@ -90,8 +90,8 @@ __all__ = [
 # Heavy parts (Pinocchio, ruckig, python-can) load on first use, so `import akarm` and the codecs stay light.
 _LAZY = {
     "Arm": ("akarm.arm", "Arm"),
-    "ArmServer": ("akarm.server", "ArmServer"),
-    "serve": ("akarm.server", "serve"),
+    "ArmServer": ("akarm.serving", "ArmServer"),
+    "serve": ("akarm.serving", "serve"),
     "RobotConfig": ("akarm.config", "RobotConfig"),
     "load_robot": ("akarm.robotfile.load", "load_robot"),
 }

@@ -61,7 +61,7 @@ def open_arm(args: argparse.Namespace, robot: str, **arm_options) -> Iterator[tu
     and disables it. ``arm_options`` go to :class:`akarm.Arm` (e.g. ``feedforward="gravity"``).
     """
     import akarm
-    from akarm.cli.common import parse_channel
+    from akarm.config import parse_channel
     from akarm.sim import SimulatedRobot
 
     config = akarm.load_robot(ROBOTS / f"{robot}.yaml")

@@ -1,4 +1,4 @@
-"""The server's parts on their own: the bus registry and the CLI's control socket."""
+"""The server's parts on their own: the bus registry, the CLI's control socket, the frontends."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import pytest
 import akarm
 from akarm.buses import ownership as registry
 from akarm.errors import AkarmError, LimitError, MotorFault, StateError
-from akarm.server.socket import ControlClient, ControlServer
+from akarm.server.server import ArmServerCore
+from akarm.server.socket import SocketClient, SocketServer
 from akarm.sim import SimulatedRobot
 
 from .conftest import ROBOTS
@@ -70,9 +71,9 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
             raise MotorFault("over-temperature", code=1, joint="elbow", fix="let it cool")
         raise KeyError(op)
 
-    server = ControlServer(tmp_path / "c.sock", dispatch)
+    server = SocketServer(tmp_path / "c.sock", dispatch)
     try:
-        with ControlClient(tmp_path / "c.sock", timeout=10) as c:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
             assert c.call("add", a=2, b=3) == 5
             with pytest.raises(LimitError) as e:
                 c.call("limit")
@@ -87,7 +88,7 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
         server.close()
     assert not (tmp_path / "c.sock").exists()
     with pytest.raises(StateError, match="cannot reach akarm serve"):
-        ControlClient(tmp_path / "c.sock")
+        SocketClient(tmp_path / "c.sock")
 
 
 def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_path):
@@ -102,9 +103,9 @@ def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_pa
             return "the slow call's answer"
         return {"echo": op, "client": client}
 
-    server = ControlServer(tmp_path / "c.sock", dispatch, closed=left.append)
+    server = SocketServer(tmp_path / "c.sock", dispatch, closed=left.append)
     try:
-        with ControlClient(tmp_path / "c.sock", timeout=10) as c:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
             timer = threading.Timer(0.2, lambda: (release.set(), _thread.interrupt_main()))
             timer.start()
             with pytest.raises(KeyboardInterrupt):
@@ -114,7 +115,7 @@ def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_pa
             assert first["echo"] == "first"  # not "the slow call's answer"
             assert c.call("second")["echo"] == "second"
             client = first["client"]
-        with ControlClient(tmp_path / "c.sock", timeout=10) as other:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as other:
             assert other.call("x")["client"] != client  # each connection has its own number
         deadline = time.monotonic() + 5
         while len(left) < 2 and time.monotonic() < deadline:
@@ -182,3 +183,58 @@ def test_a_dds_configuration_cyclone_cannot_use_is_an_akarm_error(monkeypatch, c
         with pytest.raises(AkarmError, match="Cyclone DDS could not start") as e:
             RosNode(server, 77, "", 10.0, 1.0)
         assert "CYCLONEDDS_URI" in e.value.fix
+
+
+class RecordingFrontend:
+    """A frontend that notes when it is made, started and stopped, and whether the arm was enabled then."""
+
+    def __init__(self, server: ArmServerCore, seen: list[tuple[str, bool]]) -> None:
+        self.arm = server.arm
+        self.seen = seen
+        seen.append(("made", self.arm.enabled))
+
+    def start(self) -> None:
+        self.seen.append(("started", self.arm.enabled))
+
+    def stop(self) -> None:
+        self.seen.append(("stopped", self.arm.enabled))
+
+
+def test_a_frontend_is_made_before_enabling_started_once_held_and_stopped_once_disabled(channel):
+    config = config_on(channel, "virtual")
+    seen: list[tuple[str, bool]] = []
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        with ArmServerCore(arm, frontends=[lambda server: RecordingFrontend(server, seen)]) as server:
+            assert server.mode == "holding" and seen == [("made", False), ("started", True)]
+        assert seen == [("made", False), ("started", True), ("stopped", False)]
+
+
+def test_a_frontend_that_cannot_be_made_fails_the_start_before_anything_is_enabled(channel):
+    def broken(server: ArmServerCore) -> RecordingFrontend:
+        raise AkarmError("this frontend has no transport", fix="install it")
+
+    config = config_on(channel, "virtual")
+    seen: list[tuple[str, bool]] = []
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = ArmServerCore(arm, frontends=[lambda server: RecordingFrontend(server, seen), broken])
+        with pytest.raises(AkarmError, match="this frontend has no transport"):
+            server.start()
+        assert not arm.enabled
+        assert seen == [("made", False), ("stopped", False)], "the one made is stopped, never started"
+
+
+def test_without_cyclone_dds_serving_ros_is_refused_before_anything_is_enabled(monkeypatch, channel):
+    for name in [m for m in sys.modules if m == "akarm.ros" or m.startswith("akarm.ros.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)  # as if the ros extra were not installed
+    config = config_on(channel, "virtual")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = akarm.ArmServer(arm)
+        with pytest.raises(AkarmError, match="need Cyclone DDS's Python binding, which is not installed") as e:
+            server.start()
+        assert "--no-ros" in e.value.fix and not arm.enabled
+        with akarm.ArmServer(arm, ros=False) as served:  # the CLI alone needs no DDS
+            assert served.mode == "holding"

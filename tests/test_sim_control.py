@@ -16,7 +16,7 @@ import pytest
 
 from akarm import AkarmError, StateError, load_robot
 from akarm.sim import SimulatedRobot, faults
-from akarm.sim.channel import ControlServer, SimulatorControl, fault_from_json, fault_to_json
+from akarm.sim.channel import ChannelServer, SimulatorControl, fault_from_json, fault_to_json
 
 from .conftest import ROBOTS
 
@@ -57,7 +57,7 @@ def test_a_bad_fault_object_is_a_clear_error(obj: object, says: str) -> None:
 def served(channel: str, tmp_path: Path) -> Iterator[tuple[SimulatedRobot, SimulatorControl]]:
     config = load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
     path = tmp_path / "sim.sock"
-    with SimulatedRobot(config, realtime=False) as sim, ControlServer(sim, path):
+    with SimulatedRobot(config, realtime=False) as sim, ChannelServer(sim, path):
         yield sim, SimulatorControl(path)
     assert not path.exists()  # closing the server removed its socket
 
@@ -115,9 +115,9 @@ def test_a_second_simulator_cannot_take_a_served_socket_but_a_stale_one_is_reuse
         served: tuple[SimulatedRobot, SimulatorControl], tmp_path: Path) -> None:
     sim, ctl = served
     with pytest.raises(StateError, match="another simulator serves"):
-        ControlServer(sim, ctl.path)
+        ChannelServer(sim, ctl.path)
     stale = tmp_path / "stale.sock"
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.bind(str(stale))                                 # bound, never listening: what a killed simulator leaves
-    with ControlServer(sim, stale):
+    with ChannelServer(sim, stale):
         assert len(SimulatorControl(stale).state()) == 2

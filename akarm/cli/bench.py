@@ -74,7 +74,8 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     import numpy as np
 
     from akarm.arm import Arm
-    from akarm.cli.common import controlled, parse_channel
+    from akarm.cli.common import controlled
+    from akarm.config import parse_channel
     from akarm.errors import AkarmError
     from akarm.robotfile.load import load_robot
     from akarm.sim import SimulatedRobot

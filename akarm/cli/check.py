@@ -130,7 +130,8 @@ def _gravity_cell(torque: float, joint: object) -> str:
     return f"{torque:.1f}, {'above' if torque > rated else 'within'} rated {rated:g}"
 
 
-def _print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> None:
+def print_problems(robot: str, problems: list[ConfigProblem], out: TextIO) -> None:
+    """A robot file's problems on ``out``: how many, then each at its line, with its fix (also for ``akarm init``)."""
     n = len(problems)
     print(f"{robot}: {n} problem{'s' if n != 1 else ''}:", file=out)
     for p in problems:
@@ -156,12 +157,12 @@ def run(args: argparse.Namespace) -> int:
             warnings.simplefilter("ignore", ConfigWarning)  # printed below with the others
             config = load_from_args(args, rate_hz=args.loop_rate)  # the loader checks the bus load at this rate
     except ConfigError as e:
-        _print_problems(args.robot, e.problems, sys.stderr)
+        print_problems(args.robot, e.problems, sys.stderr)
         return 1
     # a --bitrate override changes the load the file was validated with
     over = [load for load in bus_loads(config).values() if load.over_limit]
     if over:
-        _print_problems(args.robot, [ConfigProblem(
+        print_problems(args.robot, [ConfigProblem(
             args.robot, None, f"at {config.rate_hz:g} Hz and {config.buses[load.bus].bitrate} bit/s bus "
             f"{load.bus!r} is {load.percent_nominal:.0f} % busy, over {100 * LOAD_LIMIT:.0f} %",
             f"run at most {math.floor(load.max_rate_hz_nominal)} Hz") for load in over], sys.stderr)
@@ -171,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         short = [(j, p) for j, p in zip(config.joints, gravity_peaks(config, extra_payload=args.payload), strict=True)
                  if p.torque > j.limits.torque]
         if short:
-            _print_problems(args.robot, [ConfigProblem(
+            print_problems(args.robot, [ConfigProblem(
                 args.robot, None, f"joint {j.name!r}: with {args.payload:g} kg more at the tool, gravity needs up to "
                 f"{p.torque:.1f} N·m (at {p.pose()}), above its torque limit {j.limits.torque:g} N·m",
                 "a stronger motor for this joint, or less payload") for j, p in short], sys.stderr)

@@ -37,19 +37,13 @@ def add_profile_argument(parser: argparse.ArgumentParser) -> None:
                         help="timing profile: " + "; ".join(f"{p.name}: {p.description}" for p in PROFILES.values()))
 
 
-def parse_channel(text: str | None) -> str | dict[str, str] | None:
-    """``vcan0`` → ``"vcan0"``; ``arm=vcan0,aux=vcan1`` → ``{"arm": "vcan0", "aux": "vcan1"}``."""
-    if text is None or "=" not in text:
-        return text
-    return dict(part.split("=", 1) for part in text.split(","))
-
-
 def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> RobotConfig:
     """The robot config named on the command line, with its bus overrides applied (and the loop rate
     ``rate_hz``, checked against the bus load like the file's own); the loader's ConfigWarnings are
     printed as ``warning: ...`` lines on stderr."""
     import warnings
 
+    from akarm.config import parse_channel
     from akarm.errors import ConfigWarning
     from akarm.robotfile.load import load_robot
 

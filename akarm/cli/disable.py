@@ -12,8 +12,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from akarm.cli.served import RemoteArm
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     """Send the exit frames; list per joint what was sent and whether it answered."""
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+    if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     from akarm.cli.common import format_table
     from akarm.control.probe import release
@@ -56,4 +60,12 @@ def run(args: argparse.Namespace) -> int:
         for bus in dict.fromkeys(config.joint(name).bus for name in missing):
             print(f"  bus {bus!r}: {no_answer_hint(config.buses[bus])}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """Ask the server to damp and disable the arm (it goes on serving)."""
+    arm.call("disable")
+    print(f"disabled {arm.config.name} through akarm serve (pid {arm.pid}): damped, then motor mode exited; "
+          "the arm is limp, support it (akarm enable holds it again)")
     return 0

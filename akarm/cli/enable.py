@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from akarm.cli.common import (
     add_profile_argument,
@@ -25,6 +26,9 @@ from akarm.cli.common import (
     load_from_args,
     stop_smoothly,
 )
+
+if TYPE_CHECKING:
+    from akarm.cli.served import RemoteArm
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     """Enable, hold until Ctrl-C or ``--seconds``, disable."""
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+    if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     from akarm.errors import AkarmError
 
@@ -67,4 +71,28 @@ def run(args: argparse.Namespace) -> int:
         with deferred_signals():
             arm.disable()
         print("disabled")
+    return 0
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """Enable and return: the server holds the arm. With ``--seconds``, as without a server: hold
+    that long, then disable."""
+    from akarm.errors import AkarmError
+
+    if args.seconds is not None and not args.seconds >= 0:
+        raise AkarmError(f"--seconds {args.seconds} must not be negative")
+    state = arm.call("enable")
+    if args.seconds is None:
+        print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}); "
+              f"{arm.held} (akarm disable releases it)", flush=True)
+        return 0
+    print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}) for "
+          f"{args.seconds:g} s", flush=True)
+    try:
+        arm.call("sleep", seconds=args.seconds)
+    except KeyboardInterrupt as e:
+        print(f"interrupted: {arm.held}", file=sys.stderr)
+        return interrupted(e)
+    arm.call("disable")
+    print("disabled")
     return 0

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     """Suggest, write atomically, load it back; print what was chosen."""
     import warnings
 
-    from akarm.cli.check import _print_problems
+    from akarm.cli.check import print_problems
     from akarm.errors import AkarmError, ConfigError, ConfigWarning
     from akarm.robotfile.load import load_robot
     from akarm.robotfile.starter import suggest
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         s = suggest(urdf, out, payload=args.payload, margin=args.margin)
     except ConfigError as e:
-        _print_problems(str(urdf), e.problems, sys.stderr)
+        print_problems(str(urdf), e.problems, sys.stderr)
         return 1
     try:
         atomic_write(out, lambda f: f.write(s.text.encode("utf-8")))
@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
             warnings.simplefilter("ignore", ConfigWarning)
             config = load_robot(out)
     except ConfigError as e:
-        _print_problems(str(out), e.problems, sys.stderr)
+        print_problems(str(out), e.problems, sys.stderr)
         print(f"akarm init: {out} was written but does not load yet: see above (every value in it is a "
               "suggestion to edit)", file=sys.stderr)
         return 1

@@ -22,10 +22,15 @@ rest smoothly, then disables it (exit 130).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from akarm.cli.served import RemoteArm
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -143,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
         return _move_tool(args)
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+    if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     import numpy as np
 
@@ -177,6 +182,43 @@ def run(args: argparse.Namespace) -> int:
                 f"({arm.names[int(err.argmax())]})")
 
     return _session(args, config, start, arrived)
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """The move through ``akarm serve``: as without it, but the server holds the arm afterwards."""
+    import numpy as np
+
+    from akarm.cli.common import format_q, interrupted
+
+    check_options(args)
+    target = parse_target(args.target, arm.config)  # a pose name, a vector, or {joint: rad}
+    if isinstance(target, str):
+        target = list(arm.config.pose(target))
+    label = " ".join(args.target)
+    try:
+        arm.call("enable")
+        motion = arm.call("move", target=target if isinstance(target, dict) else list(target), speed=args.speed)
+        q_target = np.array(motion["target"])
+        print(f"moving to {label} {format_q(q_target)} in {motion['duration']:.2f} s", flush=True)
+        done = arm.wait(motion)
+        if args.hold > 0:
+            arm.call("sleep", seconds=args.hold)
+    except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP
+        arm.interrupt()
+        print(f"interrupted: stopped; {arm.held}", file=sys.stderr)
+        return interrupted(e)
+    q = np.array(arm.call("state")["q"])
+    err = np.abs(q - q_target)
+    if done["superseded"]:  # a ROS 2 trajectory or another CLI took over
+        print(f"akarm move: another command replaced this motion before it arrived; at {format_q(q)}",
+              file=sys.stderr)
+    else:
+        print(f"arrived: {format_q(q)}, largest error {err.max() * 1e3:.2f} mrad ({arm.names[int(err.argmax())]})")
+    if args.log:
+        saved = arm.call("telemetry", since=motion["t0"], save=os.path.abspath(args.log))
+        print(f"telemetry saved to {saved['path']}")
+    print(arm.held)
+    return 1 if done["superseded"] else 0
 
 
 def check_options(args: argparse.Namespace) -> None:

@@ -15,9 +15,14 @@ arm to rest smoothly, then disables it (exit 130).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from akarm.cli.served import RemoteArm
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     """Load and check the recording, then enable, replay with progress, disable."""
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+    if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     from tqdm import tqdm
 
@@ -89,3 +94,29 @@ def run(args: argparse.Namespace) -> int:
         if args.log:
             print(f"telemetry saved to {arm.telemetry(since=t0).save(args.log)}")
     return code
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """The replay through ``akarm serve``: as without it, but the server holds the arm afterwards."""
+    from akarm.cli.common import interrupted
+
+    check_options(args)  # before anything moves
+    path = os.path.abspath(args.file)
+    arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
+    try:
+        arm.call("enable")
+        motion = arm.call("replay", path=path, speed=args.speed)
+        print(f"replaying {args.file} ({motion['kind']}) in {motion['duration']:.2f} s at speed {args.speed:g}",
+              flush=True)
+        arm.wait(motion)
+    except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP
+        arm.interrupt()
+        print(f"interrupted: stopped; {arm.held}", file=sys.stderr)
+        return interrupted(e)
+    tel = arm.call("telemetry", since=motion["t0"], save=os.path.abspath(args.log) if args.log else None)
+    print("done; RMS tracking error " + ", ".join(f"{n} {e * 1e3:.2f} mrad"
+                                                  for n, e in zip(arm.names, tel["rms"], strict=True)))
+    if tel["path"]:
+        print(f"telemetry saved to {tel['path']}")
+    print(arm.held)
+    return 0

@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     """Serve until SIGINT/SIGTERM; then damp and disable the arm; exit 0."""
     from akarm.arm import Arm
     from akarm.cli.common import format_q
-    from akarm.server import ArmServer
+    from akarm.serving import ArmServer
 
     config = load_from_args(args)
     arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)

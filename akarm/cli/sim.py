@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
 
     from akarm.errors import AkarmError
     from akarm.sim import SimulatedRobot, faults
-    from akarm.sim.channel import ControlServer
+    from akarm.sim.channel import ChannelServer
 
     config = load_from_args(args)
     injected = [faults.parse(spec) for spec in args.fault]
@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
                 sim.inject(joint, fault)
                 print(f"  fault on {joint}: {fault}", flush=True)
             if args.control:
-                stack.enter_context(ControlServer(sim, args.control))
+                stack.enter_context(ChannelServer(sim, args.control))
                 print(f"  control channel: {args.control}", flush=True)
             print("running; Ctrl-C to stop", flush=True)
             start = time.monotonic()

@@ -18,11 +18,12 @@ import json
 import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from akarm.cli.common import add_robot_arguments, format_table, load_from_args
 
 if TYPE_CHECKING:
+    from akarm.cli.served import RemoteArm
     from akarm.control.probe import JointStatus
 
 
@@ -104,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     """Read the joints once (or repeatedly with --watch); 1 if a joint did not answer."""
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it
+    if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
     from akarm.control.probe import Probe
 
@@ -121,4 +122,28 @@ def run(args: argparse.Namespace) -> int:
             print(f"akarm status: no answer from {', '.join(names)}: {no_answer_hint(config.buses[bus])}",
                   file=sys.stderr)
         return 1
+    return 0
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """Read the joints through ``akarm serve`` (as the server last heard from them)."""
+    from akarm.control.probe import JointStatus
+
+    check_options(args)
+    last: dict[str, Any] = {}
+
+    def read() -> list[JointStatus]:
+        d = last["doc"] = arm.call("state")
+        return [JointStatus(name, mode, bus, can_id, q, dq, tau, temp, fault, False)
+                for name, mode, bus, can_id, q, dq, tau, temp, fault in
+                zip(d["names"], d["modes"], d["buses"], d["can_ids"], d["q"], d["dq"], d["tau"],
+                    d["temperature"], d["fault"], strict=True)]
+
+    def first() -> None:
+        d = last["doc"]
+        if not args.json:
+            print(f"({d['mode']}; {arm.held})" if d["enabled"] else f"({d['mode']}; read through akarm serve "
+                                                                     f"pid {arm.pid})")
+
+    watch(args, read, first)
     return 0

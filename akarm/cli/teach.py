@@ -21,13 +21,33 @@ import queue
 import sys
 import threading
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Protocol, TextIO
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
 
 if TYPE_CHECKING:
-    from akarm.arm import Arm
-    from akarm.motion.recording import Keyframe
+    from akarm.cli.served import RemoteArm
+    from akarm.config import RobotConfig
+    from akarm.motion.recording import Keyframe, PathRecording
+
+
+class _Teachable(Protocol):
+    """What teaching needs of the arm: an :class:`~akarm.Arm` here, or the
+    :class:`~akarm.cli.served.RemoteArm` of an ``akarm serve`` (which is in teach mode already)."""
+
+    config: RobotConfig
+    names: tuple[str, ...]
+
+    @property
+    def recording_finished(self) -> bool: ...
+
+    def sleep(self, seconds: float) -> None: ...
+
+    def keyframe(self, name: str | None = None) -> Keyframe: ...
+
+    def start_recording(self, rate_hz: float = 50.0, duration: float | None = None) -> None: ...
+
+    def stop_recording(self) -> PathRecording: ...
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -62,7 +82,7 @@ def _reader(stream: TextIO) -> queue.Queue[str | None]:
     return lines
 
 
-def _next_line(arm: Arm, lines: queue.Queue[str | None], timed: bool = False) -> tuple[bool, str | None]:
+def _next_line(arm: _Teachable, lines: queue.Queue[str | None], timed: bool = False) -> tuple[bool, str | None]:
     """Wait for a line while the arm keeps running (its safety stop is raised here).
 
     Returns ``(True, line)`` (``line`` None at end of input), or ``(False, None)`` when ``timed``
@@ -78,7 +98,7 @@ def _next_line(arm: Arm, lines: queue.Queue[str | None], timed: bool = False) ->
         arm.sleep(0.02)
 
 
-def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int:
+def _teach_keyframes(arm: _Teachable, out: Path, lines: queue.Queue[str | None]) -> int:
     from akarm.cli.common import format_q
     from akarm.errors import RecordingError
     from akarm.motion.recording import Keyframes
@@ -118,7 +138,7 @@ def _teach_keyframes(arm: Arm, out: Path, lines: queue.Queue[str | None]) -> int
     return 0 if save() else 1
 
 
-def _teach_path(arm: Arm, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
+def _teach_path(arm: _Teachable, out: Path, lines: queue.Queue[str | None], rate: float, seconds: float | None) -> int:
     from akarm.errors import AkarmError, StateError
 
     arm.start_recording(rate, seconds)
@@ -171,7 +191,8 @@ def run(args: argparse.Namespace) -> int:
     config = get_profile(args.profile).apply(load_from_args(args))
     from akarm.cli.served import via_server
 
-    if (served := via_server(args)) is not None:  # an `akarm serve` drives this robot: ask it (checks above hold)
+    # an `akarm serve` drives this robot: ask it (the checks above hold for it too)
+    if (served := via_server(args, _served)) is not None:
         return served
     if args.sample_rate is None:
         args.sample_rate = default_sample_rate(config.rate_hz)
@@ -189,4 +210,22 @@ def run(args: argparse.Namespace) -> int:
         with deferred_signals():
             arm.end_teach()
             arm.disable()
+    return code
+
+
+def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
+    """Teach through ``akarm serve``: as without it, but the server holds the arm afterwards."""
+    out = Path(args.out)  # checked by run before it asked the server
+    lines = _reader(sys.stdin)
+    state = arm.call("enable")
+    rate = args.sample_rate if args.sample_rate is not None else default_sample_rate(state["rate_hz"])  # its loop
+    try:  # the server ends teach mode itself if this process goes without ending it (killed, hung up)
+        arm.call("teach", damping=args.damping)
+        if out.suffix == ".csv":
+            code = _teach_path(arm, out, lines, rate, args.seconds)
+        else:
+            code = _teach_keyframes(arm, out, lines)
+    finally:
+        arm.call("end_teach")
+    print(arm.held)
     return code

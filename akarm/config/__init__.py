@@ -11,6 +11,18 @@ Reading a robot file (YAML → :class:`RobotConfig`) is :mod:`akarm.robotfile`, 
 
 from __future__ import annotations
 
-from akarm.config.types import BusConfig, Firmware, Friction, Gains, JointConfig, Limits, Mode, Payload, RobotConfig
+from akarm.config.types import (
+    BusConfig,
+    Firmware,
+    Friction,
+    Gains,
+    JointConfig,
+    Limits,
+    Mode,
+    Payload,
+    RobotConfig,
+    parse_channel,
+)
 
-__all__ = ["BusConfig", "Firmware", "Friction", "Gains", "JointConfig", "Limits", "Mode", "Payload", "RobotConfig"]
+__all__ = ["BusConfig", "Firmware", "Friction", "Gains", "JointConfig", "Limits", "Mode", "Payload", "RobotConfig",
+           "parse_channel"]

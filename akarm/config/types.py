@@ -23,6 +23,7 @@ __all__ = [
     "Limits",
     "Payload",
     "RobotConfig",
+    "parse_channel",
 ]
 
 Mode = Literal["mit", "servo"]
@@ -267,3 +268,11 @@ class RobotConfig:
                                  and (k in ("interface", "channel", "bitrate") or k in kept)),
             )
         return replace(self, buses=buses)
+
+
+def parse_channel(text: str | None) -> str | dict[str, str] | None:
+    """The ``channel`` of :meth:`RobotConfig.with_bus` as a command line or an ini file spells it:
+    ``vcan0`` → ``"vcan0"``; ``arm=vcan0,aux=vcan1`` → ``{"arm": "vcan0", "aux": "vcan1"}``."""
+    if text is None or "=" not in text:
+        return text
+    return dict(part.split("=", 1) for part in text.split(","))

@@ -3,8 +3,8 @@
 - :mod:`akarm.ros.msgs`: the ROS 2 messages akarm uses, as DDS types with ROS 2's type names.
 - :mod:`akarm.ros.dds`: ROS 2 naming (``rt/``, ``rq/``, ``rr/``), QoS, ``std_srvs/Trigger`` services
   laid out as rmw_cyclonedds_cpp lays them out.
-- :mod:`akarm.ros.node`: the ROS 2 face of :class:`akarm.server.ArmServer` (``joint_states``,
-  ``joint_trajectory``, ``akarm/status``, ``akarm/enable|disable|hold``).
+- :mod:`akarm.ros.node`: the ROS 2 face of an arm server (``joint_states``, ``joint_trajectory``,
+  ``akarm/status``, ``akarm/enable|disable|hold``); :class:`akarm.ArmServer` puts the two together.
 
 See ``docs/ros2.md``.
 """

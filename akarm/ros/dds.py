@@ -32,8 +32,8 @@ from cyclonedds.util import duration
 from akarm.errors import AkarmError
 from akarm.ros import msgs
 
-__all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "service_topics",
-           "topic_name"]
+__all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "sample_info",
+           "service_topics", "topic_name"]
 
 #: Cyclone DDS configuration that keeps discovery and data on the loopback interface (no multicast,
 #: unicast discovery of the participants on 127.0.0.1): for tests and for trying things on one machine.
@@ -82,7 +82,7 @@ def qos(depth: int = 10, user_data: bytes | None = None) -> Qos:
     return Qos(*policies)
 
 
-def _info(sample: object) -> Any:
+def sample_info(sample: object) -> Any:
     """The DDS sample info cyclonedds attaches to a sample it delivers."""
     return cast(Any, sample).sample_info
 
@@ -172,7 +172,7 @@ class TriggerServer:
 
     def take(self) -> list[msgs.TriggerRequest]:
         """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
-        return [r for r in self._reader.take(16) if _info(r).valid_data]
+        return [r for r in self._reader.take(16) if sample_info(r).valid_data]
 
     def answer(self, req: msgs.TriggerRequest) -> bool:
         """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
@@ -180,7 +180,7 @@ class TriggerServer:
             ok, text = self.handler()
         except AkarmError as e:
             ok, text = False, str(e)
-        handle = _info(req).publication_handle
+        handle = sample_info(req).publication_handle
         end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
         state = self._client_ready(handle)
         while state == "maybe" and time.monotonic() < end:
@@ -228,7 +228,7 @@ class TriggerClient:
         self._writer.write(msgs.TriggerRequest(self._guid, self._seq, 0))
         while time.monotonic() < end:
             for rep in self._reader.take(16):
-                if _info(rep).valid_data and rep.guid == self._guid and rep.seq == self._seq:
+                if sample_info(rep).valid_data and rep.guid == self._guid and rep.seq == self._seq:
                     return rep
             time.sleep(0.002)
         raise AkarmError(f"service {self.name!r} did not answer within {timeout:g} s")

@@ -1,17 +1,20 @@
-"""The ROS 2 face of an :class:`~akarm.server.ArmServer`, over Cyclone DDS.
+"""The ROS 2 face of an arm server (:class:`~akarm.server.server.ArmServerCore`), over Cyclone DDS.
 
 With ``NS`` the namespace:
 
 - ``NS/joint_states`` (sensor_msgs/JointState), out: the configured joint names, measured
   positions (rad), velocities (rad/s) and torques (N·m), stamped with the wall clock;
 - ``NS/joint_trajectory`` (trajectory_msgs/JointTrajectory), in: executed with the semantics of
-  ros2_control's JointTrajectoryController topic (:meth:`ArmServer.follow`);
+  ros2_control's JointTrajectoryController topic (:meth:`~akarm.server.server.ArmServerCore.follow`);
 - ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, fault text, loop statistics,
   the last refused trajectory;
 - ``NS/akarm/enable``, ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
 
 One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
 service requests are answered in threads of their own (enabling and disabling take a while).
+
+:class:`RosNode` is a :class:`~akarm.server.server.Frontend` of the server; :class:`akarm.ArmServer`
+(:mod:`akarm.serving`) puts the two together.
 """
 
 from __future__ import annotations
@@ -25,10 +28,10 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from akarm.errors import AkarmError
 from akarm.ros import msgs
-from akarm.ros.dds import ANY, Node, TriggerServer, _info
+from akarm.ros.dds import ANY, Node, TriggerServer, sample_info
 
 if TYPE_CHECKING:
-    from akarm.server.server import ArmServer
+    from akarm.server.server import ArmServerCore
 
 __all__ = ["RosNode", "trajectory_arrays"]
 
@@ -59,7 +62,7 @@ def trajectory_arrays(msg: msgs.JointTrajectory, now: float | None = None) -> tu
 class RosNode:
     """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own."""
 
-    def __init__(self, server: ArmServer, domain: int, namespace: str, joint_states_hz: float,
+    def __init__(self, server: ArmServerCore, domain: int, namespace: str, joint_states_hz: float,
                  status_hz: float) -> None:
         self.server = server
         try:
@@ -141,7 +144,7 @@ class RosNode:
         if not self._running.is_set():
             return
         for msg in self._traj.take(16):
-            if _info(msg).valid_data:
+            if sample_info(msg).valid_data:
                 with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
                     times, positions, velocities = trajectory_arrays(msg)
                     if msg.points and not times:

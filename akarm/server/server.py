@@ -1,22 +1,18 @@
 """One long-lived controller that holds the arm, which the CLI, scripts and other machines drive.
 
-::
-
-    import akarm
-    arm = akarm.Arm.from_yaml("robots/arm6.yaml")
-    with arm:
-        akarm.serve(arm, namespace="arm6")     # enables without a kick, holds, serves until Ctrl-C/SIGTERM
-    # leaving: damped, then disabled
-
-:class:`ArmServer` claims the robot's buses (a second controller on them is refused), enables the
-arm, and holds it. It serves
+:class:`ArmServerCore` claims the robot's buses (a second controller on them is refused), enables
+the arm, and holds it. It runs one command at a time on the arm, and serves
 
 - the ``akarm`` CLI of this machine through a Unix socket (:mod:`akarm.server.socket`): ``move``,
   ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` use the server when one runs;
-- ROS 2 over Cyclone DDS (:mod:`akarm.ros.node`, with the ``ros`` extra): ``joint_states``,
-  ``joint_trajectory``, ``akarm/status`` and the ``akarm/enable|disable|hold`` services.
+- its :class:`Frontend` objects, made from the factories it is given: each gets the server, calls
+  its commands (:meth:`~ArmServerCore.follow`, :meth:`~ArmServerCore.enable`, ...), and is started
+  once the arm is held and stopped once the server has disabled it.
 
-Stopping it (:meth:`ArmServer.stop`, SIGINT or SIGTERM in :func:`serve`) damps and disables the arm.
+Users build :class:`akarm.ArmServer` (:mod:`akarm.serving`), which is this core with the ROS 2
+node of :mod:`akarm.ros.node` as its frontend; this layer knows nothing of ROS.
+
+Stopping it (:meth:`ArmServerCore.stop`) damps and disables the arm.
 """
 
 from __future__ import annotations
@@ -29,7 +25,7 @@ import sys
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -37,55 +33,55 @@ from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
 from akarm.control.modes import Mode
 from akarm.errors import AkarmError, LimitError, StateError
-from akarm.server.socket import ControlServer
+from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion
-    from akarm.ros.node import RosNode
 
-__all__ = ["ArmServer", "serve"]
-
-
-def _default_domain() -> int:
-    try:
-        return int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    except ValueError:
-        return 0
+__all__ = ["ArmServerCore", "Frontend", "FrontendFactory"]
 
 
-class ArmServer:
-    """Serves ``arm`` to the CLI (local socket) and to ROS 2 (DDS) until :meth:`stop`.
+class Frontend(Protocol):
+    """Another way in to a server (the ROS 2 node): it drives the server's commands from threads of
+    its own between :meth:`start` and :meth:`stop`."""
+
+    def start(self) -> None:
+        """Start serving (the arm is held by now)."""
+
+    def stop(self) -> None:
+        """Stop serving and let go of what it holds. The server calls it when it stops, once the arm
+        is disabled and before its socket closes; also when it failed to start (maybe before
+        :meth:`start`)."""
+
+
+#: Makes a server's frontend, for the server, when the server starts: before anything is opened or
+#: enabled, so that a frontend that cannot be made (a missing extra, a bad name) is said then.
+FrontendFactory = Callable[["ArmServerCore"], Frontend]
+
+_Server = TypeVar("_Server", bound="ArmServerCore")
+
+
+class ArmServerCore:
+    """Serves ``arm`` to the CLI (local socket) and to its frontends until :meth:`stop`.
 
     Args:
         arm: the arm; opened here if it is not open yet (and then closed by :meth:`stop`). It must
             run on the wall clock (a lock-step simulation has nobody to advance its time).
-        domain: DDS domain ID (default: ``ROS_DOMAIN_ID``, else 0).
-        namespace: ROS 2 namespace of every topic and service (default none).
-        ros: offer the ROS 2 interfaces (needs the ``ros`` extra); False serves the CLI only.
-        joint_states_hz: rate of ``joint_states``; default the loop rate divided by
-            ``round(rate_hz / 100)`` (100 Hz at 500 Hz).
-        status_hz: rate of ``akarm/status``.
+        frontends: factories of the other ways in (:data:`FrontendFactory`), called by :meth:`start`.
         enable: enable (without a kick) and hold when starting.
         log: where the server's one-line reports go (default: stderr).
+        about: what else the bus lock says about this server, for whoever reads it (the ROS 2
+            domain and namespace).
     """
 
-    def __init__(self, arm: Arm, *, domain: int | None = None, namespace: str = "", ros: bool = True,
-                 joint_states_hz: float | None = None, status_hz: float = 2.0, enable: bool = True,
-                 log: Callable[[str], None] | None = None) -> None:
+    def __init__(self, arm: Arm, *, frontends: Sequence[FrontendFactory] = (), enable: bool = True,
+                 log: Callable[[str], None] | None = None, about: Mapping[str, Any] | None = None) -> None:
         if arm.clock.stepped:
             raise StateError("akarm serve needs an arm on the wall clock, not a lock-step simulation",
                              fix="build the Arm without clock= (a simulator in its own process works)")
-        for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
-            if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
-                raise StateError(f"{what} must be a positive number of Hz, got {hz!r}",
-                                 fix="e.g. --joint-states-hz 100 --status-hz 2")
         self.arm = arm
-        self.domain = _default_domain() if domain is None else int(domain)
-        self.namespace = namespace.strip("/")
-        self.ros = ros
-        rate = arm.config.rate_hz
-        self.joint_states_hz = joint_states_hz if joint_states_hz is not None else rate / max(1, round(rate / 100.0))
-        self.status_hz = status_hz
+        self._frontend_factories = tuple(frontends)
+        self._about = dict(about or {})
         self._enable_at_start = enable
         self.log = log or (lambda text: print(text, file=sys.stderr, flush=True))
         self._cmd = threading.RLock()  # one command at a time reaches the arm
@@ -96,8 +92,8 @@ class ArmServer:
         self._teacher: int | None = None  # the control connection that started teach mode (None: ROS, Python)
         self._opened_arm = False
         self._lock: BusLock | None = None
-        self._control: ControlServer | None = None
-        self._node: RosNode | None = None
+        self._socket: SocketServer | None = None
+        self._frontends: list[Frontend] = []
         self.socket_path = runtime_dir() / f"serve-{os.getpid()}-{id(self):x}.sock"
         self.last_refusal = ""
         self.counts = {"accepted": 0, "refused": 0}
@@ -105,28 +101,25 @@ class ArmServer:
     # ------------------------------------------------------------------------------------------
     # lifecycle
     # ------------------------------------------------------------------------------------------
-    def start(self) -> ArmServer:
-        """Claim the buses, open and enable the arm, start serving. Raises on any failure, leaving
-        the arm as it was (disabled) and the buses free."""
+    def start(self: _Server) -> _Server:
+        """Claim the buses, make the frontends, open and enable the arm, start serving. Raises on any
+        failure, leaving the arm as it was (disabled) and the buses free."""
         sweep_sockets()  # of servers killed before they could remove them
         source = self.arm.config.source
         self._lock = BusLock(self.arm.config, {"robot": str(source) if source else self.arm.config.name,
-                                               "socket": str(self.socket_path), "domain": self.domain,
-                                               "namespace": self.namespace})
+                                               "socket": str(self.socket_path), **self._about})
         try:
-            if self.ros:  # first: a missing extra or a bad domain or namespace is said before anything is enabled
-                from akarm.ros import node as ros_node
-
-                self._node = ros_node.RosNode(self, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
+            for make in self._frontend_factories:  # first: a frontend that cannot be made is said before
+                self._frontends.append(make(self))  # anything is enabled (a missing extra, a bad name)
             if self.arm.mode is Mode.CLOSED:
                 self.arm.open()
                 self._opened_arm = True
             if self._enable_at_start:
                 self.arm.enable()
-            self._control = ControlServer(self.socket_path, self.dispatch, closed=self._client_left)
+            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left)
             threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
-            if self._node is not None:
-                self._node.start()
+            for frontend in self._frontends:
+                frontend.start()
         except BaseException:
             self.stop()
             raise
@@ -141,12 +134,12 @@ class ArmServer:
                 self._end_teach()
                 self.arm.disable()
         finally:
-            node, self._node = self._node, None
-            if node is not None:
-                node.stop()
-            control, self._control = self._control, None
-            if control is not None:
-                control.close()
+            frontends, self._frontends = self._frontends, []
+            for frontend in frontends:
+                frontend.stop()
+            sock, self._socket = self._socket, None
+            if sock is not None:
+                sock.close()
             if self._opened_arm:
                 self.arm.close()
                 self._opened_arm = False
@@ -164,7 +157,7 @@ class ArmServer:
                          "akarm/enable service")
             reported = fault
 
-    def __enter__(self) -> ArmServer:
+    def __enter__(self: _Server) -> _Server:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -214,7 +207,7 @@ class ArmServer:
         return doc
 
     # ------------------------------------------------------------------------------------------
-    # commands (from the CLI socket and from ROS 2)
+    # commands (from the CLI socket and from the frontends)
     # ------------------------------------------------------------------------------------------
     def _require_serving(self) -> None:
         if self._stop.is_set():
@@ -429,10 +422,3 @@ class ArmServer:
     def _op_telemetry(self, since: float, save: str | None = None) -> dict[str, Any]:
         log = self.arm.telemetry(since=since)
         return {"rms": log.rms_error().tolist(), "path": str(log.save(save)) if save else None}
-
-
-def serve(arm: Arm, **options: Any) -> None:
-    """Serve ``arm`` (see :class:`ArmServer` for ``options``) until SIGINT or SIGTERM, then damp and
-    disable it. Blocks; for a script that owns its Arm."""
-    with ArmServer(arm, **options) as server:
-        server.wait()

@@ -2,7 +2,7 @@
 
 A request is one line ``{"id": N, "op": NAME, "args": {...}}``; the answer one line ``{"id": N,
 "ok": true, "result": ...}`` or ``{"id": N, "ok": false, "error": {"type": "LimitError", "what": ...,
-"joint": ..., "fix": ...}}``, which :class:`ControlClient` raises again as the same
+"joint": ..., "fix": ...}}``, which :class:`SocketClient` raises again as the same
 :mod:`akarm.errors` class. The id pairs each answer with its request: a call cut short (Ctrl-C while
 it waited) leaves its answer on the socket, and the next call skips it rather than take it for its own.
 Each connection is served by a thread of its own, so one client may wait for a motion while
@@ -25,7 +25,7 @@ from typing import Any
 from akarm import errors
 from akarm.errors import AkarmError, StateError
 
-__all__ = ["ControlClient", "ControlServer"]
+__all__ = ["SocketClient", "SocketServer"]
 
 
 def _error_doc(e: AkarmError) -> dict[str, Any]:
@@ -46,7 +46,7 @@ def _rebuild(doc: dict[str, Any]) -> AkarmError:
     return AkarmError(str(doc.get("what")))
 
 
-class ControlServer:
+class SocketServer:
     """Serves ``dispatch(op, args, client) -> result`` on a Unix socket at ``path`` until :meth:`close`.
 
     ``client`` is a number for the connection the request came on; ``closed(client)`` is called once
@@ -109,7 +109,7 @@ class ControlServer:
             self.path.unlink()
 
 
-class ControlClient:
+class SocketClient:
     """A connection to a server's control socket; :meth:`call` raises the server's errors as they were."""
 
     def __init__(self, path: str | os.PathLike[str], timeout: float | None = None) -> None:
@@ -148,7 +148,7 @@ class ControlClient:
             self._file.close()
             self._sock.close()
 
-    def __enter__(self) -> ControlClient:
+    def __enter__(self) -> SocketClient:
         return self
 
     def __exit__(self, *exc: object) -> None:

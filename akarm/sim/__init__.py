@@ -15,7 +15,9 @@ its own process, for a controller or ``candump`` to talk to as to hardware.
 
 Modules: :mod:`~akarm.sim.robot` (the robot and its time), :mod:`~akarm.sim.drivers` (firmware
 state machines and loops), :mod:`~akarm.sim.plant` (dynamics, friction, hard stops, heating),
-:mod:`~akarm.sim.faults` (faults to inject), :mod:`~akarm.sim.params` (constants per actuator).
+:mod:`~akarm.sim.faults` (faults to inject), :mod:`~akarm.sim.params` (constants per actuator),
+:mod:`~akarm.sim.records` (what it reports: driver states, frames), :mod:`~akarm.sim.channel` (its
+control channel), :mod:`~akarm.sim.process` (a simulator in a process of its own).
 The plant and the robot (numpy, Pinocchio) load on first use, so ``akarm.sim.faults`` stays light.
 """
 

@@ -40,59 +40,17 @@ import os
 import socket
 import socketserver
 import threading
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from akarm.errors import AkarmError, StateError
 from akarm.sim import faults as _faults
+from akarm.sim.records import DriverState, Frame
 
 if TYPE_CHECKING:
     from akarm.sim.robot import SimulatedRobot
 
-__all__ = ["ControlServer", "DriverState", "Frame", "SimulatorControl", "fault_from_json", "fault_to_json"]
-
-
-@dataclass(frozen=True)
-class DriverState:
-    """One simulated driver as it is now (joint side, SI).
-
-    Attributes:
-        name: the joint. enabled: its output is driven (MIT: motor mode; servo: not released).
-        position: rad. velocity: rad/s. torque: N·m the motor applies. temperature: °C.
-        error: the error code it reports (0: none). faults: the faults in force, as text.
-        frames_in: frames addressed to it that it took in. frames_out: frames it sent.
-    """
-
-    name: str
-    enabled: bool
-    position: float
-    velocity: float
-    torque: float
-    temperature: float
-    error: int
-    faults: tuple[str, ...]
-    frames_in: int
-    frames_out: int
-
-
-class Frame(NamedTuple):
-    """A CAN frame a simulated driver took in or sent.
-
-    Attributes:
-        t: simulated time, s. bus: the bus's name in the robot file.
-        arbitration_id, is_extended, data: the frame.
-        joint: the driver it was addressed to or sent by (``None``: nobody's).
-        to_motor: ``True`` taken in (a command to the motor), ``False`` sent (a reply or status frame).
-    """
-
-    t: float
-    bus: str
-    arbitration_id: int
-    is_extended: bool
-    data: bytes
-    joint: str | None
-    to_motor: bool
+__all__ = ["ChannelServer", "SimulatorControl", "fault_from_json", "fault_to_json"]
 
 
 def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:
@@ -169,7 +127,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
                      fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
 
 
-class ControlServer:
+class ChannelServer:
     """Serves :class:`SimulatorControl` requests for ``sim`` on the Unix-domain socket ``path`` (threads
     of its own; :meth:`close` stops them and removes the socket).
 
@@ -209,7 +167,7 @@ class ControlServer:
         with contextlib.suppress(OSError):
             self.path.unlink()
 
-    def __enter__(self) -> ControlServer:
+    def __enter__(self) -> ChannelServer:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -248,6 +248,11 @@ class SimulatedDriver:
             self._timers(t)
             self._reschedule(t)
 
+    def output_off(self) -> None:
+        """Take the output off now, as EXIT (MIT) or a zero current (servo) would: it goes limp; the
+        driver stays powered and on the bus."""
+        self._power_off()
+
     def _power_off(self) -> None:
         """Power lost: the output goes limp."""
 

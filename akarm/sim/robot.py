@@ -35,10 +35,10 @@ from akarm.buses.bus import close_buses, open_bus
 from akarm.clock import RealClock, SteppedClock
 from akarm.errors import ConfigError, ConfigProblem, StateError
 from akarm.sim import faults as _faults
-from akarm.sim.channel import DriverState, Frame
 from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
 from akarm.sim.params import MotorSimParams, default_params
 from akarm.sim.plant import Plant
+from akarm.sim.records import DriverState, Frame
 from akarm.timing import TimingProfile, get_profile
 
 if TYPE_CHECKING:
@@ -334,7 +334,7 @@ class SimulatedRobot:
         with self._lock:
             was = [d for d in self.drivers if _driving(d)]
             for d in was:
-                d._power_off()  # the output off; the driver stays powered and on the bus
+                d.output_off()
             return [d.name for d in was]
 
     def status_line(self) -> str:

@@ -119,7 +119,7 @@ def akarm_timing(pytestconfig: pytest.Config) -> TimingProfile:
 
 def _simulated_arm(request: pytest.FixtureRequest, robot: Path, timing: TimingProfile,
                    transport: str | None) -> Iterator[SimulatedArm]:
-    from akarm.cli.common import parse_channel
+    from akarm.config import parse_channel
     from akarm.robotfile.load import load_robot
 
     if transport is None:

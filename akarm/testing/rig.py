@@ -32,13 +32,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from akarm.errors import AkarmError, BusError, StateError
-from akarm.sim.channel import Frame
+from akarm.sim.records import Frame
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
-    from akarm.sim.channel import DriverState
     from akarm.sim.faults import Fault
+    from akarm.sim.records import DriverState
     from akarm.timing import TimingProfile
 
 __all__ = ["TRANSPORTS", "Frame", "LeftEnabledWarning", "SimulatedArm", "default_channel", "missing_interfaces"]

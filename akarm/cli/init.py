@@ -39,9 +39,9 @@ def run(args: argparse.Namespace) -> int:
 
     from akarm.cli.check import _print_problems
     from akarm.errors import AkarmError, ConfigError, ConfigWarning
+    from akarm.files import atomic_write, check_writable
     from akarm.robotfile.load import load_robot
     from akarm.robotfile.starter import suggest
-    from akarm.telemetry.log import atomic_write, check_writable
 
     urdf = Path(args.urdf)
     out = Path(args.output) if args.output else urdf.with_suffix(".yaml")

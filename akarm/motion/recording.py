@@ -35,8 +35,8 @@ import numpy as np
 import yaml
 
 from akarm.errors import LimitError, RecordingError
+from akarm.files import atomic_write
 from akarm.motion.trajectory import JointLimits, Timed
-from akarm.telemetry.log import atomic_write
 
 __all__ = ["Keyframe", "Keyframes", "PathPlan", "PathRecording", "check_path", "load", "load_keyframes", "load_path"]
 

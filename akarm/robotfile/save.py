@@ -18,8 +18,8 @@ from pathlib import Path
 import yaml
 
 from akarm.errors import ConfigError, ConfigProblem
+from akarm.files import atomic_write
 from akarm.identify.procedure import Identification, yaml_collision, yaml_friction, yaml_payload
-from akarm.telemetry.log import atomic_write
 
 __all__ = ["save_identification"]
 

@@ -310,7 +310,7 @@ class Arm:
             q = self._ctl.desired_now()[0].copy()
             for name, value in target.items():
                 if name not in self.names:
-                    from akarm.protocol.motors import did_you_mean
+                    from akarm.errors import did_you_mean
 
                     raise LimitError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
                                      fix="joints are: " + ", ".join(self.names))

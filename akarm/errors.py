@@ -34,6 +34,8 @@ raises on purpose; anything else escaping akarm is a bug.
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 __all__ = [
@@ -63,6 +65,7 @@ __all__ = [
     "TrajectoryError",
     "UnknownMotorError",
     "UnreachableError",
+    "did_you_mean",
 ]
 
 
@@ -375,3 +378,10 @@ class BusLost(SafetyStop, BusError):
     def __init__(self, what: str, *, bus: str, joint: str | None = None, fix: str = "") -> None:
         self.bus = bus
         super().__init__(what, joint=joint, fix=fix)
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``choices``, or ``""`` when none is close: the
+    tail of an error's text for a misspelt name (a joint, a key, a motor model)."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""

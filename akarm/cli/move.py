@@ -87,8 +87,7 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
         LimitError: numbers of the wrong count, or words that are none of these.
     """
     from akarm.config import RobotConfig
-    from akarm.errors import LimitError
-    from akarm.protocol.motors import did_you_mean
+    from akarm.errors import LimitError, did_you_mean
 
     assert isinstance(config, RobotConfig)
     names = config.joint_names

@@ -78,8 +78,8 @@ from akarm.config import BusConfig, Friction, Gains, JointConfig, Limits, Payloa
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.canconfig import RESERVED_BUS_KEYS, resolve_bus
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
-from akarm.errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
-from akarm.protocol.motors import Catalogue, MotorModel, default_catalogue, did_you_mean
+from akarm.errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning, did_you_mean
+from akarm.protocol.motors import Catalogue, MotorModel, default_catalogue
 
 __all__ = ["JOINT_KEYS", "TOP_KEYS", "UrdfJoint", "load_robot", "read_urdf_joints"]
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from akarm._version import __version__
 from akarm.errors import (
     AkarmError,
+    ArgumentError,
     BusError,
     BusLost,
     CollisionError,
@@ -54,6 +55,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AkarmError",
+    "ArgumentError",
     "Arm",
     "ArmServer",
     "BusError",

@@ -13,6 +13,7 @@ raises on purpose; anything else escaping akarm is a bug.
     ├── ConfigError            a robot YAML with problems (carries every one of them)
     ├── ModelError             a URDF Pinocchio cannot use
     ├── BusError               a CAN bus that cannot be opened or written
+    ├── ArgumentError          a bad argument: wrong type or shape, not finite, out of its domain, an unknown name
     ├── StateError             an Arm call that does not fit its state (move before enable, ...)
     ├── LimitError             a target or a planned path past a joint limit
     │   ├── UnreachableError   a Cartesian pose or path the tool cannot reach
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 
 __all__ = [
     "AkarmError",
+    "ArgumentError",
     "BusError",
     "BusLost",
     "CollisionError",
@@ -176,6 +178,14 @@ class ModelError(AkarmError):
 
 class BusError(AkarmError):
     """A CAN bus cannot be opened, or a frame cannot be sent on it."""
+
+
+class ArgumentError(AkarmError, ValueError):
+    """A bad argument to akarm's API: of the wrong type or shape, not finite, outside the values it
+    can take, or naming something that does not exist (a joint, a pose). Nothing was done.
+
+    A target past a joint limit is not a bad argument but a motion refused: a :class:`LimitError`.
+    """
 
 
 class StateError(AkarmError):

@@ -48,8 +48,10 @@ from akarm.errors import (
 )
 
 if TYPE_CHECKING:
-    from akarm.arm import Arm
+    from akarm.arm import Arm, ArmState
     from akarm.config import RobotConfig
+    from akarm.control.modes import Mode
+    from akarm.control.motions import Motion
     from akarm.robotfile.load import load_robot
     from akarm.server import ArmServer, serve
 
@@ -58,6 +60,7 @@ __all__ = [
     "ArgumentError",
     "Arm",
     "ArmServer",
+    "ArmState",
     "BusError",
     "BusLost",
     "CollisionError",
@@ -69,7 +72,9 @@ __all__ = [
     "FrameError",
     "ImplausibleFeedback",
     "LimitError",
+    "Mode",
     "ModelError",
+    "Motion",
     "MotorFault",
     "NotSettled",
     "OverTemperature",
@@ -92,6 +97,9 @@ __all__ = [
 # Heavy parts (Pinocchio, ruckig, python-can) load on first use, so `import akarm` and the codecs stay light.
 _LAZY = {
     "Arm": ("akarm.arm", "Arm"),
+    "ArmState": ("akarm.arm", "ArmState"),
+    "Mode": ("akarm.control.modes", "Mode"),
+    "Motion": ("akarm.control.motions", "Motion"),
     "ArmServer": ("akarm.server", "ArmServer"),
     "serve": ("akarm.server", "serve"),
     "RobotConfig": ("akarm.config", "RobotConfig"),

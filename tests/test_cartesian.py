@@ -235,7 +235,7 @@ def test_move_linear_respects_every_joint_limit_at_every_speed(channel: str) -> 
         target = arm.tool_pose()
         target[:3, 3] += [0.0, 0.30, -0.10]
         for speed in (1.0, 0.3):
-            plan = akarm.motion.cartesian.plan_linear(arm._ik(), arm.limits, arm.state().q_des, target, speed=speed)
+            plan = akarm.motion.cartesian.plan_linear(arm.ik, arm.limits, arm.state().q_des, target, speed=speed)
             _, q, v, a, j = plan.joint_profile()
             lim = arm.limits
             assert np.all(np.abs(v) <= lim.velocity * speed * (1 + 1e-6))
@@ -245,7 +245,7 @@ def test_move_linear_respects_every_joint_limit_at_every_speed(channel: str) -> 
             top = max(np.max(np.abs(v) / lim.velocity) / speed, np.max(np.abs(a) / lim.acceleration) / speed**2,
                       np.max(np.abs(j) / lim.jerk) / speed**3)
             assert top > 0.97
-        capped = akarm.motion.cartesian.plan_linear(arm._ik(), arm.limits, arm.state().q_des, target, max_velocity=0.05)
+        capped = akarm.motion.cartesian.plan_linear(arm.ik, arm.limits, arm.state().q_des, target, max_velocity=0.05)
         assert capped.duration > 0.316 / 0.05  # 0.316 m at 5 cm/s at most
 
 

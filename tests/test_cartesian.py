@@ -83,8 +83,8 @@ def test_a_position_alone_keeps_the_current_orientation() -> None:
 
 @pytest.mark.parametrize("bad", ["home", [1, 2], np.eye(3), np.diag([1, 1, 2, 1]), [0.1, math.nan, 0.2],
                                  ([0, 0, 0], [0, 0, 0, 2])])
-def test_what_is_not_a_pose_is_a_limit_error(bad: object) -> None:
-    with pytest.raises(LimitError):
+def test_what_is_not_a_pose_is_an_argument_error(bad: object) -> None:
+    with pytest.raises(akarm.ArgumentError):
         as_pose(bad, np.eye(4))
 
 

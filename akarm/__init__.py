@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from akarm._version import __version__
 from akarm.errors import (
     AkarmError,
+    ArgumentError,
     BusError,
     BusLost,
     CollisionError,
@@ -47,15 +48,19 @@ from akarm.errors import (
 )
 
 if TYPE_CHECKING:
-    from akarm.arm import Arm
+    from akarm.arm import Arm, ArmState
     from akarm.config import RobotConfig
+    from akarm.control.modes import Mode
+    from akarm.control.motions import Motion
     from akarm.robotfile.load import load_robot
     from akarm.serving import ArmServer, serve
 
 __all__ = [
     "AkarmError",
+    "ArgumentError",
     "Arm",
     "ArmServer",
+    "ArmState",
     "BusError",
     "BusLost",
     "CollisionError",
@@ -67,7 +72,9 @@ __all__ = [
     "FrameError",
     "ImplausibleFeedback",
     "LimitError",
+    "Mode",
     "ModelError",
+    "Motion",
     "MotorFault",
     "NotSettled",
     "OverTemperature",
@@ -90,6 +97,9 @@ __all__ = [
 # Heavy parts (Pinocchio, ruckig, python-can) load on first use, so `import akarm` and the codecs stay light.
 _LAZY = {
     "Arm": ("akarm.arm", "Arm"),
+    "ArmState": ("akarm.arm", "ArmState"),
+    "Mode": ("akarm.control.modes", "Mode"),
+    "Motion": ("akarm.control.motions", "Motion"),
     "ArmServer": ("akarm.serving", "ArmServer"),
     "serve": ("akarm.serving", "serve"),
     "RobotConfig": ("akarm.config", "RobotConfig"),

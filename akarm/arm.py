@@ -27,17 +27,28 @@ import numpy as np
 
 from akarm.clock import Clock, RealClock
 from akarm.config import RobotConfig
-from akarm.control.collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
-from akarm.control.controller import Controller, Motion, PathRecorder, track_arm
+from akarm.control.collision import DEFAULT_GAIN, Reaction
+from akarm.control.controller import Controller
 from akarm.control.feedforward import FeedForwardKind
-from akarm.control.joints import Joint, make_joint
+from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
+from akarm.control.motions import Motion
+from akarm.control.options import ControllerOptions
+from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.errors import CollisionError, ConfigError, ConfigProblem, LimitError, SafetyStop, StateError
-from akarm.identify.procedure import Identification, PayloadFit
+from akarm.errors import (
+    ArgumentError,
+    CollisionError,
+    ConfigError,
+    ConfigProblem,
+    LimitError,
+    SafetyStop,
+    StateError,
+    did_you_mean,
+)
 from akarm.motion import recording as rec_mod
 from akarm.motion.cartesian import plan_linear
 from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner
@@ -75,7 +86,8 @@ class ArmState:
         joints: a :class:`JointReport` per joint, config order.
         q, dq, tau: measured positions (rad), velocities (rad/s), torques (N·m) as arrays.
         q_des: the commanded position (rad) this cycle.
-        enabled: True while the arm is powered and tracking. moving: True while a motion runs.
+        enabled: True while the motors are powered and under control (ACTIVE: holding or moving;
+            TEACH: hand-guided). moving: True while a motion runs.
         mode: the arm's :class:`~akarm.control.modes.Mode`.
         tau_ext: the external torque estimate per joint, N·m (:mod:`akarm.control.collision`).
     """
@@ -156,7 +168,9 @@ class Arm:
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
     and disables the arm; an Arm still enabled when the program ends, or when it is dropped, is
-    damped and disabled with an :class:`~akarm.control.controller.UnsafeExitWarning`.
+    damped and disabled with an :class:`~akarm.control.exits.UnsafeExitWarning`.
+
+    Bad arguments raise :class:`~akarm.ArgumentError` (nothing is done).
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
@@ -166,25 +180,22 @@ class Arm:
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
                  loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
                  range_margin: float = 0.05, implausible_limit: int = 3,
-                 timing: str | TimingProfile | None = None, collision_reaction: str = "disable",
+                 timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN) -> None:
-        if feedforward not in ("full", "gravity", "none"):
-            raise StateError(f"feedforward must be 'full', 'gravity' or 'none', got {feedforward!r}")
         self.timing = get_profile(timing)
+        options = ControllerOptions(
+            timing=self.timing, feedforward=feedforward, friction_feedforward=friction_feedforward,
+            hold_integral=hold_integral, feedback_timeout=feedback_timeout, enable_ramp=enable_ramp,
+            stop_damping_time=stop_damping_time, settle_speed=settle_speed, settle_timeout=settle_timeout,
+            implausible_limit=implausible_limit, telemetry_seconds=telemetry_seconds, can_log=can_log,
+            realtime_priority=realtime_priority, loop_cpu=loop_cpu,
+            collision_reaction=collision_reaction, collision_gain=collision_gain)
         config = self.timing.apply(config)
-        if feedback_timeout is None:
-            feedback_timeout = self.timing.feedback_timeout
-        for name, value in (("feedback_timeout", feedback_timeout), ("settle_speed", settle_speed),
-                            ("settle_timeout", settle_timeout)):
-            if not (isinstance(value, int | float) and value > 0):
-                raise StateError(f"{name} must be a positive number, got {value!r}")
-        feedback_timeout = max(feedback_timeout, self.timing.min_feedback_timeout)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
         self.feedforward: FeedForward = feedforward
-        self.joints: list[Joint] = [make_joint(i, j) for i, j in enumerate(config.joints)]
         self.names = config.joint_names
-        self.n = len(self.joints)
+        self.n = len(config.joints)
         self.model = RobotModel(config, armature=True)
         lim = [j.limits for j in config.joints]
         self.limits = JointLimits(
@@ -193,32 +204,10 @@ class Arm:
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ik_solver: IKSolver | None = None
-        self._ctl = Controller(
-            config, self.joints, self.model, self.clock, feedforward=feedforward,
-            friction_feedforward=friction_feedforward, hold_integral=hold_integral,
-            feedback_timeout=feedback_timeout, enable_ramp=enable_ramp, stop_damping_time=stop_damping_time,
-            telemetry_seconds=telemetry_seconds, can_log=can_log, realtime_priority=realtime_priority,
-            loop_cpu=loop_cpu, settle_speed=settle_speed, settle_timeout=settle_timeout,
-            implausible_limit=implausible_limit, lag=self.timing.lag)
-        self.telemetry_ring = self._ctl.telemetry
-        self._friction_compensated = friction_feedforward and feedforward != "none"
-        fr = [j.friction_model() for j in config.joints]
-        # the observer's discrete loop gain K·dt stays at most 0.25 (a slow loop gets a slower estimate)
-        observer = MomentumObserver(self.model, [f.coulomb for f in fr], [f.viscous for f in fr],
-                                    [f.offset for f in fr], min(collision_gain, 0.25 * config.rate_hz),
-                                    [velocity_resolution(j) for j in config.joints],
-                                    [j.motor.t_max for j in config.joints])
-        # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
-        fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
-                 for j in config.joints]
-        # a timing profile for machines that cannot keep time (lag > 0: replies late, then in bursts) leaves
-        # the reflex watching only: the estimate would take the time it does not see for a push
-        thresholds = [None if self.timing.lag > 0 else j.collision_threshold for j in config.joints]
-        self._ctl.reflex = CollisionReflex(self.names, observer, thresholds,
-                                           collision_reaction, fresh, 1.0 / config.rate_hz)  # type: ignore[arg-type]
-        planner = self.planner  # not self: the loop thread must not keep the Arm alive (its finalizer)
-        self._ctl.stop_plan = lambda start, now: Plan([planner.stop(start, now)])
-        self._finalizer = track_arm(self, self._ctl)
+        self._ctl = Controller(config, self.model, self.planner, self.clock, options)
+        self.joints: list[Joint] = self._ctl.joints
+        self._observe = ControllerView(self._ctl)
+        self._finalizer = self._ctl.track(self)
 
     @classmethod
     def from_yaml(cls, path: str | PathLike[str], *, interface: str | None = None,
@@ -284,16 +273,18 @@ class Arm:
             FeedbackTimeout: a joint did not answer (it names the joint; nothing is left enabled).
             SafetyStop: what else refused it (the arm is left disabled).
         """
-        self._ctl.enable(self.timing.enable_timeout if timeout is None else timeout)
+        self._ctl.enable(timeout)
 
-    def disable(self) -> None:
-        """Damp every joint (kp = 0) for ``stop_damping_time`` s, then exit motor mode. Blocks."""
-        self._ctl.disable()
+    def disable(self, wait: bool = True) -> None:
+        """Damp every joint (kp = 0) for ``stop_damping_time`` s, then exit motor mode. Blocks unless
+        ``wait`` is False (the stop is then under way: :attr:`mode` is STOPPING until it is done)."""
+        self._ctl.disable(wait)
 
     @property
     def enabled(self) -> bool:
-        """True while the arm is enabled and tracking."""
-        return self._ctl.mode is Mode.ACTIVE
+        """True while the motors are powered and under control: holding, moving, or in teach mode
+        (:attr:`mode` is ACTIVE or TEACH; only ACTIVE takes motions)."""
+        return self._ctl.mode.enabled
 
     @property
     def mode(self) -> Mode:
@@ -303,39 +294,49 @@ class Arm:
     # ------------------------------------------------------------------------------------------
     # motion
     # ------------------------------------------------------------------------------------------
-    def _target_vector(self, target: Target) -> np.ndarray:
+    def target_positions(self, target: Target) -> np.ndarray:
+        """The joint positions (rad, config order) ``target`` stands for: a named pose of the YAML, one
+        angle per joint, or a ``{joint: angle}`` mapping (the other joints: where they are commanded now).
+
+        Raises:
+            ArgumentError: an unknown pose or joint, the wrong number of values, a value that is not a
+                finite number (names the joint).
+        """
         if isinstance(target, str):
+            if target not in self.config.poses:
+                hint = did_you_mean(target, list(self.config.poses))
+                raise ArgumentError(f"no pose named {target!r}{hint}",
+                                    fix="poses are: " + (", ".join(self.config.poses) or "none (add `poses:` to the "
+                                                                                        "robot file)"))
             return np.array(self.config.pose(target), dtype=float)
         if isinstance(target, Mapping):
             q = self._ctl.desired_now()[0].copy()
             for name, value in target.items():
                 if name not in self.names:
-                    from akarm.protocol.motors import did_you_mean
-
-                    raise LimitError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
-                                     fix="joints are: " + ", ".join(self.names))
+                    raise ArgumentError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
+                                        fix="joints are: " + ", ".join(self.names))
                 q[self.names.index(name)] = self._number(value, name)
             return q
         try:
             values = list(target)
         except TypeError:
-            raise LimitError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
-                             f"not {target!r}",
-                             fix="give one angle (rad) per joint: " + ", ".join(self.names)) from None
+            raise ArgumentError(f"a target must be a pose name, one angle per joint or a {{joint: angle}} mapping, "
+                                f"not {target!r}",
+                                fix="give one angle (rad) per joint: " + ", ".join(self.names)) from None
         if len(values) != self.n:
-            raise LimitError(f"target has {len(values)} values, the arm has {self.n} joints",
-                             fix="give one angle (rad) per joint in config order: " + ", ".join(self.names))
+            raise ArgumentError(f"target has {len(values)} values, the arm has {self.n} joints",
+                                fix="give one angle (rad) per joint in config order: " + ", ".join(self.names))
         return np.array([self._number(v, name) for v, name in zip(values, self.names, strict=True)])
 
     @staticmethod
     def _number(value: object, joint: str) -> float:
-        """``value`` as a finite float, or :class:`LimitError` naming ``joint``."""
+        """``value`` as a finite float, or :class:`ArgumentError` naming ``joint``."""
         try:
             x = float(value)  # type: ignore[arg-type]
         except (TypeError, ValueError):
-            raise LimitError(f"target {value!r} is not a number", joint=joint, fix="give an angle in rad") from None
+            raise ArgumentError(f"target {value!r} is not a number", joint=joint, fix="give an angle in rad") from None
         if not math.isfinite(x):
-            raise LimitError(f"target {x} is not a finite angle", joint=joint, fix="give an angle in rad")
+            raise ArgumentError(f"target {x} is not a finite angle", joint=joint, fix="give an angle in rad")
         return x
 
     def _start(self, make_plan) -> Motion:
@@ -355,7 +356,7 @@ class Arm:
                 (checked before anything moves; names the joint). A move may start up to
                 ``range_margin`` outside a range, and come back into it.
         """
-        q = self._target_vector(target)
+        q = self.target_positions(target)
         return self._run(self._start(lambda start, now: self.planner.move_from(start, q, now, speed)), wait)
 
     def move_through(self, points: Sequence[Target], speed: float = 1.0, wait: bool = True) -> Motion:
@@ -366,7 +367,7 @@ class Arm:
         :meth:`move_to`. Raises :class:`~akarm.LimitError` before moving if any point or any
         position on the path is outside a joint's range.
         """
-        qs = [self._target_vector(p) for p in points]
+        qs = [self.target_positions(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
 
     def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
@@ -386,7 +387,7 @@ class Arm:
     def stream_to(self, target: Target, speed: float = 1.0) -> Motion:
         """Retarget online: from the current commanded state (position, velocity, acceleration) to
         ``target``, without a jump. Does not block; call it as often as new targets arrive."""
-        q = self._target_vector(target)
+        q = self.target_positions(target)
         return self._start(lambda start, now: self.planner.move_from(start, q, now, speed))
 
     def stop(self, wait: bool = True) -> Motion:
@@ -396,10 +397,7 @@ class Arm:
     def hold(self) -> None:
         """Hold the current commanded position (stopping, jerk-limited, first if moving)."""
         self._ctl.require_enabled()
-        with self._ctl.lock:
-            plan = self._ctl.plan
-            moving = plan is not None and not plan.done(self.clock.now())
-        if moving:
+        if self._ctl.running():
             self.stop(wait=True)
 
     def _run(self, motion: Motion, wait: bool) -> Motion:
@@ -408,8 +406,10 @@ class Arm:
     # ------------------------------------------------------------------------------------------
     # Cartesian: the tool frame's pose (akarm.dynamics.ik, akarm.motion.cartesian)
     # ------------------------------------------------------------------------------------------
-    def _ik(self) -> IKSolver:
-        """The IK solver, on a model of its own (the loop thread's is not shared)."""
+    @property
+    def ik(self) -> IKSolver:
+        """The IK solver (:class:`akarm.dynamics.ik.IKSolver`), on a model of its own (the loop thread's
+        is not shared), within the joint limits."""
         if self._ik_solver is None:
             self._ik_solver = IKSolver(RobotModel(self.config), self.limits.lower, self.limits.upper)
         return self._ik_solver
@@ -420,14 +420,14 @@ class Arm:
         if q is None:
             with self._ctl.lock:
                 q = [j.state.position for j in self.joints]
-        return self._ik().model.tool_pose(q)
+        return self.ik.model.tool_pose(q)
 
     def _pose_target(self, pose: object) -> tuple[np.ndarray, np.ndarray, bool]:
         """(start q: the commanded position, the target 4×4, position only?) for a Cartesian move."""
         self._ctl.require_enabled()
         q0 = self._ctl.desired_now()[0]
-        target, oriented = as_pose(pose, self._ik().model.tool_pose(q0))
-        return q0, target, self._ik().position_only(oriented)
+        target, oriented = as_pose(pose, self.ik.model.tool_pose(q0))
+        return q0, target, self.ik.position_only(oriented)
 
     def move_to_pose(self, pose: object, speed: float = 1.0, wait: bool = True) -> Motion:
         """Move the tool to ``pose`` by a joint-space move (jerk-limited, joints arriving together).
@@ -443,7 +443,7 @@ class Arm:
             SingularityError: the pose is reached only at a singularity.
         """
         q0, target, position_only = self._pose_target(pose)
-        q = self._ik().solve(target, q0, position_only)
+        q = self.ik.solve(target, q0, position_only)
         return self.move_to(q, speed=speed, wait=wait)
 
     def move_linear(self, pose: object, speed: float = 1.0, wait: bool = True, *, max_velocity: float | None = None,
@@ -463,14 +463,14 @@ class Arm:
                 says where on the line. Nothing moved.
         """
         q0, target, position_only = self._pose_target(pose)
-        if self._ctl.plan is not None:
+        if self._ctl.moving:
             raise StateError("move_linear starts from rest and the arm is moving",
                              fix="wait for the motion to end (motion.wait()), or call arm.stop() first")
-        plan = plan_linear(self._ik(), self.limits, q0, target, speed=speed, position_only=position_only,
+        plan = plan_linear(self.ik, self.limits, q0, target, speed=speed, position_only=position_only,
                            max_velocity=max_velocity, max_acceleration=max_acceleration)
 
         def make(start, now):
-            if self._ctl.plan is not None or not np.array_equal(start[0], q0):
+            if self._ctl.moving or not np.array_equal(start[0], q0):
                 raise StateError("the arm moved while the line was planned",
                                  fix="start one motion at a time (wait for each)")
             return plan.at(now)
@@ -480,7 +480,7 @@ class Arm:
     @property
     def moving(self) -> bool:
         """True while a motion is being executed."""
-        return self._ctl.plan is not None
+        return self._ctl.moving
 
     def set_gains(self, kp: Sequence[float] | float | None = None, kd: Sequence[float] | float | None = None) -> None:
         """Change MIT gains while running: kp in N·m/rad, kd in N·m·s/rad, per joint or one for all,
@@ -509,8 +509,8 @@ class Arm:
         (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all but the following error).
         """
         if not (isinstance(damping, int | float) and math.isfinite(damping) and damping >= 0):
-            raise LimitError(f"teach damping must be a finite number of N·m·s/rad, at least 0, got {damping!r}",
-                             fix="e.g. arm.teach(0.1); 0 leaves the joints free")
+            raise ArgumentError(f"teach damping must be a finite number of N·m·s/rad, at least 0, got {damping!r}",
+                                fix="e.g. arm.teach(0.1); 0 leaves the joints free")
         self._ctl.require_enabled()
         for j in self.joints:
             if not j.answers_commands and j.motor.kt is None:
@@ -532,25 +532,22 @@ class Arm:
         path is ``duration`` long and holds ``floor(duration * rate_hz) + 1`` samples however late
         the caller gets round to :meth:`stop_recording`; :attr:`recording_finished` tells when.
         """
+        if not (isinstance(rate_hz, int | float) and 0 < rate_hz <= self.config.rate_hz):
+            raise ArgumentError(f"rate_hz must be in (0, {self.config.rate_hz:g}] (the loop rate), not {rate_hz!r}")
+        if duration is not None and not (isinstance(duration, int | float) and 0 < duration < math.inf):
+            raise ArgumentError(f"duration must be a positive number of seconds, not {duration!r}")
         if self._ctl.mode is not Mode.TEACH:
             raise StateError("recording a path needs teach mode", fix="call arm.teach() first")
-        if not 0 < rate_hz <= self.config.rate_hz:
-            raise StateError(f"rate_hz must be in (0, {self.config.rate_hz:g}] (the loop rate)")
-        if duration is not None and not 0 < duration < math.inf:
-            raise StateError(f"duration must be a positive number of seconds, not {duration}")
-        with self._ctl.lock:
-            self._ctl.recorder = PathRecorder(rate_hz, duration)
+        self._ctl.start_recording(rate_hz, duration)
 
     @property
     def recording_finished(self) -> bool:
         """True once a recording started with a ``duration`` has all its samples (False with none)."""
-        rec = self._ctl.recorder
-        return rec is not None and rec.finished
+        return self._ctl.recording_finished
 
     def stop_recording(self) -> rec_mod.PathRecording:
         """Stop the continuous recording and return it (times from 0, s; positions rad)."""
-        with self._ctl.lock:
-            rec, self._ctl.recorder = self._ctl.recorder, None
+        rec = self._ctl.stop_recording()
         if rec is None or len(rec.times) < 2:
             raise StateError("no path was recorded", fix="call start_recording() and move the arm for a while")
         t = np.array(rec.times) - rec.times[0]
@@ -558,9 +555,7 @@ class Arm:
 
     def end_teach(self) -> None:
         """Leave teach mode: hold the pose the arm was left in, gains ramping up from zero."""
-        if self._ctl.leave_teach():
-            self._ctl.wait_for(lambda: self._ctl.gain_scale >= 1.0, self._ctl.enable_ramp + 1.0,
-                               "the gains to ramp up")
+        self._ctl.end_teach()
 
     def check_replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
                      speed: float = 1.0) -> rec_mod.Keyframes | rec_mod.PathRecording:
@@ -622,15 +617,15 @@ class Arm:
         now = self.clock.now()
         ctl = self._ctl
         with ctl.lock:
-            ext = self._ctl.reflex.estimate.copy()  # type: ignore[union-attr]
+            ext = ctl.external_torque()
             reps = tuple(JointReport(j.name, j.state.position, j.state.velocity, j.state.torque,
                                      j.state.temperature, j.state.error, j.state.age(now), float(x))
                          for j, x in zip(self.joints, ext, strict=True))
             q_des = ctl.des[0].copy()
             mode = ctl.mode
-            moving = ctl.plan is not None
+            moving = ctl.moving
         return ArmState(now, reps, np.array([r.position for r in reps]), np.array([r.velocity for r in reps]),
-                        np.array([r.torque for r in reps]), q_des, mode is Mode.ACTIVE, moving, mode, ext)
+                        np.array([r.torque for r in reps]), q_des, mode.enabled, moving, mode, ext)
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Tell the arm about a payload at the tool frame: kg, centre of mass in the tool frame (m).
@@ -639,11 +634,19 @@ class Arm:
         estimate uses the same model, and starts over: the arm's inertia changed), from the next
         cycle on. A :class:`~akarm.ConfigWarning` says so when the motors cannot hold the arm with it
         everywhere in the joint ranges (:meth:`gravity_check`, as ``akarm check`` does for the file).
+
+        Raises:
+            ArgumentError: a mass that is not a number ≥ 0, a centre of mass that is not 3 finite numbers.
         """
-        with self._ctl.lock:
-            self.model.set_payload(mass, com)
-            self._ctl.ff.reset_integral()  # it made up for the load the model missed: now the model has it
-            self._ctl.reflex.restart()  # type: ignore[union-attr]
+        try:
+            m, c = float(mass), np.asarray(com, dtype=float)
+        except (TypeError, ValueError):
+            m, c = math.nan, np.zeros(0)
+        if not (math.isfinite(m) and m >= 0):
+            raise ArgumentError(f"payload mass must be a number ≥ 0 kg, got {mass!r}", fix="give the mass in kg")
+        if c.shape != (3,) or not np.all(np.isfinite(c)):
+            raise ArgumentError(f"payload com must be 3 numbers (m, tool frame), got {com!r}", fix="e.g. (0, 0, 0.04)")
+        self._ctl.set_payload(m, c)
         over = [(p, j) for p, j in zip(self.gravity_check(), self.config.joints, strict=True)
                 if p.torque > j.limits.torque]
         if over:
@@ -670,10 +673,7 @@ class Arm:
 
     def clear_payload(self) -> None:
         """Remove the payload from the model (the feed-forward's and the collision reflex's)."""
-        with self._ctl.lock:
-            self.model.clear_payload()
-            self._ctl.ff.reset_integral()
-            self._ctl.reflex.restart()  # type: ignore[union-attr]
+        self._ctl.clear_payload()
 
     @property
     def payload(self) -> tuple[float, np.ndarray] | None:
@@ -681,76 +681,79 @@ class Arm:
         p = self.model.payload
         return None if p is None else (p[0], p[1].copy())
 
-    def identify(self, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
-                 center: Target | None = None, payload: bool = True, offsets: bool = True,
-                 apply: bool = True) -> Identification:
-        """Identify each joint's friction (and torque offset) and the payload (:mod:`akarm.identify.procedure`).
+    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float],
+                     offset: Sequence[float] | None = None) -> None:
+        """Tell the arm each joint's friction (config order): Coulomb N·m, viscous N·m·s/rad and a
+        constant torque offset N·m (default 0), e.g. what :func:`akarm.identify.identify` found.
 
-        The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
-        ``amplitude`` rad per joint at most (less near a limit, or where a large one would take the start and
-        end ramps past 80 % of the joint's limits), for ``duration`` s at ``speed``
-        (time scaling, (0, 1]; default: as fast as the joint limits and half the torque limits
-        allow); like any replay, it is checked against every limit before anything moves; its
-        gains alternate between full and half every 3 s (how the fit tells friction from the bias
-        of the torque samples). With ``apply`` the arm uses the results at once (payload, friction). The result
-        suggests collision thresholds; ``.fragment()`` is YAML for the robot file
-        (:func:`akarm.robotfile.save.save_identification` writes it in, with a backup).
+        The collision reflex's estimate uses all three (and starts over); the feed-forward, where it
+        compensates friction (``friction_feedforward``), takes Coulomb and viscous.
 
         Raises:
-            LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
-            StateError: the arm is moving, or the telemetry is too short for the duration.
+            ArgumentError: not one finite value per joint.
         """
-        from akarm.identify.procedure import identify
+        self._ctl.set_friction(coulomb, viscous, [0.0] * self.n if offset is None else offset)
 
-        return identify(self, duration=duration, speed=speed, amplitude=amplitude, center=center, payload=payload,
-                        offsets=offsets, apply=apply)
-
-    def estimate_payload(self, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 3.0,
-                         apply: bool = True) -> PayloadFit:
-        """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
-
-        The arm moves (``speed`` as in :meth:`move_to`) to each of ``poses`` (default: where it is,
-        and each of the three joints nearest the tool turned by ±0.9 rad, the one before them
-        ±0.45), waits until it is still (``settle`` s at most), averages the torques, and comes back;
-        a least-squares fit of gravity's torque on Pinocchio's regressor gives mass and centre of
-        mass, twice (the second time with the first estimate carried). The collision reflex only
-        watches meanwhile. With ``apply`` the arm then carries it (:meth:`set_payload`).
-        """
-        from akarm.identify.procedure import estimate_payload
-
-        return estimate_payload(self, poses, speed=speed, settle=settle, apply=apply)
+    @property
+    def gains(self) -> tuple[np.ndarray, np.ndarray]:
+        """The MIT gains in force: (kp N·m/rad, kd N·m·s/rad) per joint, config order (copies; :meth:`set_gains`)."""
+        return self._ctl.gains
 
     def set_collision(self, thresholds: Mapping[str, float | None] | Sequence[float | None] | None = None,
                       reaction: str | None = None) -> None:
         """Change the collision reflex: ``thresholds`` (N·m; a ``{joint: value}`` mapping for some joints,
         or one per joint in config order; ``None`` for a joint turns its check off) and ``reaction``
-        (``"disable"`` or ``"hold"``). The YAML's ``collision: {threshold: ...}`` are the defaults."""
-        reflex = self._ctl.reflex
-        assert reflex is not None
-        with self._ctl.lock:
-            if thresholds is not None:
-                current: list[float | None] = [None if math.isinf(x) else float(x) for x in reflex.thresholds]
-                if isinstance(thresholds, Mapping):
-                    for name, value in thresholds.items():
-                        if name not in self.names:
-                            raise StateError(f"no joint named {name!r}", fix="joints are: " + ", ".join(self.names))
-                        current[self.names.index(name)] = value
-                else:
-                    current = list(thresholds)
-                reflex.set_thresholds(current)
-            if reaction is not None:
-                reflex.set_reaction(reaction)
+        (``"disable"`` or ``"hold"``). The YAML's ``collision: {threshold: ...}`` are the defaults.
+
+        Raises:
+            ArgumentError: an unknown joint, the wrong number of thresholds, one that is not a positive
+                number, an unknown reaction.
+        """
+        ctl = self._ctl
+        with ctl.lock:
+            current: list[float | None] | None = None
+            if isinstance(thresholds, Mapping):
+                current = ctl.collision_thresholds
+                for name, value in thresholds.items():
+                    if name not in self.names:
+                        raise ArgumentError(f"no joint named {name!r}{did_you_mean(str(name), self.names)}",
+                                            fix="joints are: " + ", ".join(self.names))
+                    current[self.names.index(name)] = value
+            elif thresholds is not None:
+                current = list(thresholds)
+            ctl.set_collision(current, reaction)
 
     @property
     def collision_thresholds(self) -> dict[str, float | None]:
         """The collision reflex's threshold per joint, N·m (``None``: not checked)."""
-        th = self._ctl.reflex.thresholds  # type: ignore[union-attr]
-        return {n: (None if math.isinf(x) else float(x)) for n, x in zip(self.names, th, strict=True)}
+        return dict(zip(self.names, self._ctl.collision_thresholds, strict=True))
 
     @property
-    def collision(self) -> CollisionError | None:
+    def collision_reaction(self) -> str:
+        """What the collision reflex does when it fires: ``"disable"`` or ``"hold"`` (:meth:`set_collision`)."""
+        return self._ctl.collision_reaction
+
+    @property
+    def collision_gain(self) -> float:
+        """The bandwidth of the external torque estimate in force, 1/s (the ``collision_gain`` asked
+        for, at most a quarter of the loop rate)."""
+        return self._ctl.collision_gain
+
+    @property
+    def last_collision(self) -> CollisionError | None:
         """The collision reflex's last stop (also with the "hold" reaction: the arm stays enabled), or ``None``."""
-        return self._ctl.reflex.last  # type: ignore[union-attr]
+        return self._ctl.last_collision
+
+    @property
+    def collision_peak(self) -> np.ndarray:
+        """The largest ``|external torque estimate|`` per joint (N·m, config order) while the reflex
+        judged (not in teach mode), since :meth:`reset_collision_peak` (or the Arm was made): how close
+        the arm came to its thresholds."""
+        return self._ctl.collision_peak
+
+    def reset_collision_peak(self) -> None:
+        """Start :attr:`collision_peak` over from zero."""
+        self._ctl.reset_collision_peak()
 
     def sleep(self, seconds: float) -> None:
         """Wait ``seconds`` of the arm's clock while the loop keeps the arm under control.
@@ -762,20 +765,24 @@ class Arm:
         self._ctl.wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass")
 
     def telemetry(self, since: float | None = None) -> TelemetryLog:
-        """The recorded cycles (desired and measured q, dq, τ, feed-forward), oldest first."""
-        with self._ctl.lock:
-            return self._ctl.telemetry.snapshot(since)
+        """The recorded cycles since ``since`` (clock time, s; default: all kept), oldest first: desired
+        and measured q, dq, τ, the feed-forward and the external torque estimate (:attr:`telemetry_seconds`
+        of them at most)."""
+        return self._ctl.telemetry_log(since)
+
+    @property
+    def telemetry_seconds(self) -> float:
+        """How much history :meth:`telemetry` keeps, s (the ``telemetry_seconds`` asked for, whole cycles)."""
+        return self._ctl.telemetry.capacity / self.config.rate_hz
 
     def reset_stats(self) -> None:
         """Forget the loop timings measured so far (e.g. to leave start-up out of a benchmark)."""
-        self._ctl.require_open()
-        self._ctl.loop.stats.reset()  # type: ignore[union-attr]
+        self._ctl.reset_stats()
 
     @property
     def realtime_report(self) -> str:
         """What the loop thread was granted of real-time priority, memory locking and CPU pinning (if it asked)."""
-        loop = self._ctl.loop
-        return loop.realtime_report if loop is not None else "not open"
+        return "not open" if self._ctl.mode is Mode.CLOSED else self._ctl.loop.realtime_report
 
     @property
     def fault(self) -> SafetyStop | None:
@@ -784,5 +791,10 @@ class Arm:
 
     def stats(self) -> StatsSummary:
         """Loop timing: achieved rate, lateness and period percentiles, missed slots, time per stage."""
-        self._ctl.require_open()
-        return self._ctl.loop.stats.summary()  # type: ignore[union-attr]
+        return self._ctl.stats()
+
+    @property
+    def observe(self) -> ControllerView:
+        """Read-only observability of the real-time side (:class:`akarm.control.view.ControllerView`):
+        its buses, loop, last feed-forward torque, gain ramp and supervisor limits."""
+        return self._observe

@@ -13,6 +13,7 @@ raises on purpose; anything else escaping akarm is a bug.
     ├── ConfigError            a robot YAML with problems (carries every one of them)
     ├── ModelError             a URDF Pinocchio cannot use
     ├── BusError               a CAN bus that cannot be opened or written
+    ├── ArgumentError          a bad argument: wrong type or shape, not finite, out of its domain, an unknown name
     ├── StateError             an Arm call that does not fit its state (move before enable, ...)
     ├── LimitError             a target or a planned path past a joint limit
     │   ├── UnreachableError   a Cartesian pose or path the tool cannot reach
@@ -34,10 +35,13 @@ raises on purpose; anything else escaping akarm is a bug.
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 __all__ = [
     "AkarmError",
+    "ArgumentError",
     "BusError",
     "BusLost",
     "CollisionError",
@@ -63,6 +67,7 @@ __all__ = [
     "TrajectoryError",
     "UnknownMotorError",
     "UnreachableError",
+    "did_you_mean",
 ]
 
 
@@ -173,6 +178,14 @@ class ModelError(AkarmError):
 
 class BusError(AkarmError):
     """A CAN bus cannot be opened, or a frame cannot be sent on it."""
+
+
+class ArgumentError(AkarmError, ValueError):
+    """A bad argument to akarm's API: of the wrong type or shape, not finite, outside the values it
+    can take, or naming something that does not exist (a joint, a pose). Nothing was done.
+
+    A target past a joint limit is not a bad argument but a motion refused: a :class:`LimitError`.
+    """
 
 
 class StateError(AkarmError):
@@ -375,3 +388,10 @@ class BusLost(SafetyStop, BusError):
     def __init__(self, what: str, *, bus: str, joint: str | None = None, fix: str = "") -> None:
         self.bus = bus
         super().__init__(what, joint=joint, fix=fix)
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``choices``, or ``""`` when none is close: the
+    tail of an error's text for a misspelt name (a joint, a key, a motor model)."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""

@@ -24,7 +24,7 @@ import os
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from akarm.errors import StateError
+from akarm.errors import ArgumentError
 from akarm.server.server import ArmServerCore, Frontend
 
 if TYPE_CHECKING:
@@ -64,8 +64,8 @@ class ArmServer(ArmServerCore):
                  log: Callable[[str], None] | None = None) -> None:
         for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
             if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
-                raise StateError(f"{what} must be a positive number of Hz, got {hz!r}",
-                                 fix="e.g. --joint-states-hz 100 --status-hz 2")
+                raise ArgumentError(f"{what} must be a positive number of Hz, got {hz!r}",
+                                    fix="e.g. --joint-states-hz 100 --status-hz 2")
         self.domain = _default_domain() if domain is None else int(domain)
         self.namespace = namespace.strip("/")
         self.ros = ros

@@ -79,8 +79,8 @@ def false_stops(minutes: float) -> None:
             except CollisionError as e:
                 stops.append(f"demo: {e}")
                 arm.enable()
-        demo_peak = arm._ctl.reflex.peak / thresholds
-        arm._ctl.reflex.clear_peak()
+        demo_peak = arm.collision_peak / thresholds
+        arm.reset_collision_peak()
         t0, moves = arm.clock.now(), 0
         while arm.clock.now() - t0 < 60.0 * minutes:
             speed = float(rng.uniform(0.3, 1.0))
@@ -102,7 +102,7 @@ def false_stops(minutes: float) -> None:
                 print(f"  (not a collision: {type(e).__name__}: {e})")
                 arm.enable()
             moves += 1
-        run_peak = arm._ctl.reflex.peak / thresholds
+        run_peak = arm.collision_peak / thresholds
     print(f"  demo session: largest estimate {np.round(demo_peak, 2).tolist()} of the thresholds")
     print(f"  {minutes:g} min, {moves} motions: largest estimate {np.round(run_peak, 2).tolist()} of the thresholds")
     print(f"  false stops: {len(stops)}")
@@ -119,7 +119,7 @@ def retargets(minutes: float) -> None:
         with SimulatedRobot(cfg, realtime=False, q0=ARM6.pose("home")) as sim, \
                 Arm(cfg, clock=sim.clock, telemetry_seconds=20) as arm:
             arm.enable()
-            arm._ctl.reflex.clear_peak()
+            arm.reset_collision_peak()
             lo, hi = arm.limits.lower, arm.limits.upper
             freq, phase = rng.uniform(0.1, 0.6, 6), rng.uniform(0.0, 2 * np.pi, 6)
             t0 = last = sim.t
@@ -149,7 +149,7 @@ def retargets(minutes: float) -> None:
                     last = sim.t
                     beyond = max(beyond, float(np.max(np.maximum(lo - log.q_des, log.q_des - hi))))
                     faster = max(faster, float(np.max(np.abs(log.dq_des) / arm.limits.velocity)))
-            peak = arm._ctl.reflex.peak / thresholds
+            peak = arm.collision_peak / thresholds
         print(f"  {kind}: {sent} targets, {refused} refused, {stops} collision stops; commands at most "
               f"{beyond * 1e3:+.1f} mrad past a range, {faster:.2f} of a velocity limit; largest estimate "
               f"{peak.max():.2f} of a threshold{ended}")

@@ -84,7 +84,7 @@ def main() -> int:  # noqa: C901
             clock = time.monotonic
         lo = arm.limits.lower + 0.05
         hi = arm.limits.upper - 0.05
-        limits = np.array([g.following_error for g in arm._ctl.supervisor.guards])
+        limits = np.array([g.following_error for g in arm.observe.guards])
         arm.enable()
         rss0 = rss_mb()
         stops: list[str] = []

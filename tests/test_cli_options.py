@@ -34,7 +34,7 @@ def test_negative_values_need_no_double_dash_and_options_after_them_parse() -> N
 
 def test_targets_are_read_as_poses_values_or_named_joints() -> None:
     from akarm.cli.move import parse_target
-    from akarm.errors import ConfigError, LimitError
+    from akarm.errors import ArgumentError
     from akarm.robotfile.load import load_robot
 
     arm6 = load_robot(ARM6)
@@ -45,13 +45,13 @@ def test_targets_are_read_as_poses_values_or_named_joints() -> None:
     ready = list(arm6.pose("ready"))
     ready[2] = 1.0
     assert parse_target(["ready", "elbow=1.0"], arm6) == ready
-    with pytest.raises(ConfigError, match=r"no pose named 'redy' \(did you mean 'ready'\?\)"):
+    with pytest.raises(ArgumentError, match=r"no pose named 'redy' \(did you mean 'ready'\?\)"):
         parse_target(["redy"], arm6)
-    with pytest.raises(LimitError, match=r"no joint named 'elbw' \(did you mean 'elbow'\?\)"):
+    with pytest.raises(ArgumentError, match=r"no joint named 'elbw' \(did you mean 'elbow'\?\)"):
         parse_target(["elbw=0.5"], arm6)
-    with pytest.raises(LimitError, match="'x' is not a number"):
+    with pytest.raises(ArgumentError, match="'x' is not a number"):
         parse_target(["elbow=x"], arm6)
-    with pytest.raises(LimitError, match="2 value"):
+    with pytest.raises(ArgumentError, match="2 value"):
         parse_target(["0.1,0.2"], arm6)
 
 

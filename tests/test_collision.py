@@ -22,7 +22,7 @@ from akarm.arm import Arm
 from akarm.control.collision import DEFAULT_GAIN, MomentumObserver
 from akarm.control.modes import Mode
 from akarm.dynamics.model import RobotModel
-from akarm.errors import CollisionError, ConfigError, StateError
+from akarm.errors import ArgumentError, CollisionError, ConfigError
 from akarm.sim import SimulatedRobot
 from akarm.telemetry.log import load as load_telemetry
 
@@ -136,7 +136,7 @@ def test_the_hold_reaction_comes_to_rest_stays_enabled_and_re_arms(channel: str)
         with pytest.raises(CollisionError) as e:
             motion.wait()
         assert e.value.reaction == "hold" and e.value.joint == "elbow"
-        assert arm.collision is e.value
+        assert arm.last_collision is e.value
         arm.sleep(0.6)
         assert arm.enabled and not arm.moving and arm.state().mode is Mode.ACTIVE
         held = arm.state().q
@@ -144,7 +144,7 @@ def test_the_hold_reaction_comes_to_rest_stays_enabled_and_re_arms(channel: str)
         assert np.max(np.abs(arm.state().q - held)) < 0.01  # at rest, short of the target
         assert np.max(np.abs(held - np.array(ARM6.pose("reach")))) > 0.2
         # the obstacle still pushes: the reflex waits for it to go before it watches again
-        assert arm.collision is e.value
+        assert arm.last_collision is e.value
         sim.set_external_torque(None)
         arm.move_to("home")  # the contact ended: the arm moves on, and is watched again
         motion = arm.move_to("reach", wait=False)
@@ -170,10 +170,10 @@ def test_teach_mode_is_never_stopped_by_the_hand(channel: str) -> None:
         assert arm.state().tau_ext[2] == pytest.approx(-hand[2], rel=0.25)
         sim.set_external_torque(None)  # the hand lets go
         arm.sleep(0.5)
-        assert arm.state().mode is Mode.TEACH and arm.collision is None
+        assert arm.state().mode is Mode.TEACH and arm.last_collision is None
         arm.end_teach()
         arm.sleep(0.3)
-        assert arm.enabled and arm.collision is None  # ... and the reflex watches again
+        assert arm.enabled and arm.last_collision is None  # ... and the reflex watches again
         sim.set_external_torque(hand)
         with pytest.raises(CollisionError):
             arm.sleep(0.2)
@@ -184,7 +184,7 @@ def test_no_stop_in_fast_moves_payload_changes_and_the_demo_recording(channel: s
     """With arm6.yaml's thresholds: moves at full speed between every pose, a payload picked up and
     put down (told to the arm), and the demo's figure eight; the reflex must not fire."""
     with lockstep(channel, telemetry_seconds=120) as (arm, sim):
-        arm._ctl.reflex.clear_peak()
+        arm.reset_collision_peak()
         for pose in ("ready", "left", "reach", "upright", "home", "reach", "ready"):
             arm.move_to(pose)
         arm.set_payload(0.4, (0.0, 0.0, 0.05))
@@ -193,8 +193,8 @@ def test_no_stop_in_fast_moves_payload_changes_and_the_demo_recording(channel: s
         arm.clear_payload()
         sim.clear_payload()
         arm.replay(Path(akarm.__file__).parent / "data" / "demo_path.csv")
-        assert arm.collision is None and arm.enabled
-        ratio = arm._ctl.reflex.peak / np.array(THRESHOLDS)
+        assert arm.last_collision is None and arm.enabled
+        ratio = arm.collision_peak / np.array(THRESHOLDS)
         assert np.all(ratio < 1.0), ratio  # not even before the reflex armed
 
 
@@ -213,7 +213,7 @@ def test_moves_retargeted_mid_way_stay_in_range_and_are_never_taken_for_a_collis
     reflex rightly stopped the arm (26.6 s into this run)."""
     rng = np.random.default_rng(0)
     with lockstep(channel, telemetry_seconds=60) as (arm, sim):
-        arm._ctl.reflex.clear_peak()
+        arm.reset_collision_peak()
         lo, hi = arm.limits.lower + 0.02, arm.limits.upper - 0.02
         moves = 0
         while sim.t < 30.0:
@@ -223,9 +223,9 @@ def test_moves_retargeted_mid_way_stay_in_range_and_are_never_taken_for_a_collis
                 continue
             moves += 1
             arm.sleep(float(rng.uniform(0.1, 0.8)) * motion.duration)
-        assert moves >= 25 and arm.collision is None and arm.enabled
+        assert moves >= 25 and arm.last_collision is None and arm.enabled
         _within_range_and_limits(arm, arm.telemetry())
-        ratio = arm._ctl.reflex.peak / np.array(THRESHOLDS)
+        ratio = arm.collision_peak / np.array(THRESHOLDS)
         assert np.all(ratio < 0.6), ratio
 
 
@@ -236,7 +236,7 @@ def test_a_stick_streaming_targets_at_changing_speeds_is_followed_within_the_lim
     (paths of hundreds of rad) and the rest commanded up to 1.4 times a joint's velocity limit."""
     rng = np.random.default_rng(0)
     with lockstep(channel, telemetry_seconds=60) as (arm, sim):
-        arm._ctl.reflex.clear_peak()
+        arm.reset_collision_peak()
         lo, hi = arm.limits.lower, arm.limits.upper
         mid, half = (lo + hi) / 2, (hi - lo) / 2
         freq, phase = rng.uniform(0.1, 0.6, 6), rng.uniform(0.0, 2 * np.pi, 6)
@@ -247,11 +247,11 @@ def test_a_stick_streaming_targets_at_changing_speeds_is_followed_within_the_lim
             arm.stream_to(np.clip(stick, lo, hi), speed=float(rng.choice([0.3, 0.6, 1.0])))  # never refused
             streamed += 1
             arm.sleep(0.01 * int(rng.integers(1, 6)))
-        assert streamed > 300 and arm.collision is None and arm.enabled
+        assert streamed > 300 and arm.last_collision is None and arm.enabled
         log = arm.telemetry()
         _within_range_and_limits(arm, log)
         assert np.abs(log.tracking_error()).max() < 0.05  # the arm follows its commands closely
-        assert np.all(arm._ctl.reflex.peak / np.array(THRESHOLDS) < 0.6)
+        assert np.all(arm.collision_peak / np.array(THRESHOLDS) < 0.6)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -273,14 +273,14 @@ def test_thresholds_come_from_the_yaml_and_change_at_run_time(tmp_path: Path, ch
     assert arm.collision_thresholds == {"shoulder": 1.5, "elbow": 0.7}
     arm.set_collision(thresholds={"elbow": None}, reaction="hold")
     assert arm.collision_thresholds == {"shoulder": 1.5, "elbow": None}
-    assert arm._ctl.reflex.reaction == "hold"
+    assert arm.collision_reaction == "hold"
     for bad in ({"wrist": 1.0}, [1.0], [1.0, -2.0], [1.0, math.inf]):
-        with pytest.raises(StateError):
+        with pytest.raises(ArgumentError):
             arm.set_collision(thresholds=bad)
-    with pytest.raises(StateError):
+    with pytest.raises(ArgumentError):
         arm.set_collision(reaction="ignore")
-    with pytest.raises(StateError):
-        Arm(config, collision_reaction="ignore")
+    with pytest.raises(ArgumentError):
+        Arm(config, collision_reaction="ignore")  # type: ignore[arg-type]
 
     path.write_text(text.replace("collision: {threshold: 0.7}", "collision: {threshold: -1}"))
     with pytest.raises(ConfigError) as e:

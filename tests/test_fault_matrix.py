@@ -35,6 +35,7 @@ import yaml
 
 import akarm
 from akarm import (
+    ArgumentError,
     BusLost,
     FeedbackTimeout,
     ForeignTraffic,
@@ -46,7 +47,7 @@ from akarm import (
     TrackingError,
 )
 from akarm.config import RobotConfig
-from akarm.control.controller import UnsafeExitWarning
+from akarm.control.exits import UnsafeExitWarning
 from akarm.control.modes import Mode
 from akarm.motion.recording import load as load_recording
 from akarm.protocol import mit
@@ -400,7 +401,7 @@ def test_a_bus_shut_down_under_the_arm_is_a_bus_error_and_close_still_works(chan
 
     with rig("planar2", channel, q0=[0.0, 0.0], config_edit=with_can_timeout) as (arm, sim, wire):
         t = moving(arm, "planar2")
-        arm._ctl.buses["arm"].shutdown()
+        arm.observe.buses["arm"].shutdown()
         with pytest.raises(BusLost) as info:
             arm.sleep(0.5)
         e = info.value
@@ -419,7 +420,7 @@ def test_a_lost_bus_of_two_leaves_the_other_arm_damped_and_disabled(channel: str
         arm.enable()
         arm.sleep(0.1)
         lost = arm.config.joints[0].bus
-        arm._ctl.buses[lost].shutdown()
+        arm.observe.buses[lost].shutdown()
         with pytest.raises(BusLost):
             arm.sleep(0.5)
         other = replace(arm.config, joints=tuple(j for j in arm.config.joints if j.bus != lost))
@@ -431,7 +432,7 @@ def test_a_lost_bus_of_two_leaves_the_other_arm_damped_and_disabled(channel: str
 def test_frames_the_bus_refuses_stop_the_arm_and_the_exit_goes_out_when_it_takes_them_again(channel: str) -> None:
     with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
         arm.enable()
-        bus = arm._ctl.buses["arm"]
+        bus = arm.observe.buses["arm"]
         real_send, refused = bus.send, []
 
         def full_queue(msg, timeout=None):
@@ -487,18 +488,29 @@ def test_an_arm_collected_in_its_own_loop_thread_is_still_damped_and_disabled(ch
         arm = akarm.Arm(cfg, feedback_timeout=0.25)
         arm.open()
         arm.enable()
-        ctl = arm._ctl
-        cycle, collected = ctl.loop.cycle, []  # type: ignore[union-attr]
+        loop = arm.observe.loop
+        cycle, collected = loop.cycle, []
+        dropped = [arm]
+        dropped.append(dropped)  # a reference cycle: only the cycle collector can free the Arm
+        del arm
 
-        def collected_here(now, *rest):  # what the collector does when it runs inside a cycle
+        def collected_here(now, *rest):  # the collector runs inside a cycle, in the loop's own thread
             if not collected:
                 collected.append(now)
-                ctl.close_collected()
+                gc.collect()
             return cycle(now, *rest)
 
-        with pytest.warns(UnsafeExitWarning):
-            ctl.loop.cycle = collected_here  # type: ignore[union-attr]
-            assert wait_until(lambda: ctl.modes.mode is Mode.CLOSED, 10.0)
+        def closed() -> bool:
+            return not loop.running and not any(t.name == "akarm-close" for t in threading.enumerate())
+
+        gc.disable()  # no collection in this thread meanwhile
+        try:
+            del dropped
+            with pytest.warns(UnsafeExitWarning, match="garbage-collected while enabled"):
+                loop.cycle = collected_here
+                assert wait_until(closed, 10.0)
+        finally:
+            gc.enable()
         assert collected and not any(d.enabled for d in sim.drivers)
         assert wait_until(lambda: all(wire.sent_to(j) and wire.sent_to(j)[-1].kind == "exit" for j in cfg.joints), 5)
         damping_then_exit(wire, cfg, damping_time=0.25)  # with its damping, not only the exit
@@ -513,9 +525,9 @@ def test_a_loop_that_stopped_running_cannot_keep_close_from_exiting_motor_mode(c
         arm.open()
         arm.enable()
         stall = threading.Event()
-        loop = arm._ctl.loop
-        cycle = loop.cycle  # type: ignore[union-attr]
-        loop.cycle = lambda *a: stall.wait(30) or cycle(*a)  # type: ignore[union-attr]
+        loop = arm.observe.loop
+        cycle = loop.cycle
+        loop.cycle = lambda *a: stall.wait(30) or cycle(*a)
         arm.close()
         stall.set()
         assert arm.mode is Mode.CLOSED
@@ -528,15 +540,17 @@ def test_a_stop_during_enable_fades_from_zero_not_from_the_last_sessions_torque(
         arm.enable()
         arm.move_to("reach")
         arm.disable()
-        held = np.abs(arm._ctl.tau_ff).max()
+        held = np.abs(arm.observe.tau_ff).max()
         seen = []
-        contact = arm._ctl._make_contact
+        loop = arm.observe.loop
+        cycle = loop.cycle
 
-        def first_contact(en, now):
-            seen.append(np.asarray(arm._ctl.tau_ff, float).copy())
-            return contact(en, now)
+        def watched(now, *rest):  # the feed-forward torque each cycle of the enable starts from
+            if arm.mode is Mode.ENABLING:
+                seen.append(arm.observe.tau_ff)
+            return cycle(now, *rest)
 
-        arm._ctl._make_contact = first_contact  # type: ignore[method-assign]
+        loop.cycle = watched
         arm.enable()
         assert held > 1.0 and np.all(seen[0] == 0.0)  # what a stop during contact would fade from
 
@@ -544,9 +558,8 @@ def test_a_stop_during_enable_fades_from_zero_not_from_the_last_sessions_torque(
 def test_enable_after_a_stop_that_ended_in_a_lost_bus_raises_that_loss(channel: str) -> None:
     with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
         moving(arm, "planar2")
-        with arm._ctl.lock:
-            arm._ctl.begin_stop()  # a stop under way (disable() from another thread) ...
-        arm._ctl.buses["arm"].shutdown()  # ... when the bus dies
+        arm.disable(wait=False)  # a stop under way ...
+        arm.observe.buses["arm"].shutdown()  # ... when the bus dies
         with pytest.raises(BusLost):
             arm.enable()
         assert arm.mode is Mode.FAULT and isinstance(arm.fault, BusLost)
@@ -558,7 +571,7 @@ def test_teach_damping_must_be_a_finite_non_negative_number(channel: str) -> Non
     with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim, wire):
         arm.enable()
         for bad in (float("nan"), -0.1, float("inf"), "0.1"):
-            with pytest.raises(LimitError, match="teach damping"):
+            with pytest.raises(ArgumentError, match="teach damping"):
                 arm.teach(bad)  # type: ignore[arg-type]
         assert arm.mode is Mode.ACTIVE and arm.enabled
 

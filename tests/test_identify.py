@@ -26,16 +26,9 @@ from akarm.arm import Arm
 from akarm.cli import main
 from akarm.dynamics.model import RobotModel
 from akarm.errors import LimitError, StateError
-from akarm.identify.procedure import (
-    Identification,
-    JointFit,
-    PayloadFit,
-    apply_identification,
-    excitation,
-    torque_speed,
-)
-from akarm.identify.procedure import fit as identify_fit
-from akarm.robotfile.save import save_identification
+from akarm.identify import Identification, JointFit, PayloadFit, apply_identification, estimate_payload, identify
+from akarm.identify.fit import excitation, torque_speed
+from akarm.identify.fit import fit as identify_fit
 from akarm.sim import SimulatedRobot
 from akarm.sim.params import default_params
 from akarm.telemetry.log import TelemetryLog
@@ -63,7 +56,7 @@ def identified() -> Identified:
         # an unknown payload is an external torque: the reflex would stop the arm as soon as it holds it
         arm.set_collision(thresholds=[None] * 6)
         arm.enable()
-        result = arm.identify(duration=30.0, amplitude=0.7)
+        result = identify(arm, duration=30.0, amplitude=0.7)
         return Identified(result, arm.payload, before)
 
 
@@ -117,8 +110,7 @@ def test_five_minutes_of_motion_with_the_suggested_thresholds_stop_nothing(ident
         apply_identification(arm, r)  # the identified payload and friction
         arm.set_collision(thresholds=thresholds)
         arm.enable()
-        reflex = arm._ctl.reflex
-        reflex.clear_peak()
+        arm.reset_collision_peak()
         t0 = arm.clock.now()
         moves = 0
         while arm.clock.now() - t0 < 300.0:
@@ -135,8 +127,8 @@ def test_five_minutes_of_motion_with_the_suggested_thresholds_stop_nothing(ident
                 arm.move_to(lo + rng.random(6) * (hi - lo), speed=speed)
             arm.sleep(float(rng.uniform(0.2, 1.2)))
             moves += 1
-        assert arm.collision is None and arm.enabled
-        ratio = reflex.peak / np.array(thresholds)
+        assert arm.last_collision is None and arm.enabled
+        ratio = arm.collision_peak / np.array(thresholds)
         assert np.all(ratio < 1.0), ratio
         assert np.max(sim.temperatures) < 75.0, sim.temperatures
     assert moves > 60
@@ -149,7 +141,7 @@ def test_estimate_payload_at_rest(channel: str) -> None:
         sim.set_payload(0.5, (0.0, 0.03, 0.06))
         arm.enable()
         start = arm.state().q_des
-        p = arm.estimate_payload()
+        p = estimate_payload(arm)
         assert p.mass == pytest.approx(0.5, rel=0.10)
         assert np.linalg.norm(np.subtract(p.com, (0.0, 0.03, 0.06))) < 0.01
         assert p.determined == (True, True, True)
@@ -162,7 +154,7 @@ def test_a_planar_arm_cannot_tell_the_centre_of_mass_along_its_axes(planar2, cha
     with SimulatedRobot(cfg, realtime=False, q0=[0.3, -0.6]) as sim, Arm(cfg, clock=sim.clock) as arm:
         sim.set_payload(0.3, (0.02, 0.05, 0.0))
         arm.enable()
-        p = arm.estimate_payload(apply=False)
+        p = estimate_payload(arm, apply=False)
     # tool0's y axis is the joints' axis: gravity never acts across it
     assert p.determined == (True, False, True) and p.com[1] == 0.0
     assert p.mass == pytest.approx(0.3, rel=0.10) and p.com[0] == pytest.approx(0.02, abs=0.01)
@@ -176,13 +168,13 @@ def test_identify_without_apply_leaves_the_arms_payload_as_it_was(planar2, chann
         arm.set_collision(thresholds=[None] * 2)
         sim.set_payload(0.3, (0.02, 0.0, 0.0))
         arm.enable()
-        result = arm.identify(duration=8.0, apply=False)
+        result = identify(arm, duration=8.0, apply=False)
         assert result.payload is not None and result.payload.mass > 0.2  # it saw the load
         assert arm.payload is None
         arm.set_payload(0.1, (0.0, 0.0, 0.01))
         monkeypatch.setattr(arm, "replay", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("in the excitation")))
         with pytest.raises(RuntimeError):
-            arm.identify(duration=8.0)  # an error after the estimate at rest, with apply
+            identify(arm, duration=8.0)  # an error after the estimate at rest, with apply
         assert arm.payload is not None and arm.payload[0] == pytest.approx(0.1)
         assert np.allclose(arm.payload[1], (0.0, 0.0, 0.01))
 
@@ -237,10 +229,10 @@ def test_identification_too_fast_or_off_centre_is_refused_before_moving(channel:
         arm.enable()
         before = arm.state().q_des
         with pytest.raises(LimitError) as e:
-            arm.identify(speed=1.0, amplitude=0.7)
+            identify(arm, speed=1.0, amplitude=0.7)
         assert e.value.joint in ARM6.joint_names and "speed" in e.value.fix
         with pytest.raises(LimitError):
-            arm.identify(center=[0, 2.0, 0, 0, 0, 0])  # shoulder_lift's range is ±1.7
+            identify(arm, center=[0, 2.0, 0, 0, 0, 0])  # shoulder_lift's range is ±1.7
         arm.sleep(0.1)
         assert np.allclose(arm.state().q_des, before) and not arm.moving
 
@@ -250,7 +242,7 @@ def test_save_writes_the_values_in_place_with_a_backup(identified: Identified, t
     original = (ROBOTS / "arm6.yaml").read_text()
     robot.write_text(original)
     (tmp_path / "arm6.urdf").write_text((ROBOTS / "arm6.urdf").read_text())
-    path, backup = save_identification(robot, identified.result)
+    path, backup = identified.result.save(robot)
     assert backup.read_text() == original
     config = akarm.load_robot(path)
     r = identified.result
@@ -265,7 +257,7 @@ def test_save_writes_the_values_in_place_with_a_backup(identified: Identified, t
             assert line in text, line
     assert text.count("collision:") == 6
     # a second save replaces, and keeps another backup
-    _, backup2 = save_identification(robot, r)
+    _, backup2 = r.save(robot)
     assert backup2 != backup and path.read_text() == text
 
 
@@ -317,7 +309,7 @@ def test_save_into_a_block_style_file_gives_each_joint_its_own_values(tmp_path: 
     result = Identification((JointFit("shoulder", 0.41, 0.021, 0.011, 0.02, threshold=1.5),
                              JointFit("elbow", 0.12, 0.0031, -0.012, 0.01, threshold=0.75)),
                             PayloadFit(0.35, (0.01, 0.0, 0.02)), 1000, 8.0)
-    save_identification(robot, result)
+    result.save(robot)
     config = akarm.load_robot(robot)  # it loads
     assert config.payload.mass == pytest.approx(0.35) and np.allclose(config.payload.com, (0.01, 0.0, 0.02))
     for joint, fit in zip(config.joints, result.joints, strict=True):
@@ -340,7 +332,7 @@ def test_save_refuses_a_result_for_other_joints(identified: Identified, tmp_path
     robot.write_text((ROBOTS / "planar2.yaml").read_text())
     (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
     with pytest.raises(akarm.ConfigError):
-        save_identification(robot, identified.result)
+        identified.result.save(robot)
     assert robot.read_text() == (ROBOTS / "planar2.yaml").read_text()
     assert not list(tmp_path.glob("*.bak"))
 

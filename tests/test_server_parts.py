@@ -14,7 +14,7 @@ import pytest
 
 import akarm
 from akarm.buses import ownership as registry
-from akarm.errors import AkarmError, LimitError, MotorFault, StateError
+from akarm.errors import AkarmError, ArgumentError, LimitError, MotorFault, StateError
 from akarm.server.server import ArmServerCore
 from akarm.server.socket import SocketClient, SocketServer
 from akarm.sim import SimulatedRobot
@@ -164,7 +164,7 @@ def test_server_rates_must_be_positive(channel):
     with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
         del sim
         for bad in ({"joint_states_hz": 0}, {"joint_states_hz": -5.0}, {"status_hz": float("nan")}):
-            with pytest.raises(StateError, match="must be a positive number of Hz"):
+            with pytest.raises(ArgumentError, match="must be a positive number of Hz"):
                 akarm.ArmServer(arm, ros=False, **bad)
         assert not arm.enabled  # refused before anything was opened or enabled
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import akarm
-from akarm import LimitError, RecordingError
+from akarm import LimitError, Mode, RecordingError
 from akarm.motion import recording as rec
 
 from .test_arm import rig
@@ -151,7 +151,7 @@ def test_teach_then_replay_reproduces_the_taught_path(channel) -> None:
     with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
         arm.enable()
         arm.teach()
-        assert not arm.enabled  # not tracking: hand-guidable
+        assert arm.enabled and arm.mode is Mode.TEACH  # powered, under control, hand-guidable
         start = arm.keyframe("start")
         arm.start_recording(rate_hz=100)
         # a hand pushes the shoulder up and the elbow down, then lets go; a hand's force ramps
@@ -195,7 +195,7 @@ def test_a_recording_with_a_duration_stops_itself(channel) -> None:
     with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
         arm.enable()
         arm.teach()
-        with pytest.raises(akarm.StateError, match="duration must be a positive"):
+        with pytest.raises(akarm.ArgumentError, match="duration must be a positive"):
             arm.start_recording(100, duration=0.0)
         arm.start_recording(100, duration=0.3)
         arm.sleep(0.2)
@@ -209,7 +209,7 @@ def test_a_recording_with_a_duration_stops_itself(channel) -> None:
 
 
 def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
-    from akarm.control.controller import PathRecorder as _PathRecorder
+    from akarm.control.motions import PathRecorder as _PathRecorder
 
     rec = _PathRecorder(100.0, duration=0.1)
     cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms
@@ -222,7 +222,7 @@ def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
 
 
 def test_a_stall_across_the_end_of_a_timed_recording_does_not_stretch_it() -> None:
-    from akarm.control.controller import PathRecorder
+    from akarm.control.motions import PathRecorder
 
     rec = PathRecorder(100.0, duration=0.1)
     for now in [k * 0.002 for k in range(49)] + [0.1768]:  # a 79 ms stall across the last grid point

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from akarm import LimitError, TrajectoryError
+from akarm import ArgumentError, LimitError, TrajectoryError
 from akarm.motion.trajectory import JointLimits, Plan, Planner
 
 NAMES = ("a", "b", "c")
@@ -56,7 +56,7 @@ def test_speed_fraction_slows_the_same_path() -> None:
     full = p.move(rest([0, 0, 0]), [1.0, 1.0, 1.0], 0.0)
     half = p.move(rest([0, 0, 0]), [1.0, 1.0, 1.0], 0.0, speed=0.5)
     assert half.duration == pytest.approx(2 * full.duration, rel=1e-6)
-    with pytest.raises(LimitError, match="speed must be in"):
+    with pytest.raises(ArgumentError, match="speed must be in"):
         p.move(rest([0, 0, 0]), [1, 1, 1], 0.0, speed=1.5)
 
 
@@ -65,7 +65,7 @@ def test_target_outside_limits_names_the_joint() -> None:
     with pytest.raises(LimitError) as info:
         p.move(rest([0, 0, 0]), [0.0, 2.5, 0.0], 0.0)
     assert info.value.joint == "b" and "outside the joint's range" in str(info.value)
-    with pytest.raises(LimitError, match="finite"):
+    with pytest.raises(ArgumentError, match="finite"):
         p.move(rest([0, 0, 0]), [0.0, float("nan"), 0.0], 0.0)
 
 
@@ -132,7 +132,7 @@ def test_through_checks_waypoints_and_sizes() -> None:
     p = Planner(limits())
     with pytest.raises(LimitError, match="waypoint 1"):
         p.through(rest([0, 0, 0]), [[0.5, 0, 0], [0, 3.0, 0]], 0.0)
-    with pytest.raises(LimitError, match="has 2 values"):
+    with pytest.raises(ArgumentError, match="has 2 values"):
         p.through(rest([0, 0, 0]), [[0.5, 0]], 0.0)
 
 

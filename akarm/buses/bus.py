@@ -63,7 +63,7 @@ def open_error(bus: BusConfig, error: BaseException) -> BusError:
                         fix="check the device's permissions (udev rules for USB adapters, the dialout group for "
                             "serial ones)")
     if isinstance(error, can.CanInterfaceNotImplementedError) and "Unknown interface type" in text:
-        from akarm.protocol.motors import did_you_mean
+        from akarm.errors import did_you_mean
 
         return BusError(f"{what}: {bus.interface!r} is not a python-can interface"
                         f"{did_you_mean(bus.interface, sorted(can.VALID_INTERFACES))}",

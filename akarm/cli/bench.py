@@ -76,16 +76,16 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     from akarm.arm import Arm
     from akarm.cli.common import controlled
     from akarm.config import parse_channel
-    from akarm.errors import AkarmError
+    from akarm.errors import ArgumentError
     from akarm.robotfile.load import load_robot
     from akarm.sim import SimulatedRobot
     from akarm.sim.process import SimulatorProcess
     from akarm.timing import get_profile
 
     if not args.seconds > 0:
-        raise AkarmError(f"--seconds {args.seconds} must be positive")
+        raise ArgumentError(f"--seconds {args.seconds} must be positive")
     if args.loop_rate is not None and not args.loop_rate > 0:
-        raise AkarmError(f"--loop-rate {args.loop_rate} must be positive", fix="e.g. --loop-rate 500")
+        raise ArgumentError(f"--loop-rate {args.loop_rate} must be positive", fix="e.g. --loop-rate 500")
     config = load_robot(args.robot)
     interface = args.interface or ("virtual" if args.in_process else "akarm_local")
     channel = args.channel or f"akarm-bench-{os.getpid()}-{time.monotonic_ns()}"

@@ -148,10 +148,10 @@ def run(args: argparse.Namespace) -> int:
 
     from akarm.config.busload import LOAD_LIMIT, bus_loads
     from akarm.dynamics.gravity import gravity_peaks
-    from akarm.errors import AkarmError, ConfigError, ConfigProblem, ConfigWarning
+    from akarm.errors import ArgumentError, ConfigError, ConfigProblem, ConfigWarning
 
     if not args.payload >= 0:
-        raise AkarmError(f"--payload {args.payload:g} must not be negative", fix="the extra mass in kg, e.g. 0.5")
+        raise ArgumentError(f"--payload {args.payload:g} must not be negative", fix="the extra mass in kg, e.g. 0.5")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConfigWarning)  # printed below with the others

@@ -45,10 +45,10 @@ def run(args: argparse.Namespace) -> int:
 
     if (served := via_server(args, _served)) is not None:  # an `akarm serve` drives this robot: ask it
         return served
-    from akarm.errors import AkarmError
+    from akarm.errors import ArgumentError
 
     if args.seconds is not None and not args.seconds >= 0:
-        raise AkarmError(f"--seconds {args.seconds} must not be negative")
+        raise ArgumentError(f"--seconds {args.seconds} must not be negative")
     config = load_from_args(args)
     with controlled(config, timing=args.profile) as arm:
         try:

@@ -8,7 +8,7 @@
 
 The arm is enabled where it is and follows a slow multi-sine excitation around that pose (each
 joint at most ``--amplitude`` rad, less near its limits), planned and checked against every limit
-before anything moves, then comes back to rest (:mod:`akarm.identify.procedure`). Clear the arm's reach
+before anything moves, then comes back to rest (:func:`akarm.identify.identify`). Clear the arm's reach
 first: every joint moves. Ctrl-C stops smoothly and disables (exit 130).
 """
 
@@ -45,14 +45,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Enable, identify, report (or save), disable."""
-    from akarm.errors import AkarmError
-    from akarm.identify.procedure import Identification, yaml_payload
-    from akarm.robotfile.save import save_identification
+    from akarm.errors import ArgumentError
+    from akarm.identify import Identification, estimate_payload, identify
+    from akarm.identify.fit import yaml_payload
 
     if args.speed is not None and not 0 < args.speed <= 1:
-        raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
+        raise ArgumentError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if args.payload_only and args.no_payload:
-        raise AkarmError("--payload-only and --no-payload contradict each other")
+        raise ArgumentError("--payload-only and --no-payload contradict each other")
     config = load_from_args(args)
     with controlled(config) as arm:
         if not args.no_payload:  # an unknown payload is an external torque: the reflex would stop the arm
@@ -62,14 +62,14 @@ def run(args: argparse.Namespace) -> int:
             arm.enable()
             if args.payload_only:
                 print("estimating the payload at rest from a few poses ...", flush=True)
-                payload = arm.estimate_payload()
+                payload = estimate_payload(arm)
                 result = Identification((), payload, 0, 0.0)
                 print(yaml_payload(payload) + f"   # RMS residual {max(payload.rms):.3f} N·m")
             else:
                 print(f"identifying {config.name}: a {args.seconds:g} s excitation around where it is; every joint "
                       "moves", flush=True)
-                result = arm.identify(args.seconds, args.speed, amplitude=args.amplitude,
-                                      payload=not args.no_payload, offsets=not args.no_offsets)
+                result = identify(arm, args.seconds, args.speed, amplitude=args.amplitude,
+                                  payload=not args.no_payload, offsets=not args.no_offsets)
                 print(f"excited at speed {result.speed:g} for {result.duration:.1f} s ({result.samples} samples)")
                 print()
                 print(result.table())
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         with deferred_signals():
             arm.disable()
     if args.save:
-        path, backup = save_identification(args.robot, result)
+        path, backup = result.save(args.robot)
         print(f"saved into {path} (the previous file is {backup})")
     elif not args.payload_only:
         print()

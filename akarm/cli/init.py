@@ -38,20 +38,20 @@ def run(args: argparse.Namespace) -> int:
     import warnings
 
     from akarm.cli.check import print_problems
-    from akarm.errors import AkarmError, ConfigError, ConfigWarning
+    from akarm.errors import AkarmError, ArgumentError, ConfigError, ConfigWarning
+    from akarm.files import atomic_write, check_writable
     from akarm.robotfile.load import load_robot
     from akarm.robotfile.starter import suggest
-    from akarm.telemetry.log import atomic_write, check_writable
 
     urdf = Path(args.urdf)
     out = Path(args.output) if args.output else urdf.with_suffix(".yaml")
     if out.suffix.lower() not in (".yaml", ".yml"):
-        raise AkarmError(f"{out}: a robot file's name ends in .yaml", fix="e.g. -o my_arm.yaml")
+        raise ArgumentError(f"{out}: a robot file's name ends in .yaml", fix="e.g. -o my_arm.yaml")
     if out.exists() and not args.force:
         raise AkarmError(f"{out} exists; not overwritten", fix="choose another name with -o, or add --force")
     if not args.payload >= 0 or not args.margin >= 1:
-        raise AkarmError(f"--payload {args.payload:g} and --margin {args.margin:g} must be >= 0 and >= 1",
-                         fix="e.g. --payload 0.5 --margin 1.5")
+        raise ArgumentError(f"--payload {args.payload:g} and --margin {args.margin:g} must be >= 0 and >= 1",
+                            fix="e.g. --payload 0.5 --margin 1.5")
     check_writable(out)
     try:
         s = suggest(urdf, out, payload=args.payload, margin=args.margin)

@@ -88,12 +88,11 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
     """The words of a target → a pose name, a full vector (rad, config order) or {joint: rad}.
 
     Raises:
-        ConfigError: no such pose or joint (with a did-you-mean).
-        LimitError: numbers of the wrong count, or words that are none of these.
+        ArgumentError: no such pose or joint (with a did-you-mean), numbers of the wrong count, or words
+            that are none of these.
     """
     from akarm.config import RobotConfig
-    from akarm.errors import LimitError
-    from akarm.protocol.motors import did_you_mean
+    from akarm.errors import ArgumentError, did_you_mean
 
     assert isinstance(config, RobotConfig)
     names = config.joint_names
@@ -102,9 +101,9 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
     values = [_number(p) for p in parts]
     if parts and all(v is not None for v in values):
         if len(values) != len(names):
-            raise LimitError(f"{len(values)} value(s) given, the arm has {len(names)} joints",
-                             fix="one position in rad per joint, in order: " + ", ".join(names) +
-                             "; or JOINT=VALUE for some of them")
+            raise ArgumentError(f"{len(values)} value(s) given, the arm has {len(names)} joints",
+                                fix="one position in rad per joint, in order: " + ", ".join(names) +
+                                "; or JOINT=VALUE for some of them")
         return [float(v) for v in values if v is not None]
     pose: str | None = None
     named: dict[str, float] = {}
@@ -112,17 +111,20 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
         if "=" not in word:
             if k == 0:
                 pose = word.strip()
-                config.pose(pose)  # ConfigError with did-you-mean when there is no such pose
+                if pose not in config.poses:
+                    known = ", ".join(config.poses) or "none defined"
+                    raise ArgumentError(f"no pose named {pose!r}{did_you_mean(pose, list(config.poses))}",
+                                        fix=f"poses are: {known}; add it under `poses:`")
                 continue
-            raise LimitError(f"{word!r}: after the first word, give JOINT=VALUE", fix="e.g. elbow=0.5")
+            raise ArgumentError(f"{word!r}: after the first word, give JOINT=VALUE", fix="e.g. elbow=0.5")
         name, _, text = word.partition("=")
         name = name.strip()
         if name not in names:
-            raise LimitError(f"no joint named {name!r}{did_you_mean(name, names)}",
-                             fix="joints are: " + ", ".join(names))
+            raise ArgumentError(f"no joint named {name!r}{did_you_mean(name, names)}",
+                                fix="joints are: " + ", ".join(names))
         x = _number(text)
         if x is None:
-            raise LimitError(f"{word!r}: {text!r} is not a number", joint=name, fix="give rad, e.g. elbow=0.5")
+            raise ArgumentError(f"{word!r}: {text!r} is not a number", joint=name, fix="give rad, e.g. elbow=0.5")
         named[name] = x
     if pose is None:
         return named
@@ -136,14 +138,14 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
-    from akarm.errors import AkarmError
+    from akarm.errors import AkarmError, ArgumentError
 
     if not args.target and args.xyz is None:
-        raise AkarmError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
+        raise ArgumentError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
     if args.target and args.xyz is not None:
-        raise AkarmError("give either a TARGET or --xyz, not both")
+        raise ArgumentError("give either a TARGET or --xyz, not both")
     if args.xyz is None and (args.rpy is not None or args.linear):
-        raise AkarmError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
+        raise ArgumentError("--rpy and --linear go with --xyz", fix="add --xyz X Y Z (m)")
     if args.xyz is not None:
         return _move_tool(args)
     from akarm.cli.served import via_server
@@ -224,12 +226,12 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
 def check_options(args: argparse.Namespace) -> None:
     """The options every move checks before anything is enabled (here or through akarm serve)."""
     from akarm.cli.options import TELEMETRY_SUFFIXES, check_output
-    from akarm.errors import AkarmError
+    from akarm.errors import ArgumentError
 
     if not 0 < args.speed <= 1:
-        raise AkarmError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
+        raise ArgumentError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if not args.hold >= 0:
-        raise AkarmError(f"--hold {args.hold} must not be negative")
+        raise ArgumentError(f"--hold {args.hold} must not be negative")
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
 
 

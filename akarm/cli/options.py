@@ -60,13 +60,13 @@ TELEMETRY_SUFFIXES = (".csv", ".npz")
 
 def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], what: str) -> Path | None:
     """An output file named on the command line, checked before anything moves: a known suffix, and a
-    place it can be written (:func:`akarm.telemetry.log.check_writable`). ``None`` passes through.
+    place it can be written (:func:`akarm.files.check_writable`). ``None`` passes through.
 
     Raises:
         RecordingError: naming the file, what is wrong and the fix.
     """
     from akarm.errors import RecordingError
-    from akarm.telemetry.log import check_writable
+    from akarm.files import check_writable
 
     if path is None:
         return None

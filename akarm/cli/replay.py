@@ -39,10 +39,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def check_options(args: argparse.Namespace) -> None:
     """The options a replay checks before anything moves (here or through akarm serve)."""
     from akarm.cli.options import TELEMETRY_SUFFIXES, check_output
-    from akarm.errors import AkarmError
+    from akarm.errors import ArgumentError
 
     if not args.speed > 0:
-        raise AkarmError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+        raise ArgumentError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
 
 

@@ -63,10 +63,10 @@ def _bus_from_args(args: argparse.Namespace) -> BusConfig:
     """Without a robot file: the bus of ``-i/-c/-b/--bus-kwargs``, completed from python-can's own
     configuration (CAN_INTERFACE, CAN_CHANNEL, can.conf, ...), as python-can's tools do."""
     from akarm.config.canconfig import python_can_settings, resolve_bus
-    from akarm.errors import AkarmError
+    from akarm.errors import AkarmError, ArgumentError
 
     if args.channel and "=" in args.channel:
-        raise AkarmError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
+        raise ArgumentError("-c NAME=CHANNEL needs a robot file", fix="give one channel, e.g. -c can0")
     try:
         settings = python_can_settings()
     except ValueError as e:
@@ -75,8 +75,8 @@ def _bus_from_args(args: argparse.Namespace) -> BusConfig:
              if v is not None}
     given.update(args.bus_kwargs)
     if not given.get("interface", settings.get("interface")) or not given.get("channel", settings.get("channel")):
-        raise AkarmError("without a robot file, give the bus: -i INTERFACE -c CHANNEL (or configure python-can: "
-                         "CAN_INTERFACE and CAN_CHANNEL, or ~/can.conf)", fix="e.g. akarm scan -i socketcan -c can0")
+        raise ArgumentError("without a robot file, give the bus: -i INTERFACE -c CHANNEL (or configure python-can: "
+                            "CAN_INTERFACE and CAN_CHANNEL, or ~/can.conf)", fix="e.g. akarm scan -i socketcan -c can0")
     bus, found = resolve_bus("bus", given, settings)
     if bus is None:
         raise AkarmError("; ".join(message for _, message, _ in found), fix=found[0][2])
@@ -87,10 +87,10 @@ def run(args: argparse.Namespace) -> int:
     """Scan the bus(es); print a table of what answered."""
     from akarm.cli.common import format_table
     from akarm.control.probe import scan
-    from akarm.errors import AkarmError
+    from akarm.errors import AkarmError, ArgumentError
 
     if args.listen < 0 or args.timeout < 0:
-        raise AkarmError("--listen and --timeout must not be negative")
+        raise ArgumentError("--listen and --timeout must not be negative")
     if args.robot is None:
         buses = [_bus_from_args(args)]
         joints = []

@@ -177,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     """Enable, teach, write the file, disable."""
     from akarm.cli.common import controlled, deferred_signals
     from akarm.errors import AkarmError
-    from akarm.telemetry.log import check_writable
+    from akarm.files import check_writable
     from akarm.timing import get_profile
 
     out = Path(args.out)

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from akarm.config import BusConfig
-from akarm.protocol.motors import did_you_mean
+from akarm.errors import did_you_mean
 
 __all__ = ["RESERVED_BUS_KEYS", "python_can_settings", "resolve_bus"]
 

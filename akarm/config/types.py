@@ -12,8 +12,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
-from akarm.errors import ConfigError, ConfigProblem
-from akarm.protocol.motors import Catalogue, MotorModel, did_you_mean
+from akarm.errors import ConfigError, ConfigProblem, did_you_mean
+from akarm.protocol.motors import Catalogue, MotorModel
 
 __all__ = [
     "BusConfig",

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import NamedTuple
 from xml.parsers import expat
 
-from akarm.protocol.motors import did_you_mean
+from akarm.errors import did_you_mean
 
 __all__ = ["JOINT_TYPES", "Mimic", "Urdf", "UrdfJoint", "UrdfLink", "UrdfProblem", "pinocchio_complaint", "read_urdf"]
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from akarm.config import JointConfig
 from akarm.dynamics.model import ArrayLike, RobotModel
-from akarm.errors import CollisionError, StateError
+from akarm.errors import ArgumentError, CollisionError
 from akarm.protocol import mit
 from akarm.protocol.units import erpm_to_rad_s
 
@@ -83,7 +83,7 @@ class MomentumObserver:
                  offset: Sequence[float], gain: float = DEFAULT_GAIN, deadband: Sequence[float] | None = None,
                  saturation: Sequence[float] | None = None) -> None:
         if not (gain > 0 and math.isfinite(gain)):
-            raise StateError(f"the collision observer's gain must be a positive number (1/s), got {gain!r}")
+            raise ArgumentError(f"the collision observer's gain must be a positive number (1/s), got {gain!r}")
         self.model = model
         self.gain = float(gain)
         self.coulomb = np.asarray(coulomb, dtype=float)
@@ -99,6 +99,12 @@ class MomentumObserver:
         self._integral = np.zeros_like(self.estimate)
         self._last = (self.estimate, self.estimate, self.estimate)
         self.started = False
+
+    def set_friction(self, coulomb: ArrayLike, viscous: ArrayLike, offset: ArrayLike) -> None:
+        """New friction per joint (N·m, N·m·s/rad, N·m), e.g. identified ones (restart the estimate after)."""
+        self.coulomb = np.array(coulomb, dtype=float)
+        self.viscous = np.array(viscous, dtype=float)
+        self.offset = np.array(offset, dtype=float)
 
     def velocity(self, dq: np.ndarray, v_des: np.ndarray | None, dt: float = 0.0) -> np.ndarray:
         """The velocity the observer works with: the measured one, or, when the arm tracks a command,
@@ -213,17 +219,17 @@ class CollisionReflex:
         """N·m per joint (``None``: not checked); each positive and finite."""
         th = list(thresholds)
         if len(th) != len(self.names):
-            raise StateError(f"{len(th)} collision thresholds for {len(self.names)} joints",
+            raise ArgumentError(f"{len(th)} collision thresholds for {len(self.names)} joints",
                              fix="one per joint, config order (None where a joint is not checked)")
         for name, x in zip(self.names, th, strict=True):
             if x is not None and not (isinstance(x, int | float) and x > 0 and math.isfinite(x)):
-                raise StateError(f"collision threshold {x!r} must be a positive number of N·m, or None",
+                raise ArgumentError(f"collision threshold {x!r} must be a positive number of N·m, or None",
                                  joint=name, fix="e.g. the threshold `akarm identify` suggests")
         self.thresholds = np.array([math.inf if x is None else float(x) for x in th])
 
     def set_reaction(self, reaction: str) -> None:
         if reaction not in ("disable", "hold"):
-            raise StateError(f"collision reaction must be 'disable' or 'hold', got {reaction!r}")
+            raise ArgumentError(f"collision reaction must be 'disable' or 'hold', got {reaction!r}")
         self.reaction: Reaction = reaction  # type: ignore[assignment]
 
     @property

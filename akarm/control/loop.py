@@ -270,8 +270,14 @@ class ControlLoop:
 
     # -- the real-time thread -----------------------------------------------------------------
     def start(self) -> None:
-        """Start the loop thread (real clocks only; a stepped loop runs through :meth:`step`)."""
-        if self.stepped or self._thread is not None:
+        """Start the loop afresh (its statistics and any crash forgotten), in a thread of its own with
+        a real clock (a stepped loop runs through :meth:`step`). Nothing if it runs already."""
+        if self._thread is not None:
+            return
+        self.stats.reset()
+        self.crashed = None
+        self.realtime_report = "not requested"
+        if self.stepped:
             return
         self._running.set()
         self._thread = threading.Thread(target=self._run, name="akarm-loop", daemon=True)

@@ -49,6 +49,12 @@ class Mode(enum.Enum):
         """True in the modes where a motor may be applying torque (everything but CLOSED and DISABLED)."""
         return self not in (Mode.CLOSED, Mode.DISABLED)
 
+    @property
+    def enabled(self) -> bool:
+        """True in the modes where the motors are powered and under control: ACTIVE (holding or
+        moving) and TEACH (hand-guided, weight carried)."""
+        return self in (Mode.ACTIVE, Mode.TEACH)
+
 
 _ALLOWED: dict[Mode, frozenset[Mode]] = {
     Mode.CLOSED: frozenset({Mode.DISABLED}),

@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from akarm.dynamics.model import ArrayLike, RobotModel
-from akarm.errors import LimitError, SingularityError, UnreachableError
+from akarm.errors import ArgumentError, LimitError, SingularityError, UnreachableError
 
 __all__ = ["ROTATION_WEIGHT", "IKSolver", "as_pose", "make_pose", "pose_error", "quaternion"]
 
@@ -49,7 +49,7 @@ def make_pose(xyz: Sequence[float], rpy: Sequence[float] | None = None,
     T = np.eye(4)
     T[:3, 3] = p
     if rpy is not None and quaternion is not None:
-        raise LimitError("give the orientation as rpy or as a quaternion, not both")
+        raise ArgumentError("give the orientation as rpy or as a quaternion, not both")
     if rpy is not None:
         r = _vector(rpy, 3, "roll-pitch-yaw (rad)")
         T[:3, :3] = pin.rpy.rpyToMatrix(*r)
@@ -67,9 +67,9 @@ def _vector(x: Any, n: int, what: str) -> np.ndarray:
     try:
         v = np.asarray(x, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise LimitError(f"a {what} must be {n} numbers, not {x!r}") from None
+        raise ArgumentError(f"a {what} must be {n} numbers, not {x!r}") from None
     if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise LimitError(f"a {what} must be {n} finite numbers, not {x!r}")
+        raise ArgumentError(f"a {what} must be {n} finite numbers, not {x!r}")
     return v
 
 
@@ -77,8 +77,8 @@ def _rotation_from_quaternion(q: Any) -> np.ndarray:
     v = _vector(q, 4, "quaternion (x, y, z, w)")
     norm = float(np.linalg.norm(v))
     if not 0.9 < norm < 1.1:
-        raise LimitError(f"quaternion {list(v)} is not of unit length ({norm:.3f})",
-                         fix="give (x, y, z, w) with x² + y² + z² + w² = 1")
+        raise ArgumentError(f"quaternion {list(v)} is not of unit length ({norm:.3f})",
+                            fix="give (x, y, z, w) with x² + y² + z² + w² = 1")
     x, y, z, w = v / norm
     return np.array(pin.Quaternion(w, x, y, z).toRotationMatrix())
 
@@ -89,7 +89,7 @@ def as_pose(pose: Any, current: np.ndarray) -> tuple[np.ndarray, bool]:
     and whether an orientation was given.
 
     Raises:
-        LimitError: something that is none of these, or not finite.
+        ArgumentError: something that is none of these, or not finite.
     """
     if hasattr(pose, "homogeneous"):
         pose = np.asarray(pose.homogeneous)
@@ -107,12 +107,13 @@ def as_pose(pose: Any, current: np.ndarray) -> tuple[np.ndarray, bool]:
         R = a[:3, :3]
         if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or abs(np.linalg.det(R) - 1) > 1e-6 or \
                 not np.allclose(a[3], (0, 0, 0, 1)):
-            raise LimitError("the 4×4 pose's rotation is not a rotation matrix (orthonormal, determinant 1), "
-                             "or its last row is not (0, 0, 0, 1)",
-                             fix="build it with akarm.dynamics.ik.make_pose(xyz, rpy)")
+            raise ArgumentError("the 4×4 pose's rotation is not a rotation matrix (orthonormal, determinant 1), "
+                                "or its last row is not (0, 0, 0, 1)",
+                                fix="build it with akarm.dynamics.ik.make_pose(xyz, rpy)")
         return a.copy(), True
-    raise LimitError(f"a pose must be a 4×4 transform, (xyz, quaternion xyzw) or a position (x, y, z), not {pose!r}",
-                     fix="e.g. arm.move_to_pose([0.4, 0.0, 0.3]) or akarm.dynamics.ik.make_pose(xyz, rpy=...)")
+    raise ArgumentError(f"a pose must be a 4×4 transform, (xyz, quaternion xyzw) or a position (x, y, z), "
+                        f"not {pose!r}",
+                        fix="e.g. arm.move_to_pose([0.4, 0.0, 0.3]) or akarm.dynamics.ik.make_pose(xyz, rpy=...)")
 
 
 def pose_error(T: np.ndarray, target: np.ndarray) -> tuple[float, float]:

@@ -1,39 +1,24 @@
-"""Identification: each joint's friction and torque offset, the payload, and collision thresholds.
+"""Identification on an arm: drives an :class:`~akarm.Arm` through its public API only, and fits
+with :mod:`akarm.identify.fit`.
 
-**Excitation** (:func:`excitation`): every joint follows, around a centre pose, two sines of its
-own frequencies (``0.6·sin(ωt) + 0.4·sin(2.63·ωt + φ)``) under a smooth envelope that starts and
-ends at rest. The amplitude is clipped to stay within each joint's range, the frequency chosen so
-the sines use at most 80 % of the joint's velocity, acceleration and jerk limits at ``speed = 1``;
-the envelope's ramps add their own derivatives to that, so where they would take a joint over
-80 % (large amplitudes: the ramp's velocity alone is about amplitude × 1.1 /s), its amplitude is
-reduced until the whole motion, ramps included, stays within 80 %.
-It is an ordinary recorded path (:class:`~akarm.motion.recording.PathRecording`): replayed, after a soft
-start, and checked against every limit before anything moves, like any replay.
+:func:`identify`: the arm follows the excitation (:func:`akarm.identify.fit.excitation`) around where
+it holds, its gains alternating between full and :data:`GAIN_LOW` of them every :data:`GAIN_BLOCK` s
+(how the fit tells friction from the bias of the torque samples), with a rough payload estimate at rest
+carried first; the telemetry is fitted, the thresholds suggested, and (``apply``) the arm told
+(:func:`apply_identification`: payload and friction).
 
-**Fit** (:func:`fit`): from the measured positions and torques (the telemetry of the excitation),
-smoothed and differentiated by a Savitzky-Golay filter, per sample and joint::
+:func:`estimate_payload`: the arm visits a few poses (:func:`akarm.identify.fit.payload_poses`),
+holds still in each, and the torques held are fitted for mass and centre of mass.
 
-    τ_measured - ID(q, q̇, q̈) = Y_payload(q, q̇, q̈)·π + c·tanh(q̇/0.02) + b·q̇ + offset
+The collision reflex only watches while either runs (an unknown payload is an external torque); its
+thresholds are restored at the end::
 
-``ID`` is the arm's inverse dynamics without a payload (links and motor rotors as the URDF and
-catalogue give them), ``Y_payload`` Pinocchio's joint torque regressor (``computeJointTorqueRegressor``)
-for the ten inertial parameters ``π`` of the body that carries the tool frame, to which a payload
-adds; friction ``c`` (Coulomb), ``b`` (viscous) and an optional ``offset`` per joint. One weighted
-least-squares solve (each joint's rows weighted by the inverse of its residual in a first solve)
-gives them all; the payload's mass is ``π[0]`` and its centre of mass ``π[1:4] / π[0]``, moved into
-the tool frame. The RMS residual per joint says how well the model fits.
-
-**Thresholds**: the collision observer (:mod:`akarm.control.collision`) is run over the same data with the
-identified values; its largest output per joint while nothing touched the arm, times
-:data:`THRESHOLD_MARGIN` (the arm's other motions are faster than the excitation, and the
-estimate's error grows with acceleration), and at least :data:`MIN_SHARE` of the joint's torque
-limit and :data:`STEP_MARGIN` times the estimate's jump for one step of the velocity feedback
-(``K·M·step``, with the joint's largest inertia ``M`` over its range: where the arm does not track
-its command closely, as with a gravity-only feed-forward, the estimate sees those steps), is the
-suggested ``collision: {threshold: ...}``.
-
-:func:`estimate_payload_at_rest` fits mass and centre of mass alone from the torques held at rest in
-several poses (gravity only: four parameters).
+    import akarm.identify
+    with arm:
+        arm.enable()
+        result = akarm.identify.identify(arm, duration=30.0)
+        print(result.table())
+        result.save("robots/arm6.yaml")   # or print(result.fragment())
 """
 
 from __future__ import annotations
@@ -41,438 +26,73 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from akarm.control.collision import MomentumObserver, velocity_resolution
-from akarm.dynamics.gravity import sample_box
-from akarm.dynamics.model import ArrayLike, RobotModel
-from akarm.errors import LimitError, StateError
+from akarm.control.collision import velocity_resolution
+from akarm.control.modes import Mode
+from akarm.dynamics.model import RobotModel
+from akarm.errors import ArgumentError, LimitError, StateError
+from akarm.identify.fit import (
+    TORQUE_SHARE,
+    Identification,
+    PayloadFit,
+    estimate_payload_at_rest,
+    excitation,
+    fit,
+    payload_poses,
+    suggest_thresholds,
+    torque_speed,
+)
 from akarm.motion.recording import PathRecording
-from akarm.motion.trajectory import JointLimits
 from akarm.telemetry.log import TelemetryLog
 
 if TYPE_CHECKING:
-    from akarm.arm import Arm, Motion
+    from akarm.arm import Arm, Motion, Target
 
-__all__ = [
-    "MIN_SHARE",
-    "STEP_MARGIN",
-    "THRESHOLD_MARGIN",
-    "Identification",
-    "JointFit",
-    "PayloadFit",
-    "apply_identification",
-    "estimate_payload",
-    "estimate_payload_at_rest",
-    "excitation",
-    "fit",
-    "identify",
-    "largest_inertia",
-    "payload_poses",
-    "suggest_thresholds",
-    "torque_speed",
-]
+__all__ = ["GAIN_BLOCK", "GAIN_LOW", "apply_identification", "estimate_payload", "identify"]
 
-#: The threshold suggested is this many times the largest estimate seen without contact ...
-THRESHOLD_MARGIN = 3.0
-#: ... and at least this share of the joint's torque limit ...
-MIN_SHARE = 0.06
-#: ... and this many times the estimate's jump for one step of the velocity feedback.
-STEP_MARGIN = 1.5
-_SMOOTHING = 0.02  # rad/s: tanh smoothing of the Coulomb term (the feed-forward's and the observer's)
-_HARMONIC = 2.63
-_WEIGHTS = (0.6, 0.4)
-_RAMP = 2.0  # s of envelope at each end
-#: s: identify() changes the gains this often, between full and GAIN_LOW of them (see fit())
+#: s: identify() changes the gains this often, between full and GAIN_LOW of them (see akarm.identify.fit.fit)
 GAIN_BLOCK = 3.0
 GAIN_LOW = 0.5
-#: the excitation's torque (the model's) stays within this share of each joint's torque limit,
-#: leaving the rest for a payload not yet known and for the feedback
-TORQUE_SHARE = 0.5
 
 
-@dataclass(frozen=True)
-class JointFit:
-    """One joint's identified friction (N·m, N·m·s/rad), offset (N·m), the fit's RMS residual (N·m),
-    the suggested collision threshold (N·m, ``None`` if not computed), the excitation amplitude (rad)."""
-
-    name: str
-    coulomb: float
-    viscous: float
-    offset: float
-    rms: float
-    threshold: float | None = None
-    amplitude: float = math.nan
-
-
-@dataclass(frozen=True)
-class PayloadFit:
-    """A payload: mass (kg), centre of mass in the tool frame (m), RMS torque residual per joint (N·m),
-    and which centre-of-mass components the data determined (the others are 0)."""
-
-    mass: float
-    com: tuple[float, float, float]
-    rms: tuple[float, ...] = ()
-    determined: tuple[bool, bool, bool] = (True, True, True)
-
-
-@dataclass(frozen=True)
-class Identification:
-    """What :meth:`akarm.Arm.identify` found (see the module's docstring)."""
-
-    joints: tuple[JointFit, ...]
-    payload: PayloadFit | None
-    samples: int
-    duration: float
-    offsets: bool = True
-    notes: tuple[str, ...] = field(default=())
-    speed: float = 1.0
-
-    def table(self) -> str:
-        """A table per joint: friction, offset, RMS residual, suggested threshold."""
-        rows = [f"{'joint':<16}{'coulomb Nm':>11}{'viscous Nms':>12}{'offset Nm':>10}{'RMS Nm':>8}"
-                f"{'threshold Nm':>13}"]
-        for j in self.joints:
-            th = f"{j.threshold:13.2f}" if j.threshold is not None else f"{'-':>13}"
-            rows.append(f"{j.name:<16}{j.coulomb:11.3f}{j.viscous:12.4f}{j.offset:10.3f}{j.rms:8.3f}{th}")
-        if self.payload is not None:
-            p = self.payload
-            rows.append(f"payload: {p.mass:.3f} kg, centre of mass ({p.com[0]:+.4f}, {p.com[1]:+.4f}, "
-                        f"{p.com[2]:+.4f}) m in the tool frame")
-        return "\n".join(rows)
-
-    def fragment(self) -> str:
-        """The results as robot YAML: ``payload:`` and, per joint, ``friction:`` and ``collision:``."""
-        lines = ["# identified by akarm identify: merge into the robot file (or run it with --save)"]
-        if self.payload is not None:
-            lines.append(yaml_payload(self.payload))
-        lines.append("joints:")
-        for j in self.joints:
-            lines.append(f"  - name: {j.name}")
-            lines.append(f"    friction: {yaml_friction(j, self.offsets)}")
-            if j.threshold is not None:
-                lines.append(f"    collision: {yaml_collision(j)}")
-        return "\n".join(lines) + "\n"
-
-
-def yaml_payload(p: PayloadFit) -> str:
-    return f"payload: {{mass: {p.mass:.4f}, com: [{p.com[0]:.4f}, {p.com[1]:.4f}, {p.com[2]:.4f}]}}"
-
-
-def yaml_friction(j: JointFit, offsets: bool = True) -> str:
-    text = f"{{coulomb: {j.coulomb:.4f}, viscous: {j.viscous:.5f}"
-    return text + (f", offset: {j.offset:.4f}}}" if offsets else "}")
-
-
-def yaml_collision(j: JointFit) -> str:
-    return f"{{threshold: {j.threshold:.2f}}}"
-
-
-# ----------------------------------------------------------------------------------------------
-# excitation
-# ----------------------------------------------------------------------------------------------
-_SMOOTHSTEP = np.array([0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0])  # x⁴(35 - 84x + 70x² - 20x³)
-
-
-def _envelope(t: np.ndarray, duration: float, derivative: int = 0) -> np.ndarray:
-    """0 → 1 → 0 with zero velocity, acceleration and jerk at both ends (7th-order smoothstep ramps);
-    or its ``derivative``-th time derivative."""
-    ramp = min(_RAMP, duration / 4)
-    rising = t < duration - t
-    x = np.clip(np.minimum(t, duration - t) / ramp, 0.0, 1.0)
-    poly = np.polynomial.polynomial
-    value = poly.polyval(x, poly.polyder(_SMOOTHSTEP, derivative) if derivative else _SMOOTHSTEP)
-    if derivative:  # dx/dt: 1/ramp rising, -1/ramp falling, 0 at full envelope
-        slope = np.where(x >= 1.0, 0.0, np.where(rising, 1.0, -1.0) / ramp)
-        value = value * slope**derivative
-    return value
-
-
-def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5, duration: float = 30.0,
-               rate_hz: float = 500.0) -> PathRecording:
-    """The excitation path around ``center`` (rad): see the module's docstring.
-
-    Raises:
-        LimitError: the centre is outside a joint's range, or the parameters make no sense.
-    """
-    c = np.asarray(center, dtype=float)
-    limits.check_position(c, what="the excitation's centre")
-    if not 0 < amplitude <= math.pi:
-        raise LimitError(f"amplitude {amplitude} must be in (0, π] rad", fix="e.g. 0.5")
-    if not 8.0 <= duration <= 600.0:
-        raise LimitError(f"duration {duration} s must be 8-600 s", fix="e.g. 30")
-    margin = 0.05
-    room = np.minimum(c - limits.lower, limits.upper - c) - margin
-    amp = np.clip(np.minimum(amplitude, room), 0.0, None)
-    sum_v = _WEIGHTS[0] + _WEIGHTS[1] * _HARMONIC
-    sum_a = _WEIGHTS[0] + _WEIGHTS[1] * _HARMONIC**2
-    sum_j = _WEIGHTS[0] + _WEIGHTS[1] * _HARMONIC**3
-    safe = np.maximum(amp, 1e-9)
-    omega = np.minimum.reduce([0.8 * limits.velocity / (safe * sum_v),
-                               np.sqrt(0.8 * limits.acceleration / (safe * sum_a)),
-                               np.cbrt(0.8 * limits.jerk / (safe * sum_j)), np.full(len(c), 2 * math.pi * 0.5)])
-    omega *= 1.0 - 0.061 * np.arange(len(c))  # a frequency of its own per joint: the columns stay apart
-    t = np.arange(0.0, duration + 1e-9, 1.0 / rate_hz)
-    phase = np.linspace(0.3, 2.5, len(c))
-    w = omega[None, :] * t[:, None]
-
-    def wave(k: int) -> np.ndarray:  # the k-th time derivative of the two sines
-        turn = k * math.pi / 2
-        return (_WEIGHTS[0] * omega**k * np.sin(w + turn)
-                + _WEIGHTS[1] * (_HARMONIC * omega)**k * np.sin(_HARMONIC * w + phase[None, :] + turn))
-
-    env = [_envelope(t, duration, k)[:, None] for k in range(4)]
-    # the sines at full envelope use at most 80 %; during the ramps the envelope's derivatives add
-    # to that (amplitude × E'·sines ...): where they take a joint over 80 %, its amplitude is reduced
-    used = np.zeros(len(c))
-    for k, lim in ((1, limits.velocity), (2, limits.acceleration), (3, limits.jerk)):
-        dk = sum(math.comb(k, i) * env[i] * wave(k - i) for i in range(k + 1))
-        used = np.maximum(used, amp * np.max(np.abs(dk), axis=0) / lim)
-    amp = np.where(used > 0.8, amp * 0.8 / np.maximum(used, 1e-300), amp)
-    q = c[None, :] + env[0] * amp[None, :] * wave(0)
-    return PathRecording(limits.names, t, q)
-
-
-def torque_speed(model: RobotModel, path: PathRecording, torque_limit: Sequence[float],
-                 share: float = TORQUE_SHARE) -> tuple[float, int, float]:
-    """The fastest time scaling (≤ 1) of ``path`` whose inverse-dynamics torque stays within ``share``
-    of each joint's torque limit: velocities scale by ``s`` and accelerations by ``s²``, so the
-    torque is ``g(q) + s²·(the rest)``. Returns (s, the joint that sets it, its peak torque at s = 1, N·m).
-
-    Raises:
-        LimitError: gravity alone needs more than ``share`` of a joint's limit somewhere on the path.
-    """
-    lim = share * np.asarray(torque_limit, dtype=float)
-    step = max(1, len(path.t) // 2000)
-    dq = np.gradient(path.q, path.t, axis=0)
-    ddq = np.gradient(dq, path.t, axis=0)
-    best, joint, peak = 1.0, -1, 0.0
-    for k in range(0, len(path.t), step):
-        g = model.gravity(path.q[k])
-        rest = model.inverse_dynamics(path.q[k], dq[k], ddq[k]) - g
-        for i in range(model.n):
-            if abs(g[i]) >= lim[i]:
-                raise LimitError(f"gravity alone needs {abs(g[i]):.1f} N·m at {path.q[k]}, over {share:.0%} of the "
-                                 f"joint's {lim[i] / share:.0f} N·m", joint=model.joint_names[i],
-                                 fix="excite around a pose where the arm's weight loads the joints less (center=)")
-            if abs(rest[i]) > 1e-12:
-                s2 = (lim[i] - abs(g[i])) / abs(rest[i])
-                if s2 < best * best:
-                    best, joint, peak = math.sqrt(s2), i, abs(g[i]) + abs(rest[i])
-    return best, joint, peak
-
-
-# ----------------------------------------------------------------------------------------------
-# fit
-# ----------------------------------------------------------------------------------------------
-def _savgol(x: np.ndarray, dt: float, window: float, order: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Savitzky-Golay smoothing of the columns of ``x`` sampled every ``dt``: value, first and second
-    derivative at each sample (zero phase; the ends, where the window does not fit, are NaN)."""
-    half = max(order, round(window / dt / 2))
-    if len(x) < 2 * half + 1:
-        raise StateError(f"{len(x)} samples are too few: the {window:g} s smoothing window alone takes {2 * half + 1}",
-                         fix="excite for longer")
-    k = np.arange(-half, half + 1) * dt
-    V = np.vander(k, order + 1, increasing=True)  # columns 1, k, k², k³
-    P = np.linalg.pinv(V)  # rows: coefficients of 1, k, k²: value, slope, curvature/2
-    out = []
-    for row, factor in ((0, 1.0), (1, 1.0), (2, 2.0)):
-        kernel = P[row][::-1] * factor
-        y = np.full_like(x, np.nan)
-        for j in range(x.shape[1]):
-            y[half:-half, j] = np.convolve(x[:, j], kernel, mode="valid")
-        out.append(y)
-    return out[0], out[1], out[2]
-
-
-# C901 13 > 12, left as it was: one least-squares fit, a branch per optional term (offsets, payload, window)
-def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, kd: np.ndarray | None = None,  # noqa: C901
-        payload: bool = True, offsets: bool = True, use: np.ndarray | None = None, window: float = 0.1,
-        decimate: int = 1) -> tuple[list[JointFit], PayloadFit | None, np.ndarray]:
-    """Friction (and offsets, and the payload) from an excitation's telemetry (module's docstring).
-
-    ``kp``, ``kd``: the MIT gains in force for each sample's torque (samples × joints, or one row for
-    all; 0 for servo joints). A reply carries the torque of the command just received; the PD torque
-    then changes, by about ``-(kp·q̇ + kd·q̈)`` per second, until the next command: the samples are
-    biased by ``λp·kp·q̇ + λd·kd·q̈``, with "lags" ``λ`` of about half a period that depend on the
-    driver and the joint. When the gains vary (:func:`identify` alternates full and half gains), the
-    lags are fitted too (two columns per joint); else half a period is taken. ``use``: which samples
-    to fit (e.g. not those just after a change of gains).
-
-    With ``payload``, ``model`` must carry none (else its payload is taken as known). Returns the
-    per-joint fits (threshold unset), the payload (``None`` unless ``payload``), and the lags (joints × 2, s).
-
-    Raises:
-        StateError: too little data.
-    """
-    if payload and model.payload is not None:
-        raise StateError("identifying the payload needs the model without one", fix="model.clear_payload() first")
-    n = model.n
-    if len(log.t) < 2:
-        raise StateError(f"{len(log.t)} samples are too few to identify {n} joints", fix="excite for longer")
-    period = float(np.median(np.diff(log.t)))
-    dt = period
-    q, dq, ddq = _savgol(log.q, dt, window)
-    kp_t = np.broadcast_to(np.zeros(n) if kp is None else np.asarray(kp, dtype=float), log.q.shape)
-    kd_t = np.broadcast_to(np.zeros(n) if kd is None else np.asarray(kd, dtype=float), log.q.shape)
-    varying = bool(np.any(np.ptp(kp_t, axis=0) > 0))
-    # the torque after each sample acts over the period that follows: the motion's state mid-period
-    tau = log.tau[:-1]
-    q, dq, ddq = (0.5 * (x[:-1] + x[1:]) for x in (q, dq, ddq))
-    kp_t, kd_t = kp_t[:-1], kd_t[:-1]
-    ok = np.all(np.isfinite(q), axis=1) & (np.ones(len(q), bool) if use is None else np.asarray(use)[:-1])
-    idx = np.nonzero(ok)[0][::decimate]
-    if len(idx) < 20 * n:
-        raise StateError(f"{len(idx)} samples are too few to identify {n} joints", fix="excite for longer")
-    lag = np.full((n, 2), period / 2)
-    if not varying:
-        tau = tau - 0.5 * period * (kp_t * dq + kd_t * ddq)
-    n_pay = 10 if payload else 0
-    names = ["coulomb", "viscous"] + (["offset"] if offsets else []) + (["lag_p", "lag_d"] if varying else [])
-    per_joint = len(names)
-    cols = n_pay + per_joint * n
-    Y = np.empty(len(idx) * n)
-    A = np.zeros((len(idx) * n, cols))
-    for r, k in enumerate(idx):
-        rows = slice(r * n, (r + 1) * n)
-        Y[rows] = tau[k] - model.inverse_dynamics(q[k], dq[k], ddq[k])
-        if payload:
-            A[rows, :10] = model.payload_regressor(q[k], dq[k], ddq[k])
-        for i in range(n):
-            base = n_pay + per_joint * i
-            v = dq[k, i]
-            A[r * n + i, base:base + 2] = (math.tanh(v / _SMOOTHING), v)
-            col = base + 2
-            if offsets:
-                A[r * n + i, col] = 1.0
-                col += 1
-            if varying:
-                A[r * n + i, col:col + 2] = (kp_t[k, i] * v, kd_t[k, i] * ddq[k, i])
-    joint_of_row = np.tile(np.arange(n), len(idx))
-    weights = np.ones(len(Y))
-    for _ in range(2):  # weighted by each joint's residual: a noisy joint does not drown the others
-        x, *_ = np.linalg.lstsq(A * weights[:, None], Y * weights, rcond=None)
-        res = Y - A @ x
-        rms = np.array([math.sqrt(float(np.mean(res[joint_of_row == i] ** 2))) for i in range(n)])
-        weights = 1.0 / np.maximum(rms, 1e-4)[joint_of_row]
-    fits = []
-    for i, name in enumerate(model.joint_names):
-        v = dict(zip(names, x[n_pay + per_joint * i:n_pay + per_joint * (i + 1)], strict=True))
-        fits.append(JointFit(name, float(v["coulomb"]), float(v["viscous"]), float(v.get("offset", 0.0)),
-                             float(rms[i])))
-        if varying:
-            lag[i] = (v["lag_p"], v["lag_d"])
-    pay = _payload_from(model, x[:4], rms) if payload else None
-    return fits, pay, lag
-
-
-def _payload_from(model: RobotModel, first: np.ndarray, rms: np.ndarray,
-                  determined: tuple[bool, bool, bool] = (True, True, True)) -> PayloadFit:
-    """(m, m·c) in the carrying body's frame → a payload with its centre of mass in the tool frame."""
-    m = float(first[0])
-    if m <= 1e-3:
-        return PayloadFit(max(m, 0.0), (0.0, 0.0, 0.0), tuple(float(r) for r in rms), determined)
-    c_body = np.asarray(first[1:4]) / m
-    P = model.payload_placement
-    c_tool = P[:3, :3].T @ (c_body - P[:3, 3])
-    c_tool = np.where(determined, c_tool, 0.0)
-    return PayloadFit(m, (float(c_tool[0]), float(c_tool[1]), float(c_tool[2])), tuple(float(r) for r in rms),
-                      determined)
-
-
-def estimate_payload_at_rest(model: RobotModel, poses: Sequence[Sequence[float]],
-                             torques: Sequence[Sequence[float]],
-                             offsets: Sequence[float] | None = None) -> PayloadFit:
-    """Mass and centre of mass from the torques held at rest (N·m) in ``poses`` (rad): gravity only.
-
-    The model carries no payload. A centre-of-mass component the poses cannot tell (gravity never
-    acts across it in the tool frame, as for a planar arm) is reported as 0 and not determined.
-
-    Raises:
-        StateError: fewer than two poses, or the data cannot tell the mass.
-    """
-    if model.payload is not None:
-        raise StateError("the payload estimate needs the model without its payload", fix="model.clear_payload()")
-    if len(poses) < 2:
-        raise StateError("estimating a payload needs at least two poses")
-    n = model.n
-    off = np.zeros(n) if offsets is None else np.asarray(offsets, dtype=float)
-    zero = np.zeros(n)
-    A = np.vstack([model.payload_regressor(q, zero, zero)[:, :4] for q in poses])
-    Y = np.concatenate([np.asarray(tau, dtype=float) - model.gravity(q) - off
-                        for q, tau in zip(poses, torques, strict=True)])
-    # the directions of (m, m·c) the data does not see (the least-squares solution leaves them at 0)
-    _, s, vt = np.linalg.svd(A, full_matrices=False)
-    null = vt[s <= 1e-6 * s[0]] if s[0] > 0 else np.eye(4)
-    if np.any(np.abs(null[:, 0]) > 1e-3):
-        raise StateError("the poses cannot tell the payload's mass", fix="use poses where gravity loads the joints")
-    x, *_ = np.linalg.lstsq(A, Y, rcond=1e-6)
-    determined = _determined(model, null)
-    res = Y - A @ x
-    rms = np.sqrt(np.mean(res.reshape(len(poses), n) ** 2, axis=0))
-    return _payload_from(model, x, rms, determined)
-
-
-def _determined(model: RobotModel, null: np.ndarray) -> tuple[bool, bool, bool]:
-    """Which tool-frame axes of the centre of mass the data determines (none of the null directions
-    moves the centre of mass along them)."""
-    if null.shape[0] == 0:
-        return (True, True, True)
-    R = model.payload_placement[:3, :3]
-    moves = np.abs(null[:, 1:4] @ R)  # each null direction's m·c change, in tool axes
-    return tuple(bool(np.all(moves[:, a] < 1e-6)) for a in range(3))  # type: ignore[return-value]
-
-
-def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[JointFit],
-                       deadband: Sequence[float], gain: float, torque_limit: Sequence[float],
-                       kp: np.ndarray | None = None, kd: np.ndarray | None = None,
-                       use: np.ndarray | None = None) -> list[float]:
-    """Run the collision observer over ``log`` with the identified friction and ``model`` (its
-    payload set; ``kp``, ``kd`` as for :func:`fit`; ``use``: the samples judged): the largest
-    estimate per joint times :data:`THRESHOLD_MARGIN`, at least :data:`MIN_SHARE` of
-    ``torque_limit`` (N·m per joint) and :data:`STEP_MARGIN` times ``K·M·step`` (``deadband`` is the
-    step), rounded up to 0.05 N·m."""
-    obs = MomentumObserver(model, [f.coulomb for f in fits], [f.viscous for f in fits], [f.offset for f in fits],
-                           gain, deadband, [j.motor.t_max for j in model.config.joints])
-    peak = np.zeros(model.n)
-    kp_t = np.broadcast_to(np.zeros(model.n) if kp is None else np.asarray(kp, dtype=float), log.q.shape)
-    kd_t = np.broadcast_to(np.zeros(model.n) if kd is None else np.asarray(kd, dtype=float), log.q.shape)
-    settle = 5.0 / gain  # the observer's start-up
-    for k in range(len(log.t)):
-        q, dq, tau = log.q[k], log.dq[k], log.tau[k]
-        if k == 0:
-            obs.reset(q, dq, tau)
-            continue
-        # each row's feedback answers the command of the row before: its velocity refines the estimate
-        r = obs.update(q, dq, tau, float(log.t[k] - log.t[k - 1]), kp_t[k - 1], kd_t[k - 1], log.dq_des[k - 1])
-        if log.t[k] - log.t[0] > settle and (use is None or use[k]):
-            np.maximum(peak, np.abs(r), out=peak)
-    inertia = largest_inertia(model)
-    return [math.ceil(max(THRESHOLD_MARGIN * p, MIN_SHARE * lim, STEP_MARGIN * gain * m * step) / 0.05 - 1e-9) * 0.05
-            for p, lim, m, step in zip(peak, torque_limit, inertia, deadband, strict=True)]
-
-
-def largest_inertia(model: RobotModel, samples: int = 64) -> np.ndarray:
-    """Each joint's largest inertia (the mass matrix's diagonal, kg·m²) over the joint ranges, sampled."""
-    lim = [j.limits for j in model.config.joints]
-    qs = sample_box([x.lower for x in lim], [x.upper for x in lim], samples, seed=2)
-    return np.max([np.diag(model.mass_matrix(q)) for q in qs], axis=0)
-
-
-# ----------------------------------------------------------------------------------------------
-# on the arm
-# ----------------------------------------------------------------------------------------------
-def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, amplitude: float = 0.5,
-             center: object = None, payload: bool = True, offsets: bool = True, apply: bool = True) -> Identification:
-    """:meth:`akarm.Arm.identify`: excite, fit, suggest thresholds, and (``apply``) tell the arm."""
-    ctl = arm._ctl
-    ctl.require_enabled()
+def _require_holding(arm: Arm, what: str) -> None:
+    """Raise unless the arm is enabled and holding still: its safety stop, or a StateError."""
+    if arm.fault is not None:
+        raise arm.fault
+    if arm.mode is not Mode.ACTIVE:
+        raise StateError(f"the arm is {arm.mode}, not enabled", fix="call arm.enable() first")
     if arm.moving:
-        raise StateError("identification starts from rest and the arm is moving", fix="wait for the motion to end")
-    c = ctl.desired_now()[0] if center is None else arm._target_vector(center)  # type: ignore[arg-type]
+        raise StateError(f"{what} starts from rest and the arm is moving", fix="wait for the motion to end")
+
+
+def identify(arm: Arm, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
+             center: Target | None = None, payload: bool = True, offsets: bool = True,
+             apply: bool = True) -> Identification:
+    """Identify each joint's friction (and torque offset) and the payload (see the module's docstring).
+
+    The arm follows a slow multi-sine excitation around ``center`` (default: where it is),
+    ``amplitude`` rad per joint at most (less near a limit, or where a large one would take the start and
+    end ramps past 80 % of the joint's limits), for ``duration`` s at ``speed``
+    (time scaling, (0, 1]; default: as fast as the joint limits and half the torque limits
+    allow); like any replay, it is checked against every limit before anything moves; its
+    gains alternate between full and half every 3 s (how the fit tells friction from the bias
+    of the torque samples). With ``apply`` the arm uses the results at once (payload, friction). The result
+    suggests collision thresholds; ``.fragment()`` is YAML for the robot file, ``.save(path)``
+    writes it in, with a backup.
+
+    Raises:
+        ArgumentError: a speed outside (0, 1], an amplitude or duration out of range, an unknown target.
+        LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
+        StateError: the arm is not enabled, or moving, or its telemetry is too short for the duration.
+    """
+    if speed is not None and not (isinstance(speed, int | float) and 0 < speed <= 1):
+        raise ArgumentError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
+    _require_holding(arm, "identification")
+    c = arm.state().q_des if center is None else arm.target_positions(center)
     rec = excitation(arm.limits, c, amplitude=amplitude, duration=duration, rate_hz=arm.config.rate_hz)
     model = RobotModel(arm.config, armature=True)
     if not payload and arm.payload is not None:  # the known payload is part of the model
@@ -482,20 +102,18 @@ def identify(arm: Arm, *, duration: float = 30.0, speed: float | None = None, am
     fastest, worst, peak = torque_speed(model, rec, [j.limits.torque for j in arm.config.joints])
     if speed is None:
         speed = math.floor(fastest * 100) / 100
-    elif not 0 < speed <= 1:
-        raise LimitError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
     elif speed > fastest + 1e-9:
         raise LimitError(f"at speed {speed:g} the excitation needs {peak * speed**2:.1f} N·m, over "
                          f"{TORQUE_SHARE:.0%} of the joint's torque limit (the rest is for a payload not yet known)",
                          joint=arm.names[worst], fix=f"use speed {math.floor(fastest * 100) / 100:g} or less, or a "
                                                      "smaller amplitude")
     needed = duration / speed + 5.0
-    if needed * arm.config.rate_hz > ctl.telemetry.capacity:
-        raise StateError(f"the telemetry keeps {ctl.telemetry.capacity / arm.config.rate_hz:.0f} s, the "
-                         f"identification needs {needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
+    if needed > arm.telemetry_seconds:
+        raise StateError(f"the telemetry keeps {arm.telemetry_seconds:.0f} s, the identification needs "
+                         f"{needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
     arm.check_replay(rec, speed)  # before anything moves
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
-    kp0, kd0 = ctl.kp.copy(), ctl.kd.copy()
+    kp0, kd0 = arm.gains
     switches = [(-math.inf, 1.0)]
     before = arm.payload  # the rough estimate below replaces it: restored unless the result is applied
     applied = False
@@ -542,7 +160,7 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
               mit: np.ndarray, kp0: np.ndarray, kd0: np.ndarray, payload: bool, offsets: bool,
               speed: float) -> Identification:
     """The fit, the thresholds and the result from the excitation's telemetry."""
-    ctl = arm._ctl
+    gain = arm.collision_gain
     excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
     log = arm.telemetry(since=excite.t0)
     # each row's torque answered the command of the cycle before: the gains in force then
@@ -553,7 +171,7 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
     for ts, f in switches[1:]:
         factor[log.t - period >= ts - 1e-9] = f
         use &= np.abs(log.t - ts) > 0.03
-        settled &= (log.t < ts) | (log.t > ts + 5.0 / ctl.reflex.observer.gain)  # type: ignore[union-attr]
+        settled &= (log.t < ts) | (log.t > ts + 5.0 / gain)
     kp = np.where(mit, kp0, 0.0)[None, :] * factor[:, None]
     kd = np.where(mit, kd0, 0.0)[None, :] * factor[:, None]
     fits, pay, _ = fit(model, log, kp=kp, kd=kd, payload=payload, offsets=offsets, use=use)
@@ -561,8 +179,8 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
         model.set_payload(pay.mass, pay.com)
     deadband = [velocity_resolution(j) for j in arm.config.joints]
     # the thresholds are for the arm at its own gains: judged on the full-gain stretches only
-    thresholds = suggest_thresholds(model, log, fits, deadband, ctl.reflex.observer.gain,  # type: ignore[union-attr]
-                                    [j.limits.torque for j in arm.config.joints], kp, kd, settled & (factor == 1.0))
+    thresholds = suggest_thresholds(model, log, fits, deadband, gain, [j.limits.torque for j in arm.config.joints],
+                                    kp, kd, settled & (factor == 1.0))
     room = np.ptp(rec.q, axis=0) / 2
     fits = [replace(f, threshold=th, amplitude=float(a)) for f, th, a in zip(fits, thresholds, room, strict=True)]
     notes = tuple(f"{f.name}: moved only ±{f.amplitude:.2f} rad (near its limits): its values are less sure"
@@ -575,41 +193,23 @@ def apply_identification(arm: Arm, result: Identification) -> None:
     """Tell the arm what was identified: the payload (feed-forward and collision observer) and the
     friction (the collision observer; the feed-forward, where friction is compensated, takes the
     Coulomb and viscous terms, not the offset)."""
-    ctl = arm._ctl
-    with ctl.lock:
-        if result.payload is not None:
-            arm.model.set_payload(result.payload.mass, result.payload.com)
-        obs = ctl.reflex.observer  # type: ignore[union-attr]
-        obs.coulomb = np.array([j.coulomb for j in result.joints])
-        obs.viscous = np.array([j.viscous for j in result.joints])
-        obs.offset = np.array([j.offset for j in result.joints])
-        if arm._friction_compensated:
-            ctl.ff.set_friction([j.coulomb for j in result.joints], [j.viscous for j in result.joints])
-        ctl.reflex.restart()  # type: ignore[union-attr]
+    if result.payload is not None:
+        arm.set_payload(result.payload.mass, result.payload.com)
+    if result.joints:
+        arm.set_friction([j.coulomb for j in result.joints], [j.viscous for j in result.joints],
+                         [j.offset for j in result.joints])
 
 
-def payload_poses(limits: JointLimits, center: ArrayLike, step: float = 0.9) -> list[np.ndarray]:
-    """Poses for :func:`estimate_payload`: ``q0``; each of the three joints nearest the tool moved by
-    ±``step``, and the one before them by ±``step``/2 (clipped 0.05 rad inside the ranges): gravity
-    then acts on the payload from several sides, and at several distances from the joints, so its
-    mass and where it sits along the tool are told apart."""
-    q0 = np.asarray(center, dtype=float)
-    lo, hi = limits.lower + 0.05, limits.upper - 0.05
-    n = len(q0)
-    poses = [q0.copy()]
-    for i in range(max(0, n - 4), n):
-        size = step if i >= n - 3 else step / 2
-        for sign in (1.0, -1.0):
-            q = q0.copy()
-            q[i] = float(np.clip(q0[i] + sign * size, lo[i], hi[i]))
-            if abs(q[i] - q0[i]) > 0.05:
-                poses.append(q)
-    return poses
-
-
-def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: float = 0.5, settle: float = 3.0,
+def estimate_payload(arm: Arm, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 3.0,
                      average: float = 0.5, passes: int = 2, apply: bool = True) -> PayloadFit:
-    """:meth:`akarm.Arm.estimate_payload`: visit the poses, average the torques held at rest, fit.
+    """Estimate the payload's mass and centre of mass (tool frame) from the torques held at rest.
+
+    The arm moves (``speed`` as in :meth:`~akarm.Arm.move_to`) to each of ``poses`` (default: where
+    it is, and each of the three joints nearest the tool turned by ±0.9 rad, the one before them
+    ±0.45), waits until it is still (``settle`` s at most), averages the torques, and comes back;
+    a least-squares fit of gravity's torque on Pinocchio's regressor gives mass and centre of
+    mass (:func:`akarm.identify.fit.estimate_payload_at_rest`). With ``apply`` the arm then carries
+    it (:meth:`~akarm.Arm.set_payload`).
 
     With an unknown load, the hold integral winds up to carry it, and the joints creep back against
     their friction while it does: torques measured then are off by up to the friction. So the
@@ -619,12 +219,9 @@ def estimate_payload(arm: Arm, poses: Sequence[object] | None = None, *, speed: 
     collision reflex only watches meanwhile (an unknown load is an external torque); its thresholds
     are restored at the end.
     """
-    ctl = arm._ctl
-    ctl.require_enabled()
-    if arm.moving:
-        raise StateError("the payload estimate starts from rest and the arm is moving", fix="wait for the motion")
-    q0 = ctl.desired_now()[0]
-    targets = payload_poses(arm.limits, q0) if poses is None else [arm._target_vector(p) for p in poses]  # type: ignore[arg-type]
+    _require_holding(arm, "the payload estimate")
+    q0 = arm.state().q_des
+    targets = payload_poses(arm.limits, q0) if poses is None else [arm.target_positions(p) for p in poses]
     model = RobotModel(arm.config, armature=True)
     model.clear_payload()
     offsets = [j.friction_model().offset for j in arm.config.joints]

@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from akarm.dynamics.ik import ROTATION_WEIGHT, IKSolver
 from akarm.dynamics.model import ArrayLike
-from akarm.errors import LimitError, SingularityError, UnreachableError
+from akarm.errors import ArgumentError, LimitError, SingularityError, UnreachableError
 from akarm.motion.trajectory import JointLimits, Planner, Segment, Timed
 
 __all__ = ["SINGULAR_GAIN", "LinearPlan", "plan_linear"]
@@ -139,10 +139,10 @@ def plan_linear(solver: IKSolver, limits: JointLimits, q_start: ArrayLike, targe
         UnreachableError, LimitError, SingularityError: see the module's docstring; nothing moved.
     """
     if not 0.0 < speed <= 1.0:
-        raise LimitError(f"speed must be in (0, 1], got {speed}", fix="pass a fraction of the joint limits")
+        raise ArgumentError(f"speed must be in (0, 1], got {speed}", fix="pass a fraction of the joint limits")
     for name, cap in (("max_velocity", max_velocity), ("max_acceleration", max_acceleration)):
         if cap is not None and not (isinstance(cap, int | float) and cap > 0 and math.isfinite(cap)):
-            raise LimitError(f"{name} must be a positive number, got {cap!r}", fix="m/s or m/s²")
+            raise ArgumentError(f"{name} must be a positive number, got {cap!r}", fix="m/s or m/s²")
     q0 = np.asarray(q_start, dtype=float)
     model = solver.model
     T0 = model.tool_pose(q0)

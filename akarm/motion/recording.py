@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from akarm.errors import LimitError, RecordingError
+from akarm.errors import ArgumentError, LimitError, RecordingError
+from akarm.files import atomic_write
 from akarm.motion.trajectory import JointLimits, Timed
-from akarm.telemetry.log import atomic_write
 
 __all__ = ["Keyframe", "Keyframes", "PathPlan", "PathRecording", "check_path", "load", "load_keyframes", "load_path"]
 
@@ -219,7 +219,7 @@ class PathPlan(Timed):
     def __init__(self, path: PathRecording, t0: float, speed: float = 1.0, smoothing: float = 0.05,
                  dt: float = 0.002) -> None:
         if not speed > 0:
-            raise LimitError(f"speed must be positive, got {speed}", fix="pass e.g. --speed 0.5")
+            raise ArgumentError(f"speed must be positive, got {speed}", fix="pass e.g. --speed 0.5")
         self.speed = speed
         qq, lead = _smooth(path.t, path.q, smoothing, dt)
         self.dt_rec = dt

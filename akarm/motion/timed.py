@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from akarm.errors import LimitError
+from akarm.errors import ArgumentError, LimitError
 from akarm.motion.trajectory import Plan, Planner, Segment
 
 __all__ = ["timed_plan"]
@@ -60,19 +60,19 @@ def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], 
             last point is always reached at rest. Default: estimated from the neighbouring points.
 
     Raises:
-        LimitError: a point, or a position the path passes through, is outside a joint's range;
-            or the points are malformed (names the problem). Nothing is started.
+        LimitError: a point, or a position the path passes through, is outside a joint's range.
+        ArgumentError: the points are malformed (names the problem). Nothing is started.
     """
     q = np.array(positions, dtype=float)
     n = planner.dofs
     if q.ndim != 2 or q.shape[1] != n or len(q) == 0:
-        raise LimitError(f"a timed trajectory needs points of {n} positions", fix="one position per joint, rad")
+        raise ArgumentError(f"a timed trajectory needs points of {n} positions", fix="one position per joint, rad")
     held = np.isnan(q)
     q[held] = np.broadcast_to(np.asarray(start[0], dtype=float), q.shape)[held]
     ts = np.asarray(times, dtype=float)
     if ts.shape != (len(q),) or not np.all(np.isfinite(ts)) or np.any(ts < 0) or np.any(np.diff(ts) < 0):
-        raise LimitError("the points' times must be finite, non-negative and increasing",
-                         fix="give each point a time_from_start later than the previous one")
+        raise ArgumentError("the points' times must be finite, non-negative and increasing",
+                            fix="give each point a time_from_start later than the previous one")
     for k, p in enumerate(q):
         planner.limits.check_position(p, what=f"point {k}")
     vmax = np.asarray(planner.limits.velocity, dtype=float)
@@ -81,8 +81,8 @@ def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], 
         if given.shape == q.shape:
             given[held] = 0.0
         if given.shape != q.shape or not np.all(np.isfinite(given)):
-            raise LimitError("velocities must give one finite value per joint for every point",
-                             fix="leave velocities empty to have them estimated")
+            raise ArgumentError("velocities must give one finite value per joint for every point",
+                                fix="leave velocities empty to have them estimated")
         estimates = [np.clip(given, -vmax, vmax)]
     else:
         estimates = [_vias(ts, q, np.asarray(start[0], dtype=float), vmax)]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import ruckig
 
-from akarm.errors import LimitError, TrajectoryError
+from akarm.errors import ArgumentError, LimitError, TrajectoryError
 
 __all__ = ["JointLimits", "Plan", "Planner", "Segment", "State", "Vector", "position_extrema"]
 
@@ -46,7 +46,7 @@ class JointLimits:
     def scaled(self, speed: float) -> JointLimits:
         """Limits for a motion ``speed`` times as fast (time scaling: v·s, a·s², j·s³)."""
         if not 0.0 < speed <= 1.0:
-            raise LimitError(f"speed must be in (0, 1], got {speed}", fix="pass a fraction of the joint limits")
+            raise ArgumentError(f"speed must be in (0, 1], got {speed}", fix="pass a fraction of the joint limits")
         return JointLimits(self.names, self.lower, self.upper, self.velocity * speed,
                            self.acceleration * speed**2, self.jerk * speed**3)
 
@@ -55,7 +55,7 @@ class JointLimits:
         for i, name in enumerate(self.names):
             v = float(q[i])
             if not math.isfinite(v):
-                raise LimitError(f"{what} position is {v}", joint=name, fix="give a finite angle in rad")
+                raise ArgumentError(f"{what} position is {v}", joint=name, fix="give a finite angle in rad")
             if v < self.lower[i] - tol or v > self.upper[i] + tol:
                 raise LimitError(
                     f"{what} {v:.4f} rad is outside the joint's range [{self.lower[i]:.4f}, {self.upper[i]:.4f}] rad",
@@ -211,7 +211,7 @@ class Planner:
     def __init__(self, limits: JointLimits, range_margin: float = 0.05,
                  outer: tuple[Vector, Vector] | None = None) -> None:
         if not range_margin >= 0:
-            raise LimitError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
+            raise ArgumentError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
         self.limits = limits
         self.range_margin = float(range_margin)
         lo, hi = outer if outer is not None else (limits.lower, limits.upper)
@@ -393,11 +393,11 @@ class Planner:
         """
         pts = [np.asarray(p, dtype=float) for p in points]
         if not pts:
-            raise LimitError("move_through needs at least one point", fix="pass a list of joint vectors")
+            raise ArgumentError("move_through needs at least one point", fix="pass a list of joint vectors")
         for k, p in enumerate(pts):
             if p.shape != (self.dofs,):
-                raise LimitError(f"waypoint {k} has {p.size} values, the arm has {self.dofs} joints",
-                                 fix="give one angle per joint, in config order")
+                raise ArgumentError(f"waypoint {k} has {p.size} values, the arm has {self.dofs} joints",
+                                    fix="give one angle per joint, in config order")
             self.limits.check_position(p, what=f"waypoint {k}")
         if len(pts) == 1:
             return self.move_from(start, pts[0], t0, speed)

@@ -17,7 +17,6 @@ fields; naming an existing model without ``base`` changes only the fields given.
 
 from __future__ import annotations
 
-import difflib
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields, replace
@@ -26,7 +25,7 @@ from typing import Any, Literal
 
 import yaml
 
-from akarm.errors import ConfigError, ConfigProblem, UnknownMotorError
+from akarm.errors import ConfigError, ConfigProblem, UnknownMotorError, did_you_mean
 
 __all__ = ["Catalogue", "MotorModel", "default_catalogue", "get", "load", "names"]
 
@@ -88,12 +87,6 @@ EntryProblem = tuple[str | None, str, str]
 
 def _key(name: str) -> str:
     return name.strip().upper()
-
-
-def did_you_mean(word: str, choices: Iterator[str] | list[str] | tuple[str, ...]) -> str:
-    """``" (did you mean 'x'?)"`` for the closest of ``choices``, or ``""`` when none is close."""
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 class Catalogue(Mapping[str, MotorModel]):

@@ -1,9 +1,10 @@
-"""Writing identified values into a robot YAML: in place, its comments and layout kept, with a backup.
+"""Writing values into a robot YAML: in place, its comments and layout kept, with a backup.
 
-:func:`save_identification` puts ``payload:`` and, per joint, ``friction:`` and ``collision:`` into
-the file. It edits the text where the YAML parser says each entry is (replacing an entry that is
-there, adding one after the joint's last entry, or the payload after ``urdf:``), so every comment
-and the order of keys stay as the user wrote them. The result is loaded and checked before the
+:func:`save_values` puts ``payload:`` and, per joint, ``friction:`` and ``collision:`` into the file
+(what ``akarm identify --save`` found, or any other source of them). It edits the text where the
+YAML parser says each entry is (replacing an entry that is there, adding one after the joint's last
+entry, or the payload after ``urdf:``), so every comment and the order of keys stay as the user
+wrote them. The result is loaded and checked before the
 original is touched; the original is copied to ``NAME.yaml.YYYYmmdd-HHMMSS.bak`` and the new text
 written atomically (no half file after a crash).
 """
@@ -12,16 +13,42 @@ from __future__ import annotations
 
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
+from akarm.config import Friction, Payload
 from akarm.errors import ConfigError, ConfigProblem
-from akarm.identify.procedure import Identification, yaml_collision, yaml_friction, yaml_payload
-from akarm.telemetry.log import atomic_write
+from akarm.files import atomic_write
 
-__all__ = ["save_identification"]
+__all__ = ["JointValues", "flow_collision", "flow_friction", "flow_payload", "save_values"]
+
+
+@dataclass(frozen=True)
+class JointValues:
+    """What to write for one joint: its ``friction:`` and its ``collision: {threshold: ...}`` (N·m);
+    ``None`` leaves an entry as the file has it."""
+
+    friction: Friction | None = None
+    collision_threshold: float | None = None
+
+
+def flow_payload(p: Payload) -> str:
+    """``payload:``'s value as YAML flow text."""
+    return f"{{mass: {p.mass:.4f}, com: [{p.com[0]:.4f}, {p.com[1]:.4f}, {p.com[2]:.4f}]}}"
+
+
+def flow_friction(f: Friction) -> str:
+    """``friction:``'s value as YAML flow text (no ``offset`` when it is 0)."""
+    text = f"{{coulomb: {f.coulomb:.4f}, viscous: {f.viscous:.5f}"
+    return text + (f", offset: {f.offset:.4f}}}" if f.offset != 0.0 else "}")
+
+
+def flow_collision(threshold: float) -> str:
+    """``collision:``'s value as YAML flow text."""
+    return f"{{threshold: {threshold:.2f}}}"
 
 _Edit = tuple[int, int, str]  # replace text[start:end] with the string
 
@@ -87,16 +114,16 @@ def _set(text: str, mapping: yaml.MappingNode, key: str, flow: str, after: yaml.
     return [(at, at, f"{indent}{key}: {flow}\n")]
 
 
-def _edits(text: str, root: yaml.MappingNode, result: Identification, path: Path) -> list[_Edit]:
+def _edits(text: str, root: yaml.MappingNode, payload: Payload | None, joint_values: Mapping[str, JointValues],
+           path: Path) -> list[_Edit]:
     def problem(what: str) -> ConfigError:
         return ConfigError([ConfigProblem(str(path), None, what, "write the values by hand (akarm identify prints "
                                                                  "them as YAML)")])
 
     edits: list[_Edit] = []
-    if result.payload is not None:
-        flow = yaml_payload(result.payload).split(": ", 1)[1]
+    if payload is not None:
         urdf = _key(root, "urdf")
-        edits += _set(text, root, "payload", flow, after=urdf[1] if urdf else None)
+        edits += _set(text, root, "payload", flow_payload(payload), after=urdf[1] if urdf else None)
     joints = _key(root, "joints")
     if joints is None or not isinstance(joints[1], yaml.SequenceNode):
         raise problem("it has no `joints:` list")
@@ -105,13 +132,15 @@ def _edits(text: str, root: yaml.MappingNode, result: Identification, path: Path
         name = _key(item, "name") if isinstance(item, yaml.MappingNode) else None
         if name is not None:
             by_name[name[1].value] = item
-    for j in result.joints:
-        item = by_name.get(j.name)
+    for joint, v in joint_values.items():
+        item = by_name.get(joint)
         if item is None:
-            raise problem(f"joint {j.name!r} is not under `joints:`")
-        values = [("friction", yaml_friction(j, result.offsets))]
-        if j.threshold is not None:
-            values.append(("collision", yaml_collision(j)))
+            raise problem(f"joint {joint!r} is not under `joints:`")
+        values = []
+        if v.friction is not None:
+            values.append(("friction", flow_friction(v.friction)))
+        if v.collision_threshold is not None:
+            values.append(("collision", flow_collision(v.collision_threshold)))
         for key, flow in values:
             edits += _set(text, item, key, flow)
     return edits
@@ -126,9 +155,10 @@ def _apply(text: str, edits: list[_Edit]) -> str:
     return text
 
 
-def save_identification(path: str | Path, result: Identification, *,
-                        check: Callable[[Path], object] | None = None) -> tuple[Path, Path]:
-    """Write ``result`` into the robot file at ``path``; returns (the file, its backup).
+def save_values(path: str | Path, *, payload: Payload | None = None, joints: Mapping[str, JointValues] | None = None,
+                check: Callable[[Path], object] | None = None) -> tuple[Path, Path]:
+    """Write ``payload`` and each joint's values (by joint name) into the robot file at ``path``;
+    returns (the file, its backup).
 
     ``check`` loads a candidate file and raises if it is not a valid robot (default:
     :func:`akarm.load_robot`). Nothing is changed if it raises.
@@ -144,7 +174,7 @@ def save_identification(path: str | Path, result: Identification, *,
         raise ConfigError([ConfigProblem(str(p), None, f"cannot read it: {e}", "check the path")]) from None
     if not isinstance(root, yaml.MappingNode):
         raise ConfigError([ConfigProblem(str(p), None, "it is not a robot file (not a mapping)", "check the path")])
-    new = _apply(text, _edits(text, root, result, p))
+    new = _apply(text, _edits(text, root, payload, joints or {}, p))
     candidate = p.with_name(f".{p.name}.identified.tmp")
     try:
         candidate.write_text(new, encoding="utf-8")

@@ -32,7 +32,7 @@ import numpy as np
 from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
 from akarm.control.modes import Mode
-from akarm.errors import AkarmError, LimitError, StateError
+from akarm.errors import AkarmError, ArgumentError, StateError
 from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
@@ -259,8 +259,8 @@ class ArmServerCore:
         """A ROS 2 ``JointTrajectory`` with the semantics of ros2_control's JointTrajectoryController
         topic: joints matched by name (a subset is allowed; the others keep their commanded
         position), each point reached at its time, jerk-limited; no points stops the arm; a new
-        one replaces the running one smoothly. A bad message is refused whole (LimitError) and
-        nothing moves. Returns the motion (None for a stop)."""
+        one replaces the running one smoothly. A bad message is refused whole (ArgumentError; a point past
+        a limit: LimitError) and nothing moves. Returns the motion (None for a stop)."""
         try:
             with self._cmd:
                 self._require_commandable()
@@ -270,22 +270,23 @@ class ArmServerCore:
                 names = list(self.arm.names)
                 unknown = [n for n in joint_names if n not in names]
                 if unknown or len(set(joint_names)) != len(joint_names) or not joint_names:
-                    raise LimitError(f"joint_names {list(joint_names)} must be distinct joints of this arm",
-                                     fix="joints are: " + ", ".join(names))
+                    raise ArgumentError(f"joint_names {list(joint_names)} must be distinct joints of this arm",
+                                        fix="joints are: " + ", ".join(names))
                 index = [names.index(n) for n in joint_names]
                 full = np.full((len(times), len(names)), math.nan)
                 vel = None
                 for k, p in enumerate(positions):
                     if len(p) != len(index) or not all(math.isfinite(x) for x in p):
-                        raise LimitError(f"point {k} has {len(p)} positions for {len(index)} joint_names, or one "
-                                         "that is not a number", fix="give one position (rad) per name in joint_names")
+                        raise ArgumentError(f"point {k} has {len(p)} positions for {len(index)} joint_names, or "
+                                            "one that is not a number",
+                                            fix="give one position (rad) per name in joint_names")
                     full[k, index] = p
                 if velocities is not None and any(len(v) for v in velocities):
                     vel = np.full((len(times), len(names)), math.nan)
                     for k, v in enumerate(velocities):
                         if len(v) != len(index):
-                            raise LimitError(f"point {k} has {len(v)} velocities for {len(index)} joint_names",
-                                             fix="give one velocity per name in joint_names, or none at all")
+                            raise ArgumentError(f"point {k} has {len(v)} velocities for {len(index)} joint_names",
+                                                fix="give one velocity per name in joint_names, or none at all")
                         vel[k, index] = v
                 motion = self.arm.follow(list(times), full, vel, wait=False)
                 self.counts["accepted"] += 1
@@ -300,8 +301,8 @@ class ArmServerCore:
         self.log(f"akarm serve: refused a trajectory, nothing moved: {e}")
 
     def refuse(self, what: str, fix: str = "") -> None:
-        """Refuse a trajectory the caller found unusable: counted, reported, raised as LimitError."""
-        e = LimitError(what, fix=fix)
+        """Refuse a trajectory the caller found unusable: counted, reported, raised as ArgumentError."""
+        e = ArgumentError(what, fix=fix)
         self._refused(e)
         raise e
 

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from akarm.errors import RecordingError
-from akarm.telemetry.log import TelemetryLog, atomic_write
+from akarm.files import atomic_write
+from akarm.telemetry.log import TelemetryLog
 
 __all__ = ["plot_log"]
 

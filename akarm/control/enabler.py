@@ -1,0 +1,266 @@
+"""Enabling without a kick: listen, make contact, settle, then ramp the gains up.
+
+1. **Listen.** Before anything is sent, frames another node sent our joints in the last
+   :data:`FOREIGN_RECENT` s refuse the enable (:meth:`Enabler.refuse_foreign`): another controller
+   must not lose its arm to us. The controller listens :data:`LISTEN` s after opening the buses.
+2. **Contact** (:meth:`Enabler.step`, every cycle): ENTER, then a zero-gain, zero-torque command
+   each cycle, until every joint gave :data:`CONTACT_REPLIES` consecutive replies that agree (the
+   gate in :mod:`akarm.control.joints`; when the replies after the first one all disagree with it,
+   the first one was the odd one out and contact starts over from the next), and, for joints that
+   answer every frame, a first reply within the joint's feedback timeout of the first frame: a
+   constant delay is visible only here, where the stream of replies starts.
+3. **Settle**: damping (kp = 0, the joint's damping, gravity feed-forward at the measured pose)
+   until every joint is slower than the settle speed; then the arm is at rest and is held there.
+4. **Ramp** (:class:`GainRamp`): kp rises from zero over the enable ramp once the arm is held.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+from akarm.buses.bus import no_answer_hint
+from akarm.config import BusConfig
+from akarm.control.joints import Joint
+from akarm.control.safety import Supervisor, contact_delay
+from akarm.errors import AkarmError, FeedbackTimeout, ForeignTraffic, NotSettled, StaleFeedback
+
+if TYPE_CHECKING:
+    import can
+    import numpy as np
+
+__all__ = ["AT_REST", "CONTACT_REPLIES", "FOREIGN_RECENT", "LISTEN", "Enabler", "GainRamp", "Refusal"]
+
+CONTACT_REPLIES = 2  #: consistent replies in a row that establish contact with a joint
+LISTEN = 0.02  #: s the loop listens to a bus before the first enable (a controller at 50 Hz or more shows)
+FOREIGN_RECENT = 0.5  #: s: foreign frames this recent refuse an enable
+AT_REST: Final = "at rest"  #: what :meth:`Enabler.step` returns once the arm is at rest: hold it
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """An enable that failed: why, and whether exit frames must go out (something was sent)."""
+
+    error: AkarmError
+    release: bool = True
+
+
+@dataclass
+class _Attempt:
+    """Where one enable is."""
+
+    t0: float
+    timeout: list[float]  # s per joint to make contact
+    received0: list[int]  # frames_received per joint when the enable began
+    first_reply: list[float | None]
+    entered: bool = False
+    first_sent: float = 0.0  # when the first frames (ENTER) went out
+    settling_since: float | None = None  # contact made with every joint; damping since
+
+
+class Enabler:
+    """Steps 1 to 3 of the module's docstring, one cycle at a time.
+
+    Args:
+        joints: the joints, config order.
+        buses: the robot's buses by name (for the hint when a joint does not answer).
+        send: ``send(joint, frame)``: the bus set's.
+        supervisor: its checks run while settling; it is armed when contact begins.
+        gravity: ``gravity(q)``: each joint's gravity torque at ``q``, N·m, clamped to its limit.
+        commanded: ``commanded(now, q, tau)``: what the arm was told this cycle (damped at ``q``
+            with ``tau`` feed-forward), for telemetry and a stop's fade.
+        damping: N·m·s/rad per joint while settling. timeouts: s per joint, its feedback timeout.
+        period: s, the loop's. settle_speed: rad/s. settle_timeout: s.
+    """
+
+    def __init__(self, joints: Sequence[Joint], buses: Mapping[str, BusConfig],
+                 send: Callable[[Joint, can.Message], None], supervisor: Supervisor,
+                 gravity: Callable[[Sequence[float]], np.ndarray],
+                 commanded: Callable[[float, Sequence[float], list[float]], None], *,
+                 damping: Sequence[float], timeouts: Sequence[float], period: float, settle_speed: float,
+                 settle_timeout: float) -> None:
+        self.joints = list(joints)
+        self.n = len(self.joints)
+        self._buses = buses
+        self._send = send
+        self._supervisor = supervisor
+        self._gravity = gravity
+        self._commanded = commanded
+        self._damping = list(damping)
+        self.timeouts = list(timeouts)
+        self.period = period
+        self.settle_speed = settle_speed
+        self.settle_timeout = settle_timeout
+        self._attempt: _Attempt | None = None
+
+    @property
+    def under_way(self) -> bool:
+        return self._attempt is not None
+
+    def refuse_foreign(self, now: float, since: float) -> ForeignTraffic | None:
+        """The error refusing an enable when another node sent our joints frames since ``since`` (s)."""
+        other = self._supervisor.foreign_since(since)
+        if other is None:
+            return None
+        j, kind = other
+        error = ForeignTraffic(f"another program sent it a frame ({kind}) {max(0.0, now - j.foreign_at):.2f} s ago: "
+                               "two controllers on one bus; nothing was enabled", kind=kind, joint=j.name,
+                               fix="stop the other controller (or akarm serve) first, or use it instead")
+        error.at = now
+        return error
+
+    def begin(self, now: float, timeout: float) -> float:
+        """Start an enable at ``now``: ``timeout`` s for each joint's replies (servo joints: at least
+        their status frames' time). Returns the longest time contact may take, s."""
+        for j in self.joints:
+            j.begin_contact()
+        contact = []
+        for j in self.joints:
+            t = timeout
+            if not j.answers_commands and j.config.status_rate_hz > 0:  # status frames at their own rate
+                t = max(t, (CONTACT_REPLIES + 0.5) / j.config.status_rate_hz)
+            contact.append(t)
+        self._attempt = _Attempt(now, contact, [j.frames_received for j in self.joints], [None] * self.n)
+        self._supervisor.arm(now)
+        return max(contact)
+
+    def abandon(self) -> None:
+        """Forget the enable under way (a stop took over)."""
+        self._attempt = None
+
+    def step(self, now: float) -> Refusal | str | None:
+        """One cycle of the enable: ``None`` while under way, :data:`AT_REST` once the arm is at rest
+        (hold it), or the :class:`Refusal` that ends it."""
+        en = self._attempt
+        if en is None:
+            return None
+        out = self._contact(en, now) if en.settling_since is None else self._settle(en, now)
+        if out is not None:
+            self._attempt = None
+        return out
+
+    def _settle(self, en: _Attempt, now: float) -> Refusal | str | None:
+        assert en.settling_since is not None
+        js = self.joints
+        stop = self._supervisor.check(now)
+        if stop is not None:
+            return Refusal(stop)
+        q = [j.state.position for j in js]
+        g = self._gravity(q).tolist()
+        for i, j in enumerate(js):
+            self._send(j, j.damp(self._damping[i], g[i]))
+        self._commanded(now, q, g)
+        fastest = max(range(self.n), key=lambda i: abs(js[i].state.velocity))
+        speed = abs(js[fastest].state.velocity)
+        if speed < self.settle_speed:  # at rest (with gravity carried, a swing only decays): hold here
+            return AT_REST
+        if now - en.settling_since > self.settle_timeout:
+            stop = NotSettled(f"still moving at {speed:.2f} rad/s after {self.settle_timeout:.1f} s of damping (it "
+                              f"must come below {self.settle_speed:.2f} rad/s before it is held); nothing was held, "
+                              "the arm was disabled", speed=speed, limit=self.settle_speed, joint=js[fastest].name,
+                              fix="let the arm come to rest (support it) and enable again; raise settle_timeout "
+                                  "for an arm that swings for long")
+            stop.at = now
+            return Refusal(stop)
+        return None
+
+    def _contact(self, en: _Attempt, now: float) -> Refusal | None:
+        refused = self.refuse_foreign(now, en.t0 - FOREIGN_RECENT)
+        if refused is not None:  # before anything is sent: another controller must not lose its arm to us
+            return Refusal(refused, release=en.entered)
+        self._send_contact_frames(en, now)
+        ready = True
+        late: list[Joint] = []
+        for i, j in enumerate(self.joints):
+            stale = self._note_first_reply(en, i, j, now)
+            if stale is not None:
+                return stale
+            if j.rejected_run >= 2:  # the reference disagrees with every reply since: it was the odd one
+                j.rebase()
+            if j.accepted_run < CONTACT_REPLIES:
+                ready = False
+                if now - en.t0 > en.timeout[i]:
+                    late.append(j)
+        if late:
+            return self._silent(en, late, now)
+        if ready:
+            en.settling_since = now
+        return None
+
+    def _send_contact_frames(self, en: _Attempt, now: float) -> None:
+        """ENTER once, then every cycle a zero-gain, zero-torque command: it overrides the command the
+        driver remembers and asks for a reply."""
+        if not en.entered:
+            for j in self.joints:
+                for f in j.enter_frames():
+                    self._send(j, f)
+            en.entered = True
+            en.first_sent = now
+        for j in self.joints:
+            msg = j.neutral()
+            if msg is not None:
+                self._send(j, msg)
+
+    def _note_first_reply(self, en: _Attempt, i: int, j: Joint, now: float) -> Refusal | None:
+        """Note when joint ``i`` first answered; a first answer later than its feedback timeout is stale."""
+        if en.first_reply[i] is not None or j.frames_received <= en.received0[i]:
+            return None
+        en.first_reply[i] = now
+        delay = contact_delay(en.first_sent, now, self.period)
+        if not (j.answers_commands and delay > self.timeouts[i]):
+            return None
+        stop = StaleFeedback(
+            f"its first reply came {delay * 1e3:.0f} ms after the first frame (limit "
+            f"{self.timeouts[i] * 1e3:.0f} ms): replies arrive late; nothing was enabled",
+            age=delay, limit=self.timeouts[i], joint=j.name,
+            fix="a CAN adapter or bus that queues frames (check the bus load with akarm check, the "
+                "adapter's latency, other traffic); raise feedback_timeout only if the delay is known "
+                "and harmless")
+        stop.at = now
+        return Refusal(stop)
+
+    def _silent(self, en: _Attempt, late: list[Joint], now: float) -> Refusal:
+        """The joints that gave no (or too few consistent) replies within their timeout."""
+        limit = en.timeout[late[0].index]
+        heard = [j for j in late if j.frames_received > en.received0[j.index]]
+        names = ", ".join(j.name for j in late)
+        if heard:
+            what = f"no {CONTACT_REPLIES} consistent replies within {limit * 1e3:.0f} ms from: {names}"
+        else:
+            what = f"no answer within {limit * 1e3:.0f} ms from: {names}"
+        silent = FeedbackTimeout(f"{what}; nothing was enabled", age=now - en.t0, limit=limit,
+                                 joint=late[0].name, fix=no_answer_hint(self._buses[late[0].bus]))
+        silent.at = now
+        return Refusal(silent)
+
+
+class GainRamp:
+    """Step 4: the share of kp in force, rising from 0 to 1 over ``seconds`` from :meth:`start`
+    (at once with ``seconds = 0``)."""
+
+    __slots__ = ("_t0", "scale", "seconds")
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+        self.scale = 0.0
+        self._t0 = math.inf
+
+    @property
+    def done(self) -> bool:
+        return self.scale >= 1.0
+
+    def start(self, now: float) -> None:
+        self._t0 = now
+        self.scale = 0.0 if self.seconds > 0 else 1.0
+
+    def zero(self) -> None:
+        """No gains (the arm is not held)."""
+        self.scale = 0.0
+
+    def update(self, now: float) -> float:
+        """The share in force at ``now``."""
+        if self.scale < 1.0:
+            self.scale = min(1.0, (now - self._t0) / self.seconds) if self.seconds > 0 else 1.0
+        return self.scale

@@ -19,9 +19,10 @@ All positions are rad, velocities rad/s, torques N·m, times s, in config joint 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ from akarm.control.feedforward import FeedForwardKind
 from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
-from akarm.control.motions import Motion
+from akarm.control.motions import Motion, State
 from akarm.control.options import ControllerOptions
 from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
@@ -51,7 +52,7 @@ from akarm.errors import (
 )
 from akarm.motion import recording as rec_mod
 from akarm.motion.cartesian import plan_linear
-from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner
+from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner, Timed
 from akarm.telemetry.log import TelemetryLog
 from akarm.timing import TimingProfile, get_profile
 
@@ -211,7 +212,7 @@ class Arm:
 
     @classmethod
     def from_yaml(cls, path: str | PathLike[str], *, interface: str | None = None,
-                  channel: str | Mapping[str, str] | None = None, bitrate: int | None = None, **kwargs) -> Arm:
+                  channel: str | Mapping[str, str] | None = None, bitrate: int | None = None, **kwargs: Any) -> Arm:
         """Load a robot YAML (bus overrides: ``interface=``, ``channel=``, ``bitrate=``) and build its Arm."""
         from akarm.robotfile.load import load_robot
 
@@ -339,7 +340,7 @@ class Arm:
             raise ArgumentError(f"target {x} is not a finite angle", joint=joint, fix="give an angle in rad")
         return x
 
-    def _start(self, make_plan) -> Motion:
+    def _start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
         return self._ctl.start(make_plan)
 
     def move_to(self, target: Target, speed: float = 1.0, wait: bool = True) -> Motion:
@@ -469,7 +470,7 @@ class Arm:
         plan = plan_linear(self.ik, self.limits, q0, target, speed=speed, position_only=position_only,
                            max_velocity=max_velocity, max_acceleration=max_acceleration)
 
-        def make(start, now):
+        def make(start: State, now: float) -> Timed:
             if self._ctl.moving or not np.array_equal(start[0], q0):
                 raise StateError("the arm moved while the line was planned",
                                  fix="start one motion at a time (wait for each)")
@@ -603,7 +604,7 @@ class Arm:
             return self.move_through([np.array(f.q) for f in rec.frames], speed=min(speed, 1.0), wait=wait)
         check = rec_mod.PathPlan(rec, 0.0, speed)
 
-        def make(start, now):
+        def make(start: State, now: float) -> Timed:
             soft = self.planner.move_from(start, check.q[0], now, min(speed, 1.0))
             return Chain([soft, rec_mod.PathPlan(rec, soft.t_end, speed)])
 

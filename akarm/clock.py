@@ -23,7 +23,7 @@ _NAP_SHARE = 0.1  # of the wait between cycles, slept by a busy real-time loop (
 def _realtime_thread() -> bool:
     """True when the calling thread runs under a real-time policy (SCHED_FIFO or SCHED_RR)."""
     try:
-        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)  # type: ignore[attr-defined]
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)  # type: ignore[attr-defined,unused-ignore]
     except (AttributeError, OSError):
         return False
 

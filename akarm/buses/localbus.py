@@ -44,6 +44,7 @@ import tempfile
 import threading
 import time
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -126,7 +127,7 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def _locked(fd: int):
+def _locked(fd: int) -> Iterator[None]:
     """Hold an exclusive lock on the file (claiming and releasing rings; never on the hot path)."""
     try:
         import fcntl

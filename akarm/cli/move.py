@@ -24,13 +24,17 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
+    import numpy as np
+
+    from akarm.arm import Arm, Motion
     from akarm.cli.served import RemoteArm
+    from akarm.config import RobotConfig
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -66,14 +70,15 @@ def _intermixed(parser: argparse.ArgumentParser) -> None:
     swapped only outside it."""
     plain = parser.parse_known_args
 
-    def parse_known_args(args=None, namespace=None):
-        parser.parse_known_args = plain  # type: ignore[method-assign]
+    def parse_known_args(args: Sequence[str] | None = None,
+                         namespace: argparse.Namespace | None = None) -> tuple[argparse.Namespace, list[str]]:
+        parser.parse_known_args = plain  # type: ignore[method-assign,assignment,unused-ignore]
         try:
             return parser.parse_known_intermixed_args(args, namespace)
         finally:
-            parser.parse_known_args = parse_known_args  # type: ignore[method-assign]
+            parser.parse_known_args = parse_known_args  # type: ignore[method-assign,assignment,unused-ignore]
 
-    parser.parse_known_args = parse_known_args  # type: ignore[method-assign]
+    parser.parse_known_args = parse_known_args  # type: ignore[method-assign,assignment,unused-ignore]
 
 
 def _number(text: str) -> float | None:
@@ -169,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     label = " ".join(args.target)
     q_target = np.zeros(len(config.joints))
 
-    def start(arm):
+    def start(arm: Arm) -> Motion:
         nonlocal q_target
         motion = arm.move_to(target, speed=args.speed, wait=False)
         q_target = (np.array(config.pose(target) if isinstance(target, str) else target, dtype=float)
@@ -177,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"moving to {label} {format_q(q_target)} in {motion.duration:.2f} s", flush=True)
         return motion
 
-    def arrived(arm) -> str:
+    def arrived(arm: Arm) -> str:
         state = arm.state()
         err = np.abs(state.q - q_target)
         return (f"arrived: {format_q(state.q)}, largest error {err.max() * 1e3:.2f} mrad "
@@ -235,13 +240,14 @@ def check_options(args: argparse.Namespace) -> None:
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
 
 
-def _checked_config(args: argparse.Namespace):
+def _checked_config(args: argparse.Namespace) -> RobotConfig:
     """The options every move checks before anything is enabled, and the robot."""
     check_options(args)
     return load_from_args(args)
 
 
-def _session(args: argparse.Namespace, config, start, arrived) -> int:
+def _session(args: argparse.Namespace, config: RobotConfig, start: Callable[[Arm], Motion],
+             arrived: Callable[[Arm], str]) -> int:
     """Enable, ``start(arm)`` a motion and wait for it (and hold), print ``arrived(arm)``, disable;
     Ctrl-C stops smoothly. Always ends disabled; the telemetry saved with ``--log``."""
     from akarm.cli.common import controlled, deferred_signals, interrupted, stop_smoothly
@@ -286,10 +292,10 @@ def _move_tool(args: argparse.Namespace) -> int:
     target = make_pose(args.xyz, rpy=args.rpy) if args.rpy is not None else None
     start_pose = np.eye(4)
 
-    def _xyz(p) -> str:
+    def _xyz(p: Sequence[float] | np.ndarray) -> str:
         return "(" + ", ".join(f"{x:+.4f}" for x in p) + ") m"
 
-    def start(arm):
+    def start(arm: Arm) -> Motion:
         nonlocal start_pose
         start_pose = arm.tool_pose()
         move = arm.move_linear if args.linear else arm.move_to_pose
@@ -298,7 +304,7 @@ def _move_tool(args: argparse.Namespace) -> int:
         print(f"moving the tool to {_xyz(xyz)} {how} in {motion.duration:.2f} s", flush=True)
         return motion
 
-    def arrived(arm) -> str:
+    def arrived(arm: Arm) -> str:
         reached = arm.tool_pose()
         text = (f"arrived: tool at {_xyz(reached[:3, 3])}, {np.linalg.norm(reached[:3, 3] - xyz) * 1e3:.2f} mm "
                 "from the target")

@@ -40,7 +40,7 @@ def request_realtime(priority: int = 80, lock_memory: bool = True, switch_interv
     """
     parts = []
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))  # type: ignore[attr-defined]
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))  # type: ignore[attr-defined,unused-ignore]
         parts.append(f"SCHED_FIFO priority {priority} granted")
     except (AttributeError, PermissionError, OSError) as e:
         parts.append(f"real-time priority refused ({e.__class__.__name__}: {e}); run as root or raise "
@@ -68,7 +68,7 @@ def request_realtime(priority: int = 80, lock_memory: bool = True, switch_interv
 def pin_thread(cpu: int) -> str:
     """Run the calling thread on CPU ``cpu`` only (Linux). Returns a report; never raises."""
     try:
-        os.sched_setaffinity(0, {cpu})  # type: ignore[attr-defined]
+        os.sched_setaffinity(0, {cpu})  # type: ignore[attr-defined,unused-ignore]
     except (AttributeError, OSError, ValueError) as e:
         return f"pinning to CPU {cpu} refused ({e})"
     return f"pinned to CPU {cpu}"

@@ -26,6 +26,7 @@ R0·exp(s·log(R0ᵀR1))``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -181,7 +182,8 @@ def _rest(q0: np.ndarray, limits: JointLimits) -> LinearPlan:
     return LinearPlan(grid, np.zeros_like(grid), _plan_s(1.0, 1.0, 1.0, end=0.0), 0.0, 0.0)
 
 
-def _joint_path(solver: IKSolver, q0: np.ndarray, pose_at, dx: np.ndarray, n_points: int, position_only: bool,
+def _joint_path(solver: IKSolver, q0: np.ndarray, pose_at: Callable[[float], np.ndarray], dx: np.ndarray,
+                n_points: int, position_only: bool,
                 p0: np.ndarray, p1: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions and ``dq/ds`` on ``n_points + 1`` grid points, each solved from the last."""
     n = solver.n

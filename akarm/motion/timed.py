@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from akarm.errors import ArgumentError, LimitError
-from akarm.motion.trajectory import Plan, Planner, Segment
+from akarm.motion.trajectory import Plan, Planner, Segment, State
 
 __all__ = ["timed_plan"]
 
@@ -44,7 +44,7 @@ def _vias(times: np.ndarray, q: np.ndarray, q0: np.ndarray, vmax: np.ndarray) ->
     return v
 
 
-def timed_plan(planner: Planner, start: tuple[Sequence[float], Sequence[float], Sequence[float]], t0: float,
+def timed_plan(planner: Planner, start: State, t0: float,
                times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
                velocities: Sequence[Sequence[float]] | np.ndarray | None = None) -> Plan:
     """A plan from ``start`` = (q, dq, ddq) at time ``t0`` through ``positions[k]`` at ``t0 + times[k]``.

@@ -249,7 +249,7 @@ class Planner:
         return lo, hi
 
     # -- single segments ----------------------------------------------------------------------
-    def _input(self, limits: JointLimits, p0, v0, a0) -> ruckig.InputParameter:
+    def _input(self, limits: JointLimits, p0: Vector, v0: Vector, a0: Vector) -> ruckig.InputParameter:
         inp = ruckig.InputParameter(self.dofs)
         inp.current_position = [float(x) for x in p0]
         inp.current_velocity = [float(x) for x in v0]

@@ -393,13 +393,13 @@ def codec(model: MotorModel | str) -> MitCodec:
     """
     if model.__class__ is str:
         cat = motors.default_catalogue()
-        named = _BY_NAME.get(model)  # type: ignore[call-overload]
+        named = _BY_NAME.get(model)
         if named is not None and named[0] is cat:
             return named[1]
         c = codec(cat.get(model))
         if len(_BY_NAME) >= _CACHE_MAX:
             _BY_NAME.clear()
-        _BY_NAME[model] = (cat, c)  # type: ignore[index]
+        _BY_NAME[model] = (cat, c)
         return c
     if not isinstance(model, MotorModel):
         model = motors.get(model)

@@ -22,6 +22,8 @@ import numpy as np
 from akarm.errors import RecordingError
 from akarm.files import atomic_write
 
+Values = Sequence[float] | np.ndarray
+
 __all__ = ["FIELDS", "Telemetry", "TelemetryLog", "load"]
 
 #: The per-joint fields of a record, with their units.
@@ -128,7 +130,8 @@ class Telemetry:
         self._nan = [math.nan] * n
         self.count = 0
 
-    def record(self, t: float, q_des, dq_des, q, dq, tau, tau_ff, tau_ext=None) -> None:
+    def record(self, t: float, q_des: Values, dq_des: Values, q: Values, dq: Values, tau: Values, tau_ff: Values,
+               tau_ext: Values | None = None) -> None:
         """Record one cycle (sequences of joint values, SI; ``tau_ext`` ``None``: not known, NaN)."""
         i = self.count % self.capacity
         self.t[i] = t

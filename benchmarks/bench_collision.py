@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from akarm import AkarmError, CollisionError, LimitError, load_robot  # noqa: E402
 from akarm.arm import Arm  # noqa: E402
-from akarm.cli.demo import _session  # noqa: E402
+from akarm.cli.demo import session_steps  # noqa: E402
 from akarm.sim import SimulatedRobot  # noqa: E402
 
 ARM6 = load_robot(ROOT / "robots" / "arm6.yaml")
@@ -73,7 +73,7 @@ def false_stops(minutes: float) -> None:
     rng = np.random.default_rng(12)
     stops: list[str] = []
     with SimulatedRobot(cfg, realtime=False) as sim, Arm(cfg, clock=sim.clock, telemetry_seconds=10) as arm:
-        for _label, _short, action in _session(arm):
+        for _label, _short, action in session_steps(arm):
             try:
                 action()
             except CollisionError as e:

@@ -71,11 +71,11 @@ def main() -> None:
             config = load_robot(path)
 
             def cold(path=path):
-                gravity._CACHE.clear()
+                gravity.clear_cache()
                 load_robot(path)
 
             def alone(config=config):
-                gravity._CACHE.clear()
+                gravity.clear_cache()
                 gravity.gravity_peaks(config)
 
             row = [best(cold, args.repeat), best(lambda path=path: load_robot(path), args.repeat),

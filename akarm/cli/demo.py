@@ -91,9 +91,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if Path(args.output).suffix.lower() != ".png":
             raise RecordingError(f"cannot plot to {args.output!r}: only PNG is written", fix="use a .png file name")
         check_output(args.output, (".png",), "the plot")
-        from akarm.telemetry.plot import _figure_classes
+        from akarm.telemetry.plot import figure_classes
 
-        _figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
+        figure_classes()  # RecordingError naming the `plot` extra when matplotlib is missing
 
 
 def _step_line(k: int, label: str, seconds: float, log: TelemetryLog) -> str:
@@ -106,7 +106,7 @@ def _step_line(k: int, label: str, seconds: float, log: TelemetryLog) -> str:
     return text
 
 
-def _session(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
+def session_steps(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
     """The scripted steps, in order: (what is printed, its label on the plot, what is done)."""
     steps: list[tuple[str, str, Callable[[], object]]] = [
         ("enable (no kick: gains ramp up from zero)", "enable", arm.enable)]
@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
         with arm:
             t_session = arm.clock.now()
             events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
-            for k, (label, short, action) in enumerate(_session(arm), start=1):
+            for k, (label, short, action) in enumerate(session_steps(arm), start=1):
                 t0 = arm.clock.now()
                 events.append((t0, short))
                 action()

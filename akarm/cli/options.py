@@ -89,4 +89,4 @@ def negative_values_are_positional(parser: argparse.ArgumentParser) -> None:
     parser's options never look like numbers, so widening what counts as a number is safe.
     """
     if hasattr(parser, "_negative_number_matcher"):
-        parser._negative_number_matcher = _NEGATIVE_VALUES
+        parser._negative_number_matcher = _NEGATIVE_VALUES  # private-ok: argparse offers no public setting for it

@@ -20,7 +20,9 @@ cannot tell) is shown one joint per line.
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from types import FrameType
+from typing import TYPE_CHECKING, Any
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
 
@@ -101,7 +103,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
                          log_frames=bool(args.control))
 
     stop = threading.Event()
-    previous: dict[int, signal._HANDLER] = {}
+    previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
 
     def on_signal(signum: int, frame: object) -> None:
         stop.set()

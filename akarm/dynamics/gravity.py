@@ -167,6 +167,11 @@ _CACHE: OrderedDict[tuple[object, ...], list[GravityPeak]] = OrderedDict()
 _CACHE_SIZE = 32
 
 
+def clear_cache() -> None:
+    """Forget every cached result of :func:`gravity_peaks` (benchmarks time a cold computation)."""
+    _CACHE.clear()
+
+
 def _key(config: RobotConfig, extra_payload: float) -> tuple[object, ...] | None:
     try:
         st = os.stat(config.urdf)

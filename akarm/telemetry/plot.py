@@ -22,6 +22,7 @@ import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,8 +39,12 @@ _TOP = 0.7  # inches above the first row (the figure's title)
 _BOTTOM = 0.6  # inches below the last row (the time axis)
 _EVENT_LABELS = 0.6  # inches more at the top for event labels
 
+if TYPE_CHECKING:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-def _figure_classes():
+
+def figure_classes() -> tuple[type[Figure], type[FigureCanvasAgg]]:
     """matplotlib's Figure and Agg canvas, or a RecordingError that says how to install them."""
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -74,7 +79,7 @@ def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | No
     if len(log) == 0:
         raise RecordingError("the telemetry log has no cycles: nothing to plot",
                              fix="record some motion first (the arm records every cycle while open)")
-    Figure, FigureCanvasAgg = _figure_classes()
+    Figure, FigureCanvasAgg = figure_classes()
 
     names = log.joint_names
     n = len(names)

@@ -1,4 +1,18 @@
-"""Shared test fixtures."""
+"""Shared test fixtures and helpers, and the tiers.
+
+The tests are in three folders, one per tier, and each test gets its folder's marker (``-m unit``,
+``-m sim``, ``-m system``):
+
+- ``tests/unit``: pure logic: no simulator, no CAN bus, no threads, no processes.
+- ``tests/sim``: the simulator or a bus in this process, in lock step with the controller where a
+  loop runs (SteppedClock): nothing waits on the wall clock for more than a few milliseconds.
+- ``tests/system``: other processes (``akarm sim``, the CLI as a command, scripts), real-time loops
+  and simulators, akarm_local across processes, ROS 2 over DDS, SocketCAN (``vcan``).
+
+``python -m pytest`` runs unit and sim (pyproject's testpaths); ``python -m pytest tests/system``
+runs the system tier. The helpers below are imported by the tests as ``from .conftest import ...``:
+each tier's conftest re-exports them (``__all__``).
+"""
 
 from __future__ import annotations
 
@@ -24,7 +38,20 @@ try:
 except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
     pass
 
+__all__ = ["ROBOTS", "ROOT", "URDFS", "drain", "has_can_sockets", "has_vcan", "missing_socketcan_fix",
+           "relaxed_robot", "send", "wait_until"]
+
 ROOT = Path(__file__).resolve().parent.parent
+TIERS = ("unit", "sim", "system")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test with its tier, the folder it is in (tests/unit, tests/sim, tests/system)."""
+    here = Path(__file__).parent
+    for item in items:
+        parts = item.path.relative_to(here).parts if item.path.is_relative_to(here) else ()
+        if parts and parts[0] in TIERS:
+            item.add_marker(parts[0])
 
 
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
@@ -45,6 +72,7 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(can.util, "CONFIG_FILES", [])
     monkeypatch.setattr(can, "rc", {})
 ROBOTS = ROOT / "robots"
+URDFS = ROOT / "tests" / "urdfs"  # the exporter-style URDF corpus (tests/unit/test_urdf.py)
 _counter = itertools.count()
 
 

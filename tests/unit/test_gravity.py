@@ -17,7 +17,7 @@ from akarm.robotfile.load import load_robot
 
 from .conftest import ROBOTS
 
-URDFS = Path(__file__).resolve().parent / "urdfs"
+URDFS = Path(__file__).resolve().parent.parent / "urdfs"
 
 
 def sampled_max(config, n: int = 20000, seed: int = 7) -> np.ndarray:

@@ -25,7 +25,7 @@ from akarm.robotfile.load import load_robot
 from akarm.robotfile.starter import suggest
 from akarm.sim import SimulatedRobot
 
-URDFS = Path(__file__).resolve().parent / "urdfs"
+URDFS = Path(__file__).resolve().parent.parent / "urdfs"
 TRIED = ["arm7_gripper", "cad_arm4", "scara_ros2"]
 
 

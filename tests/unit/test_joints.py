@@ -12,7 +12,7 @@ import pytest
 from akarm import load_robot
 from akarm.control.joints import MitJoint, make_joint
 
-ROBOTS = Path(__file__).resolve().parent.parent / "robots"
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 
 
 @pytest.mark.parametrize("direction, offset", [(1, 0.0), (-1, 0.3)])

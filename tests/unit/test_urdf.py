@@ -27,7 +27,7 @@ from akarm.errors import ConfigProblem
 from akarm.robotfile.load import load_robot
 from akarm.sim import SimulatedRobot
 
-URDFS = Path(__file__).resolve().parent / "urdfs"
+URDFS = Path(__file__).resolve().parent.parent / "urdfs"
 CORPUS = sorted(URDFS.glob("*.urdf"))
 
 #: per corpus file: its movable joints in chain order, and how many <joint> elements the file holds

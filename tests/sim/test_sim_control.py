@@ -1,12 +1,11 @@
 """The simulator's control channel (akarm sim --control): faults as JSON, requests and refusals.
 
 The server is run around an in-process, lock-step SimulatedRobot (the protocol is the same as in
-``akarm sim``); tests/test_sim_rig.py drives it in a simulator of its own process.
+``akarm sim``); tests/system/test_sim_rig.py drives it in a simulator of its own process.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import socket
 from collections.abc import Iterator
@@ -16,41 +15,9 @@ import pytest
 
 from akarm import AkarmError, StateError, load_robot
 from akarm.sim import SimulatedRobot, faults
-from akarm.sim.channel import ControlServer, SimulatorControl, fault_from_json, fault_to_json
+from akarm.sim.channel import ControlServer, SimulatorControl
 
 from .conftest import ROBOTS
-
-EVERY_FAULT = [faults.DropReplies(0.3, seed=7), faults.DelayReplies(0.005), faults.Unplugged(power_lost=True),
-               faults.ErrorCode(5), faults.FrozenEncoder(affects_control=True), faults.FaultAfter(1.5, code=2),
-               faults.ForgedReply(12.45, count=3, interval=0.01), faults.RogueExit(on_bus=False), faults.Blocked()]
-
-
-@pytest.mark.parametrize("fault", EVERY_FAULT, ids=lambda f: type(f).__name__)
-def test_every_fault_goes_through_json_unchanged(fault: faults.Fault) -> None:
-    text = json.dumps(fault_to_json(fault))
-    assert fault_from_json(json.loads(text)) == fault
-
-
-def test_the_json_of_a_fault_names_its_class_and_fields() -> None:
-    assert fault_to_json(faults.DropReplies(0.3, seed=7)) == {"type": "DropReplies", "fraction": 0.3, "seed": 7}
-
-
-def test_every_fault_class_is_covered() -> None:
-    classes = {n for n in faults.__all__ if dataclasses.is_dataclass(getattr(faults, n))}
-    assert classes == {type(f).__name__ for f in EVERY_FAULT}
-
-
-@pytest.mark.parametrize(("obj", "says"), [
-    ({"type": "Meteor"}, "unknown fault"),
-    ({"type": "Fault"}, "unknown fault"),                       # the base class is no fault to inject
-    ({"type": "parse", "spec": "x"}, "unknown fault"),           # a function of the module, not a fault
-    ("DropReplies", "unknown fault"),
-    ({"type": "DropReplies", "share": 0.3}, "the fields of DropReplies are: fraction, seed"),
-    ({"type": "DropReplies", "fraction": 3.0}, "outside 0..1"),  # the fault's own check
-])
-def test_a_bad_fault_object_is_a_clear_error(obj: object, says: str) -> None:
-    with pytest.raises(AkarmError, match=says):
-        fault_from_json(obj)
 
 
 @pytest.fixture
@@ -104,11 +71,6 @@ def test_garbage_on_the_socket_is_answered_and_the_channel_keeps_working(
     assert first["ok"] is False and "JSONDecodeError" in first["error"]
     assert second["ok"] is False and "unknown request" in second["error"]
     assert [s.name for s in ctl.state()] == ["shoulder", "elbow"]
-
-
-def test_a_simulator_that_is_not_there_is_a_clear_error(tmp_path: Path) -> None:
-    with pytest.raises(StateError, match="cannot reach the simulator's control channel"):
-        SimulatorControl(tmp_path / "nobody.sock", timeout=1.0).state()
 
 
 def test_a_second_simulator_cannot_take_a_served_socket_but_a_stale_one_is_reused(

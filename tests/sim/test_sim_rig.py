@@ -7,18 +7,14 @@ timing profile (this machine is shared by several test runs).
 
 from __future__ import annotations
 
-import math
-import os
-import signal
 import warnings
 
-import numpy as np
 import pytest
 
-from akarm import BusError, FeedbackTimeout, MotorFault, StateError, load_robot
+from akarm import FeedbackTimeout, MotorFault
 from akarm.protocol import mit
 from akarm.sim import faults
-from akarm.testing.rig import LeftEnabledWarning, SimulatedArm, default_channel, missing_interfaces
+from akarm.testing.rig import LeftEnabledWarning, SimulatedArm
 
 from .conftest import ROBOTS
 
@@ -116,57 +112,6 @@ def test_leaving_closes_the_arms_it_made_damped_then_disabled_without_a_warning(
             arm.enable()
     assert not arm.enabled
     assert rig.frames(joint="elbow", to_motor=True)[-1].data == mit.EXIT
-
-
-def test_the_default_channels() -> None:
-    planar2, biarm = load_robot(PLANAR2), load_robot(ROBOTS / "biarm.yaml")
-    assert default_channel(planar2, "socketcan") == "vcan0"
-    assert default_channel(biarm, "socketcan") == {"left": "vcan0", "right": "vcan1"}
-    a, b = default_channel(planar2, "akarm_local"), default_channel(planar2, "akarm_local")
-    assert a != b and str(os.getpid()) in a
-
-
-def test_a_missing_socketcan_interface_is_named() -> None:
-    config = load_robot(ROBOTS / "biarm.yaml").with_bus(interface="socketcan", channel={"left": "vcan8",
-                                                                                        "right": "vcan9"})
-    why = missing_interfaces(config)
-    assert why is not None and "vcan8, vcan9" in why
-    assert missing_interfaces(config.with_bus(interface="akarm_local")) is None
-    with pytest.raises(BusError, match="vcan8, vcan9"):
-        SimulatedArm.start(ROBOTS / "biarm.yaml", "socketcan", channel={"left": "vcan8", "right": "vcan9"})
-
-
-def test_an_unknown_transport_is_refused() -> None:
-    with pytest.raises(Exception, match="unknown transport 'pcan'"):
-        SimulatedArm.start(PLANAR2, "pcan")
-
-
-def test_in_its_own_process_on_akarm_local_the_frames_and_faults_are_the_same() -> None:
-    with SimulatedArm.start(PLANAR2, "akarm_local", timing="slow", pose=DOWN) as rig:
-        assert rig.transport == "akarm_local" and rig.clock is None
-        with rig.arm() as arm:
-            assert arm.config.rate_hz == 25.0                  # the slow profile's loop
-            arm.enable()
-            arm.move_to("home")
-            assert np.allclose(arm.state().q, rig.config.pose("home"), atol=0.02)
-            rig.inject("elbow", faults.Unplugged())
-            with pytest.raises(FeedbackTimeout, match="elbow"):
-                arm.sleep(3.0)
-        rig.clear_faults()
-        assert rig.enabled_joints() == ["elbow"]             # unplugged, it never heard the EXIT
-        counts_match(rig, faulted=("elbow",))                 # every frame, across processes
-        assert len(rig.frames(joint="elbow", to_motor=True)) > rig.state()[1].frames_in   # sent while cut off
-        last = {f.joint: f.data for f in rig.frames(to_motor=True)}
-        assert last["shoulder"] == mit.EXIT
-
-
-def test_a_simulator_that_dies_is_reported_when_leaving() -> None:
-    rig = SimulatedArm.start(PLANAR2, "akarm_local", timing="slow")
-    os.kill(rig.process.pid, signal.SIGKILL)
-    rig.process.proc.wait(30)
-    with pytest.raises(StateError, match="the simulator stopped before the test ended: exit status -9"):
-        rig.close()
-    assert math.isnan(float("nan"))
 
 
 def test_a_simulator_keeps_no_frame_log_unless_asked(planar2) -> None:

@@ -19,7 +19,6 @@ import pytest
 import yaml
 
 import akarm
-from akarm.sim import SimulatedRobot
 from akarm.sim.process import SimulatorProcess
 
 from .conftest import ROBOTS, relaxed_robot
@@ -145,13 +144,6 @@ def test_akarm_serve_in_a_script_returns_on_sigterm_and_leaves_the_arm_disabled(
     assert done and done[0].returncode == 0 and "arrived" in done[0].stdout
     assert not arm.enabled
     assert signal.getsignal(signal.SIGTERM) is before, "serve put the previous handler back"
-
-
-def test_a_lock_step_arm_cannot_be_served(channel):
-    config = akarm.load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(config, realtime=False) as sim, akarm.Arm(config, clock=sim.clock) as arm, \
-            pytest.raises(akarm.StateError, match="wall clock"):
-        akarm.ArmServer(arm)
 
 
 def test_without_a_server_the_verbs_open_the_bus_themselves(channel):

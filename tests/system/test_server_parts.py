@@ -8,7 +8,6 @@ import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 
@@ -122,26 +121,6 @@ def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_pa
         assert client in left and len(left) == 2  # the server hears when each connection ends
     finally:
         server.close()
-
-
-def test_the_lock_files_live_in_one_place_whatever_the_environment(monkeypatch, tmp_path):
-    first = registry.runtime_dir()
-    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
-    monkeypatch.setenv("TMPDIR", str(tmp_path))  # a service and a shell may differ in both
-    assert registry.runtime_dir() == first and first.name == f"akarm-{os.getuid()}"
-    assert first.parent == Path("/tmp") and (first.stat().st_mode & 0o777) == 0o700
-
-
-def test_a_runtime_directory_others_could_write_in_is_refused(monkeypatch, tmp_path):
-    monkeypatch.setattr(registry, "BASE", tmp_path)
-    planted = tmp_path / f"akarm-{os.getuid()}"
-    planted.mkdir(mode=0o777)
-    planted.chmod(0o777)  # made by someone else first (mkdir's mode is masked by the umask)
-    with pytest.raises(StateError, match="not a private directory") as e:
-        registry.runtime_dir()
-    assert "chmod 700" in e.value.fix
-    planted.chmod(0o700)
-    assert registry.runtime_dir() == planted
 
 
 def test_sockets_of_servers_that_are_gone_are_swept_and_live_ones_kept(monkeypatch, tmp_path):

@@ -106,11 +106,6 @@ def test_missing_socketcan_bus_is_a_bus_error_in_python_too() -> None:
     assert missing_socketcan_fix("vcan9") in str(info.value)
 
 
-def test_cli_rejects_a_fault_on_an_unknown_joint(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["sim", PLANAR2, "-i", "virtual", "-c", "unused", "--fault", "wrist:drop:0.1"]) == 1
-    assert "no joint named 'wrist'" in capsys.readouterr().err
-
-
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_cli_process_stops_cleanly_on_a_signal(sig: signal.Signals) -> None:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -136,15 +131,3 @@ def test_cli_process_stops_cleanly_on_a_signal(sig: signal.Signals) -> None:
     assert proc.returncode == 0, err
     assert "akarm sim: stopped at" in out
     assert "Traceback" not in err
-
-
-def test_status_line_fits_80_columns_or_is_wrapped_per_joint() -> None:
-    from akarm.cli.sim import status_block
-
-    short = "t=    1.00s | a +0.000rad +0.00Nm  25.0C on"
-    assert status_block(short, 80) == [short]
-    six = "t=    1.00s | " + " | ".join(f"joint{k} +0.000rad +0.00Nm  25.0C on" for k in range(6))
-    block = status_block(six, 80)
-    assert block[0] == "t=    1.00s" and len(block) == 7
-    assert all(len(line) < 80 for line in block) and block[3] == "  joint2 +0.000rad +0.00Nm  25.0C on"
-    assert all(len(line) < 20 for line in status_block(six, 20))  # a very narrow terminal: cut

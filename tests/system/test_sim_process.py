@@ -35,14 +35,6 @@ def test_an_arm_moves_against_a_simulator_in_another_process(channel):
         _ = sim.pid
 
 
-def test_cpu_time_of_a_process_that_is_gone_is_nan(tmp_path):
-    from akarm.sim.process import stat_cpu_seconds
-
-    if Path("/proc").is_dir():
-        assert stat_cpu_seconds(f"/proc/{os.getpid()}/stat") > 0.0
-    assert stat_cpu_seconds(tmp_path / "no-such-stat") != stat_cpu_seconds(tmp_path / "no-such-stat")  # NaN
-
-
 def test_a_simulator_that_cannot_start_says_why(tmp_path, channel):
     bad = tmp_path / "broken.yaml"
     bad.write_text("joints: [\n")

@@ -4,8 +4,6 @@ configuration sources honoured (the YAML first), and errors specific to the caus
 from __future__ import annotations
 
 import errno
-import subprocess
-import sys
 from pathlib import Path
 
 import can
@@ -18,7 +16,7 @@ from akarm.config import BusConfig
 from akarm.config.canconfig import python_can_settings
 from akarm.robotfile.load import load_robot
 
-from .conftest import ROBOTS, wait_until
+from .conftest import ROBOTS
 
 URDF = (ROBOTS / "planar2.urdf").resolve()
 BASE = f"""\
@@ -40,19 +38,6 @@ def robot(tmp_path: Path, buses: str = "") -> Path:
 
 
 # ----------------------------------------------------------------------------- keyword arguments
-
-
-def test_yaml_bus_keys_beyond_interface_channel_bitrate_are_passed_to_python_can(tmp_path: Path,
-                                                                                 channel: str) -> None:
-    config = load_robot(robot(tmp_path, f"buses:\n  arm: {{interface: virtual, channel: {channel}, "
-                                        "preserve_timestamps: true, rx_queue_size: 64}\n"))
-    bus = config.buses["arm"]
-    assert bus.options == {"preserve_timestamps": True, "rx_queue_size": 64}
-    opened = open_bus(bus)
-    try:  # python-can's virtual bus took them
-        assert opened.preserve_timestamps is True and opened.queue.maxsize == 64
-    finally:
-        opened.shutdown()
 
 
 def test_a_near_miss_of_a_bus_key_is_still_an_error(tmp_path: Path) -> None:
@@ -133,17 +118,6 @@ def test_a_bad_interface_from_python_can_configuration_says_where_it_came_from(
         load_robot(robot(tmp_path))
 
 
-def test_scan_without_a_robot_file_uses_python_can_configuration(monkeypatch: pytest.MonkeyPatch, channel: str,
-                                                                capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["scan"]) == 1
-    assert "give the bus: -i INTERFACE -c CHANNEL (or configure python-can" in capsys.readouterr().err
-    monkeypatch.setenv("CAN_INTERFACE", "virtual")
-    monkeypatch.setenv("CAN_CHANNEL", channel)
-    assert main(["scan", "--ids", "1-2", "--listen", "0", "--timeout", "0.01"]) == 1
-    err = capsys.readouterr().err
-    assert "no motor answered" in err and f"virtual channel {channel!r}" in err
-
-
 # ----------------------------------------------------------------------------- errors specific to the cause
 
 
@@ -180,31 +154,7 @@ def test_interface_problems() -> None:
 # ----------------------------------------------------------------------------- nothing answers
 
 
-def test_no_answer_on_akarm_local_says_nothing_is_on_the_channel(channel: str) -> None:
-    bus = BusConfig("arm", "akarm_local", channel)
-    assert f"no simulator or motor is on akarm_local channel {channel!r}" in no_answer_hint(bus)
-    assert f"akarm sim ROBOT.yaml -i akarm_local -c {channel}" in no_answer_hint(bus)
-    # another process on the channel: it is there, but did not answer as these joints
-    code = (f"import can, sys, time; b = can.Bus(interface='akarm_local', channel={channel!r}); print('up', "
-            "flush=True); sys.stdin.read(); b.shutdown()")
-    other = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    try:
-        assert other.stdout is not None and other.stdout.readline().strip() == "up"
-        assert wait_until(lambda: f"processes {other.pid}" in no_answer_hint(bus), 5.0), no_answer_hint(bus)
-        assert "same CAN IDs" in no_answer_hint(bus)
-    finally:
-        other.communicate("", timeout=10)
-
-
 def test_no_answer_on_virtual_and_on_hardware() -> None:
     assert "only reaches buses of this same process" in no_answer_hint(BusConfig("arm", "virtual", "x"))
     hw = no_answer_hint(BusConfig("arm", "socketcan", "can0"))
     assert "powered" in hw and "akarm scan -i socketcan -c can0" in hw
-
-
-def test_status_names_the_cause_when_nothing_answers(tmp_path: Path, channel: str,
-                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["status", str(ROBOTS / "planar2.yaml"), "-i", "akarm_local", "-c", channel, "--timeout",
-                 "0.05"]) == 1
-    err = capsys.readouterr().err
-    assert "no answer from shoulder, elbow" in err and "no simulator or motor is on akarm_local channel" in err

@@ -19,13 +19,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-import akarm
 from akarm import ConfigError, ConfigWarning
 from akarm.config.urdf import read_urdf
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ConfigProblem
 from akarm.robotfile.load import load_robot
-from akarm.sim import SimulatedRobot
 
 URDFS = Path(__file__).resolve().parent.parent / "urdfs"
 CORPUS = sorted(URDFS.glob("*.urdf"))
@@ -212,22 +210,6 @@ joints:
     model = RobotModel(config)
     assert model.pin_model.nq == 5  # the continuous joint is (cos, sin) inside Pinocchio ...
     assert model.from_pin_q(model.to_pin_q([0.1, 0.2, 0.3, 2.5]))[3] == pytest.approx(2.5)  # ... not outside
-
-
-def test_the_simulator_simulates_the_reduced_model(channel: str, tmp_path: Path) -> None:
-    """The plant integrates the model with the fingers locked: the arm holds and tracks as with any arm."""
-    config = load_robot(write(tmp_path, ARM7)).with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(config, realtime=False) as sim:
-        assert sim.plant.model.pin_model.nq == 7
-        np.testing.assert_allclose(sim.plant.model.gravity(config.pose("out")),
-                                   RobotModel(config).gravity(config.pose("out")), atol=1e-12)
-        with akarm.Arm(config, clock=sim.clock) as arm:
-            arm.enable()
-            for pose in ("home", "out"):
-                arm.move_to(pose)
-                arm.sleep(0.5)
-                err = np.abs(arm.state().q - np.array(config.pose(pose)))
-                assert err.max() < 2e-3, (pose, err)
 
 
 # ----------------------------------------------------------------------------- problems, at their URDF line

@@ -45,6 +45,14 @@ ROOT = Path(__file__).resolve().parent.parent
 TIERS = ("unit", "sim", "system")
 
 
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto`` (pyproject's addopts): a worker per core for the README's plain ``python -m pytest``
+    (unit and sim: lock step, so no test depends on how fast its process runs), and none when paths or
+    tests are named (the system tier runs in real time and must not share the cores with itself; a
+    single test starts at once). ``-n NUMBER`` on the command line still wins."""
+    return None if not config.args or config.args == config.getini("testpaths") else 0
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark every test with its tier, the folder it is in (tests/unit, tests/sim, tests/system)."""
     here = Path(__file__).parent

@@ -20,14 +20,21 @@ import itertools
 import os
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import can
 import pytest
 
 from akarm.buses.bus import drain as _drain
 from akarm.errors import AkarmError
+
+if TYPE_CHECKING:
+    from akarm.arm import Arm
+    from akarm.config import RobotConfig
+    from akarm.sim import SimulatedRobot
 
 # DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
 # test runs see nothing but their own participants (each also uses a domain and namespace of its own)
@@ -38,8 +45,8 @@ try:
 except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
     pass
 
-__all__ = ["ROBOTS", "ROOT", "URDFS", "drain", "has_can_sockets", "has_vcan", "missing_socketcan_fix",
-           "relaxed_robot", "send", "wait_until"]
+__all__ = ["ROBOTS", "ROOT", "URDFS", "drain", "has_can_sockets", "has_vcan", "lockstep_arm",
+           "missing_socketcan_fix", "relaxed_robot", "send", "wait_until"]
 
 ROOT = Path(__file__).resolve().parent.parent
 TIERS = ("unit", "sim", "system")
@@ -143,6 +150,49 @@ def planar2():
     from akarm.robotfile.load import load_robot
 
     return load_robot(ROBOTS / "planar2.yaml")
+
+
+@contextmanager
+def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = None,
+                 config_edit: Callable[[RobotConfig], RobotConfig] | None = None, enable: bool = False,
+                 timing: Any = None, sim_options: Mapping[str, Any] | None = None,
+                 **arm_options: Any) -> Iterator[tuple[Arm, SimulatedRobot]]:
+    """The lock-step arm the sim tests share: a :class:`~akarm.sim.SimulatedRobot` in this process on
+    the virtual channel ``channel`` and an :class:`~akarm.Arm` on its clock, open (enabled with
+    ``enable``); leaving the block closes the arm (damped, disabled), then the simulator.
+
+    ``robot``: a name in robots/ (``"arm6"``), a robot file (a Path) or a loaded config, put on
+    ``channel``, then passed through ``config_edit``. ``q0``: the simulator's start position (default all zeros);
+    ``timing``: the profile of both; ``sim_options`` go to the simulator (``faults``, ``dt``, ...),
+    ``arm_options`` to the Arm (``feedforward``, ``telemetry_seconds``, ...).
+    """
+    from akarm.arm import Arm
+    from akarm.robotfile.load import load_robot
+    from akarm.sim import SimulatedRobot
+
+    if isinstance(robot, str | Path):
+        robot = load_robot(ROBOTS / f"{robot}.yaml" if isinstance(robot, str) else robot)
+    config = robot.with_bus(interface="virtual", channel=channel)
+    if config_edit is not None:
+        config = config_edit(config)
+    if timing is not None:
+        arm_options.setdefault("timing", timing)
+    with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, **(sim_options or {})) as sim, \
+            Arm(config, clock=sim.clock, **arm_options) as arm:
+        if enable:
+            arm.enable()
+        yield arm, sim
+
+
+@pytest.fixture
+def lockstep(channel: str) -> Callable[..., AbstractContextManager[tuple[Arm, SimulatedRobot]]]:
+    """:func:`lockstep_arm` on this test's channel: ``with lockstep("arm6", enable=True) as (arm, sim):``
+    (a test with several arms gives each its own: ``lockstep("arm6", channel=channel + "-b")``)."""
+
+    def make(robot: str | Path | RobotConfig, **options: Any) -> AbstractContextManager[tuple[Arm, SimulatedRobot]]:
+        return lockstep_arm(robot, options.pop("channel", channel), **options)
+
+    return make
 
 
 def relaxed_robot(robot: Path, directory: Path) -> Path:

@@ -19,21 +19,16 @@ from akarm import Arm, FeedbackTimeout, LimitError, MotorFault, OverTemperature,
 from akarm.protocol.mit import MitCommand
 from akarm.sim import SimulatedRobot, faults
 
-from .conftest import ROBOTS, missing_socketcan_fix
+from .conftest import ROBOTS, lockstep_arm, missing_socketcan_fix
 
 
 @contextmanager
 def rig(robot: str, channel: str, *, q0=None, config_edit=None, **arm_kwargs):
-    """A lock-step simulator and an Arm on the same virtual channel."""
-    cfg = akarm.load_robot(ROBOTS / f"{robot}.yaml").with_bus(interface="virtual", channel=channel)
-    if config_edit is not None:
-        cfg = config_edit(cfg)
-    with SimulatedRobot(cfg, realtime=False) as sim:
+    """The shared lock-step arm (tests/conftest.py), the simulated arm placed at ``q0`` once started."""
+    with lockstep_arm(robot, channel, config_edit=config_edit, **arm_kwargs) as (arm, sim):
         if q0 is not None:
             sim.set_state(np.asarray(q0, float))
-        arm = Arm(cfg, clock=sim.clock, **arm_kwargs)
-        with arm:
-            yield arm, sim
+        yield arm, sim
 
 
 def limits_of(arm: Arm):

@@ -8,8 +8,7 @@ pose from the *simulator's* joint positions (the plant's truth, not the replies 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 
 import numpy as np
 import pinocchio as pin
@@ -21,18 +20,15 @@ from akarm.dynamics.ik import make_pose, pose_error, quaternion
 from akarm.errors import LimitError, SingularityError, StateError, UnreachableError
 from akarm.sim import SimulatedRobot
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, lockstep_arm
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
 PLANAR2 = akarm.load_robot(ROBOTS / "planar2.yaml")
 
 
-@contextmanager
-def lockstep(config, channel: str, q0) -> Iterator[tuple[Arm, SimulatedRobot]]:
-    cfg = config.with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(cfg, realtime=False, q0=q0) as sim, Arm(cfg, clock=sim.clock) as arm:
-        arm.enable()
-        yield arm, sim
+def lockstep(config, channel: str, q0) -> AbstractContextManager[tuple[Arm, SimulatedRobot]]:
+    """The shared lock-step arm (tests/conftest.py), enabled at ``q0``."""
+    return lockstep_arm(config, channel, q0=q0, enable=True)
 
 
 def sim_pose(sim: SimulatedRobot) -> np.ndarray:

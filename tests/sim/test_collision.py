@@ -7,8 +7,7 @@ payloads the arm may or may not be told about.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import numpy as np
@@ -22,19 +21,15 @@ from akarm.errors import CollisionError
 from akarm.sim import SimulatedRobot
 from akarm.telemetry.log import load as load_telemetry
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, lockstep_arm
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
 THRESHOLDS = [j.collision_threshold for j in ARM6.joints]  # what `akarm identify` suggested (robots/arm6.yaml)
 
 
-@contextmanager
-def lockstep(channel: str, q0=None, **arm_options) -> Iterator[tuple[Arm, SimulatedRobot]]:
-    cfg = ARM6.with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(cfg, realtime=False, q0=ARM6.pose("home") if q0 is None else q0) as sim, \
-            Arm(cfg, clock=sim.clock, **arm_options) as arm:
-        arm.enable()
-        yield arm, sim
+def lockstep(channel: str, q0=None, **arm_options) -> AbstractContextManager[tuple[Arm, SimulatedRobot]]:
+    """The shared lock-step arm (tests/conftest.py): arm6, enabled at ``q0`` (default: its home pose)."""
+    return lockstep_arm(ARM6, channel, q0=ARM6.pose("home") if q0 is None else q0, enable=True, **arm_options)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -41,7 +41,7 @@ from akarm.control.modes import Mode
 from akarm.protocol import mit
 from akarm.sim import SimulatedRobot, faults
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, lockstep_arm
 from .wire import Wire, damping_then_exit, never_held
 
 HOLD = {"planar2": "home", "arm6": "reach"}            # poses held against gravity
@@ -51,19 +51,18 @@ MOVE = {"planar2": ([-1.0, 0.0], "up"), "arm6": ("ready", "reach")}  # (from, to
 @contextmanager
 def rig(robot: str, channel: str, *, q0=None, sim_faults=None, config_edit=None,
         **arm_kwargs) -> Iterator[tuple[akarm.Arm, SimulatedRobot, Wire]]:
-    """A lock-step simulator, a spy on its buses and an Arm, all on this test's channel."""
+    """The shared lock-step arm (tests/conftest.py) and a spy on its buses, all on this test's channel."""
     cfg = akarm.load_robot(ROBOTS / f"{robot}.yaml").with_bus(interface="virtual", channel=channel)
     if config_edit is not None:
         cfg = config_edit(cfg)
-    with SimulatedRobot(cfg, realtime=False, faults=sim_faults) as sim, Wire(cfg) as wire:
+    with Wire(cfg) as wire, lockstep_arm(cfg, channel, sim_options={"faults": sim_faults}, **arm_kwargs) as (arm, sim):
         if q0 is not None:
             sim.set_state(np.asarray(q0, float))
-        with akarm.Arm(cfg, clock=sim.clock, **arm_kwargs) as arm:
-            # the supervisor's checks alone: the collision reflex (arm6.yaml's thresholds) sees a blocked
-            # joint, a frozen encoder or an overload as an external torque and may stop the arm first
-            # (tests/sim/test_collision.py)
-            arm.set_collision(thresholds=[None] * arm.n)
-            yield arm, sim, wire
+        # the supervisor's checks alone: the collision reflex (arm6.yaml's thresholds) sees a blocked
+        # joint, a frozen encoder or an overload as an external torque and may stop the arm first
+        # (tests/sim/test_collision.py)
+        arm.set_collision(thresholds=[None] * arm.n)
+        yield arm, sim, wire
 
 
 def stopped(arm: akarm.Arm, sim: SimulatedRobot, exc_type: type, joint: str | None, run) -> BaseException:

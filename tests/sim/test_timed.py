@@ -8,16 +8,13 @@ import numpy as np
 import pytest
 
 import akarm
-from akarm.sim import SimulatedRobot
 
 NAN = math.nan
 
 
 @pytest.fixture
-def arm6(channel):
-    config = akarm.load_robot("robots/arm6.yaml").with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(config, realtime=False) as sim, akarm.Arm(config, clock=sim.clock) as arm:
-        arm.enable()
+def arm6(lockstep):
+    with lockstep("arm6", enable=True) as (arm, sim):
         yield arm, sim
 
 

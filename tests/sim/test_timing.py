@@ -14,7 +14,7 @@ from akarm import Arm, FeedbackTimeout, load_robot
 from akarm.sim import SimulatedRobot, faults
 from akarm.timing import PROFILES
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, lockstep_arm
 
 PLANAR2 = ROBOTS / "planar2.yaml"
 SERVO3 = ROBOTS / "servo3.yaml"
@@ -57,8 +57,7 @@ def test_enable_waits_for_the_first_answers_as_long_as_the_profile_says(channel:
 
 def test_the_slow_profile_still_tracks(channel: str) -> None:
     config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
-    with SimulatedRobot(config, realtime=False, q0=HANGING, timing="slow") as sim, \
-            Arm(config, clock=sim.clock, timing="slow") as arm:
+    with lockstep_arm(config, channel, q0=HANGING, timing="slow") as (arm, sim):
         assert sim.dt == pytest.approx(1 / 250)
         arm.enable()
         arm.move_to("up")
@@ -85,8 +84,7 @@ def test_the_slow_profiles_lag_lets_a_late_simulator_run_a_fast_move(channel: st
     profile = replace(PROFILES["slow"], lag=lag)
     config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
     late = {name: faults.DelayReplies(0.15) for name in config.joint_names}
-    with SimulatedRobot(config, realtime=False, q0=HANGING, timing=profile, faults=late) as sim, \
-            Arm(config, clock=sim.clock, timing=profile) as arm:
+    with lockstep_arm(config, channel, q0=HANGING, timing=profile, sim_options={"faults": late}) as (arm, sim):
         arm.enable()
         if stops:
             with pytest.raises(TrackingError, match="shoulder"):

@@ -22,6 +22,9 @@ def test_readme_quick_start_is_what_ci_runs() -> None:
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     assert "\n.venv/bin/python -m pytest || exit 1" in ci
     assert '-e ".[test,plot]"' in ci
+    # the second command, the system tier, is documented and CI runs it too
+    assert "\n.venv/bin/python -m pytest tests/system" in README
+    assert "\n.venv/bin/python -m pytest tests/system " in ci
 
 
 def test_readme_lists_every_verb_and_every_example() -> None:

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
     from akarm.sim import SimulatedRobot
+    from akarm.timing import TimingProfile
 
 # DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
 # test runs see nothing but their own participants (each also uses a domain and namespace of its own)
@@ -57,7 +58,7 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     (unit and sim: lock step, so no test depends on how fast its process runs), and none when paths or
     tests are named (the system tier runs in real time and must not share the cores with itself; a
     single test starts at once). ``-n NUMBER`` on the command line still wins."""
-    return None if not config.args or config.args == config.getini("testpaths") else 0
+    return 0 if config.args_source is pytest.Config.ArgsSource.ARGS else None
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
@@ -155,16 +156,16 @@ def planar2():
 @contextmanager
 def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = None,
                  config_edit: Callable[[RobotConfig], RobotConfig] | None = None, enable: bool = False,
-                 timing: Any = None, sim_options: Mapping[str, Any] | None = None,
+                 timing: str | TimingProfile | None = None, sim_options: Mapping[str, Any] | None = None,
                  **arm_options: Any) -> Iterator[tuple[Arm, SimulatedRobot]]:
     """The lock-step arm the sim tests share: a :class:`~akarm.sim.SimulatedRobot` in this process on
     the virtual channel ``channel`` and an :class:`~akarm.Arm` on its clock, open (enabled with
     ``enable``); leaving the block closes the arm (damped, disabled), then the simulator.
 
     ``robot``: a name in robots/ (``"arm6"``), a robot file (a Path) or a loaded config, put on
-    ``channel``, then passed through ``config_edit``. ``q0``: the simulator's start position (default all zeros);
-    ``timing``: the profile of both; ``sim_options`` go to the simulator (``faults``, ``dt``, ...),
-    ``arm_options`` to the Arm (``feedforward``, ``telemetry_seconds``, ...).
+    ``channel``, then passed through ``config_edit``. ``q0``: the simulator's start position
+    (default all zeros); ``timing``: the profile of both; ``sim_options`` go to the simulator
+    (``faults``, ``dt``, ...), ``arm_options`` to the Arm (``feedforward``, ``telemetry_seconds``, ...).
     """
     from akarm.arm import Arm
     from akarm.robotfile.load import load_robot

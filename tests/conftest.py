@@ -53,6 +53,7 @@ ROOT = Path(__file__).resolve().parent.parent
 TIERS = ("unit", "sim", "system")
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: without xdist (-p no:xdist) nobody calls it
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     """``-n auto`` (pyproject's addopts): a worker per core for the README's plain ``python -m pytest``
     (unit and sim: lock step, so no test depends on how fast its process runs), and none when paths or

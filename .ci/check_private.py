@@ -21,9 +21,7 @@ def _is_private(name: str) -> bool:
 def _owner_ok(node: ast.expr) -> bool:
     if isinstance(node, ast.Name) and node.id in OWNERS:
         return True
-    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {"super", "type"}:
-        return True
-    return False
+    return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {"super", "type"}
 
 
 def check(path: Path) -> list[str]:

@@ -1,4 +1,18 @@
-"""Shared test fixtures."""
+"""Shared test fixtures and helpers, and the tiers.
+
+The tests are in three folders, one per tier, and each test gets its folder's marker (``-m unit``,
+``-m sim``, ``-m system``):
+
+- ``tests/unit``: pure logic: no simulator, no CAN bus, no threads, no processes.
+- ``tests/sim``: the simulator or a bus in this process, in lock step with the controller where a
+  loop runs (SteppedClock): nothing waits on the wall clock for more than a few milliseconds.
+- ``tests/system``: other processes (``akarm sim``, the CLI as a command, scripts), real-time loops
+  and simulators, akarm_local across processes, ROS 2 over DDS, SocketCAN (``vcan``).
+
+``python -m pytest`` runs unit and sim (pyproject's testpaths); ``python -m pytest tests/system``
+runs the system tier. The helpers below are imported by the tests as ``from .conftest import ...``:
+each tier's conftest re-exports them (``__all__``).
+"""
 
 from __future__ import annotations
 
@@ -6,14 +20,22 @@ import itertools
 import os
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import can
 import pytest
 
 from akarm.buses.bus import drain as _drain
 from akarm.errors import AkarmError
+
+if TYPE_CHECKING:
+    from akarm.arm import Arm
+    from akarm.config import RobotConfig
+    from akarm.sim import SimulatedRobot
+    from akarm.timing import TimingProfile
 
 # DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
 # test runs see nothing but their own participants (each also uses a domain and namespace of its own)
@@ -24,7 +46,29 @@ try:
 except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
     pass
 
+__all__ = ["ROBOTS", "ROOT", "URDFS", "drain", "has_can_sockets", "has_vcan", "lockstep_arm",
+           "missing_socketcan_fix", "relaxed_robot", "send", "wait_until"]
+
 ROOT = Path(__file__).resolve().parent.parent
+TIERS = ("unit", "sim", "system")
+
+
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: without xdist (-p no:xdist) nobody calls it
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto`` (pyproject's addopts): a worker per core for the README's plain ``python -m pytest``
+    (unit and sim: lock step, so no test depends on how fast its process runs), and none when paths or
+    tests are named (the system tier runs in real time and must not share the cores with itself; a
+    single test starts at once). ``-n NUMBER`` on the command line still wins."""
+    return 0 if config.args_source is pytest.Config.ArgsSource.ARGS else None
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test with its tier, the folder it is in (tests/unit, tests/sim, tests/system)."""
+    here = Path(__file__).parent
+    for item in items:
+        parts = item.path.relative_to(here).parts if item.path.is_relative_to(here) else ()
+        if parts and parts[0] in TIERS:
+            item.add_marker(parts[0])
 
 
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
@@ -45,6 +89,7 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(can.util, "CONFIG_FILES", [])
     monkeypatch.setattr(can, "rc", {})
 ROBOTS = ROOT / "robots"
+URDFS = ROOT / "tests" / "urdfs"  # the exporter-style URDF corpus (tests/unit/test_urdf.py)
 _counter = itertools.count()
 
 
@@ -107,6 +152,49 @@ def planar2():
     from akarm.robotfile.load import load_robot
 
     return load_robot(ROBOTS / "planar2.yaml")
+
+
+@contextmanager
+def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = None,
+                 config_edit: Callable[[RobotConfig], RobotConfig] | None = None, enable: bool = False,
+                 timing: str | TimingProfile | None = None, sim_options: Mapping[str, Any] | None = None,
+                 **arm_options: Any) -> Iterator[tuple[Arm, SimulatedRobot]]:
+    """The lock-step arm the sim tests share: a :class:`~akarm.sim.SimulatedRobot` in this process on
+    the virtual channel ``channel`` and an :class:`~akarm.Arm` on its clock, open (enabled with
+    ``enable``); leaving the block closes the arm (damped, disabled), then the simulator.
+
+    ``robot``: a name in robots/ (``"arm6"``), a robot file (a Path) or a loaded config, put on
+    ``channel``, then passed through ``config_edit``. ``q0``: the simulator's start position
+    (default all zeros); ``timing``: the profile of both; ``sim_options`` go to the simulator
+    (``faults``, ``dt``, ...), ``arm_options`` to the Arm (``feedforward``, ``telemetry_seconds``, ...).
+    """
+    from akarm.arm import Arm
+    from akarm.robotfile.load import load_robot
+    from akarm.sim import SimulatedRobot
+
+    if isinstance(robot, str | Path):
+        robot = load_robot(ROBOTS / f"{robot}.yaml" if isinstance(robot, str) else robot)
+    config = robot.with_bus(interface="virtual", channel=channel)
+    if config_edit is not None:
+        config = config_edit(config)
+    if timing is not None:
+        arm_options.setdefault("timing", timing)
+    with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, **(sim_options or {})) as sim, \
+            Arm(config, clock=sim.clock, **arm_options) as arm:
+        if enable:
+            arm.enable()
+        yield arm, sim
+
+
+@pytest.fixture
+def lockstep(channel: str) -> Callable[..., AbstractContextManager[tuple[Arm, SimulatedRobot]]]:
+    """:func:`lockstep_arm` on this test's channel: ``with lockstep("arm6", enable=True) as (arm, sim):``
+    (a test with several arms gives each its own: ``lockstep("arm6", channel=channel + "-b")``)."""
+
+    def make(robot: str | Path | RobotConfig, **options: Any) -> AbstractContextManager[tuple[Arm, SimulatedRobot]]:
+        return lockstep_arm(robot, options.pop("channel", channel), **options)
+
+    return make
 
 
 def relaxed_robot(robot: Path, directory: Path) -> Path:

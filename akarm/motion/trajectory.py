@@ -91,7 +91,7 @@ def position_extrema(traj: ruckig.Trajectory) -> list[tuple[float, float, float,
     ruckig's own ``position_extrema`` (Community Version; seen with 0.19.4) misses a reversal
     (velocity through zero) inside a phase of constant acceleration: a move that starts moving away
     from its target (a retarget) turns around in such a phase, and passes the reported extrema by up
-    to the whole overshoot (0.11 rad in tests/test_trajectory.py).
+    to the whole overshoot (0.11 rad in tests/unit/test_trajectory.py).
     """
     out = []
     end = traj.at_time(traj.duration)[0]

@@ -2,7 +2,7 @@
 
 ROS 2 type ``pkg/msg/Name`` is the DDS type ``pkg::msg::dds_::Name_``; fields, their order and
 their types are those of the ``.msg`` files (final extensibility, plain CDR, XCDR1), so these
-serialize to the bytes rmw_cyclonedds_cpp writes (``tests/test_ros_msgs.py`` checks them against
+serialize to the bytes rmw_cyclonedds_cpp writes (``tests/unit/test_ros_msgs.py`` checks them against
 rosbags' ROS 2 typestore).
 
 Service requests and replies carry rmw_cyclonedds_cpp's request header in front of the fields of

@@ -1,0 +1,7 @@
+"""System tests: processes, real time, ROS 2, vcan (tests/conftest.py).
+
+The shared helpers, for ``from .conftest import ...`` in this folder's tests.
+"""
+
+from ..conftest import *  # noqa: F403
+from ..conftest import __all__ as __all__

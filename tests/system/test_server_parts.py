@@ -1,0 +1,219 @@
+"""The server's parts on their own: the bus registry, the CLI's control socket, the frontends."""
+
+from __future__ import annotations
+
+import _thread
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+import akarm
+from akarm.buses import ownership as registry
+from akarm.errors import AkarmError, ArgumentError, LimitError, MotorFault, StateError
+from akarm.server.server import ArmServerCore
+from akarm.server.socket import SocketClient, SocketServer
+from akarm.sim import SimulatedRobot
+
+from .conftest import ROBOTS
+
+
+def config_on(channel: str, interface: str = "akarm_local"):
+    return akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface=interface, channel=channel)
+
+
+def test_a_bus_lock_is_exclusive_across_processes_and_gone_with_its_holder(channel):
+    config = config_on(channel)
+    assert registry.find_server(config) is None
+    holder = subprocess.Popen([sys.executable, "-c", f"""
+import sys, akarm
+from akarm.buses.ownership import BusLock
+lock = BusLock(akarm.load_robot({str(ROBOTS / 'planar2.yaml')!r}).with_bus(interface="akarm_local",
+               channel={channel!r}), {{"robot": "planar2", "socket": "/nowhere"}})
+print("locked", flush=True)
+sys.stdin.readline()
+"""], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        info = registry.find_server(config)
+        assert info is not None and info["pid"] == holder.pid and info["socket"] == "/nowhere"
+        with pytest.raises(StateError, match=f"pid {holder.pid}.*two controllers"):
+            registry.BusLock(config, {"robot": "again"})
+        with pytest.raises(StateError, match="opening this Arm would be a second controller"):
+            akarm.Arm(config).open()
+    finally:
+        holder.kill()  # no clean exit: the kernel drops the lock anyway
+        holder.wait()
+    assert registry.find_server(config) is None
+    lock = registry.BusLock(config, {"robot": "mine"})
+    try:
+        assert registry.find_server(config) is None, "this process's own server does not count"
+    finally:
+        lock.release()
+
+
+def test_virtual_buses_are_never_locked(channel):
+    assert registry.bus_keys(config_on(channel, "virtual")) == []
+    assert registry.bus_keys(config_on("vcan0", "socketcan")) == ["socketcan-vcan0"]
+
+
+def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
+    def dispatch(op, args, client):
+        if op == "add":
+            return args["a"] + args["b"]
+        if op == "limit":
+            raise LimitError("past the range", joint="elbow", fix="a smaller target")
+        if op == "fault":
+            raise MotorFault("over-temperature", code=1, joint="elbow", fix="let it cool")
+        raise KeyError(op)
+
+    server = SocketServer(tmp_path / "c.sock", dispatch)
+    try:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
+            assert c.call("add", a=2, b=3) == 5
+            with pytest.raises(LimitError) as e:
+                c.call("limit")
+            assert (e.value.joint, e.value.fix) == ("elbow", "a smaller target")
+            assert str(e.value) == str(LimitError("past the range", joint="elbow", fix="a smaller target"))
+            with pytest.raises(akarm.SafetyStop, match="over-temperature"):  # its own constructor: the parent class
+                c.call("fault")
+            with pytest.raises(AkarmError, match="server error: KeyError"):
+                c.call("nonsense")
+            assert c.call("add", a=1, b=1) == 2, "the connection survives an error"
+    finally:
+        server.close()
+    assert not (tmp_path / "c.sock").exists()
+    with pytest.raises(StateError, match="cannot reach akarm serve"):
+        SocketClient(tmp_path / "c.sock")
+
+
+def test_an_answer_left_by_a_call_cut_short_is_not_taken_by_the_next_call(tmp_path):
+    """Ctrl-C while a call waits leaves the server's answer on the socket: the next call must skip it
+    (it took `False` for a recording, and the path was lost)."""
+    release = threading.Event()
+    left = []
+
+    def dispatch(op, args, client):
+        if op == "slow":
+            release.wait(10)
+            return "the slow call's answer"
+        return {"echo": op, "client": client}
+
+    server = SocketServer(tmp_path / "c.sock", dispatch, closed=left.append)
+    try:
+        with SocketClient(tmp_path / "c.sock", timeout=10) as c:
+            timer = threading.Timer(0.2, lambda: (release.set(), _thread.interrupt_main()))
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                c.call("slow")  # cut short: its answer arrives after the interrupt
+            timer.join()
+            first = c.call("first")
+            assert first["echo"] == "first"  # not "the slow call's answer"
+            assert c.call("second")["echo"] == "second"
+            client = first["client"]
+        with SocketClient(tmp_path / "c.sock", timeout=10) as other:
+            assert other.call("x")["client"] != client  # each connection has its own number
+        deadline = time.monotonic() + 5
+        while len(left) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert client in left and len(left) == 2  # the server hears when each connection ends
+    finally:
+        server.close()
+
+
+def test_sockets_of_servers_that_are_gone_are_swept_and_live_ones_kept(monkeypatch, tmp_path):
+    monkeypatch.setattr(registry, "BASE", tmp_path)
+    runtime = registry.runtime_dir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    gone = runtime / f"serve-{dead.pid}-7f00.sock"
+    alive = runtime / f"serve-{os.getpid()}-7f01.sock"
+    other = runtime / "serve-akarm_local-can0.lock"
+    for p in (gone, alive, other):
+        p.write_text("")
+    assert registry.sweep_sockets() == 1
+    assert not gone.exists() and alive.exists() and other.exists()
+
+
+def test_server_rates_must_be_positive(channel):
+    config = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        for bad in ({"joint_states_hz": 0}, {"joint_states_hz": -5.0}, {"status_hz": float("nan")}):
+            with pytest.raises(ArgumentError, match="must be a positive number of Hz"):
+                akarm.ArmServer(arm, ros=False, **bad)
+        assert not arm.enabled  # refused before anything was opened or enabled
+
+
+def test_a_dds_configuration_cyclone_cannot_use_is_an_akarm_error(monkeypatch, channel):
+    pytest.importorskip("cyclonedds")
+    from akarm.ros.node import RosNode
+
+    config = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    monkeypatch.setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><General><Interfaces>"
+                                         "<NetworkInterface name='no-such-nic0'/></Interfaces></General>"
+                                         "</Domain></CycloneDDS>")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = akarm.ArmServer(arm, ros=False)
+        with pytest.raises(AkarmError, match="Cyclone DDS could not start") as e:
+            RosNode(server, 77, "", 10.0, 1.0)
+        assert "CYCLONEDDS_URI" in e.value.fix
+
+
+class RecordingFrontend:
+    """A frontend that notes when it is made, started and stopped, and whether the arm was enabled then."""
+
+    def __init__(self, server: ArmServerCore, seen: list[tuple[str, bool]]) -> None:
+        self.arm = server.arm
+        self.seen = seen
+        seen.append(("made", self.arm.enabled))
+
+    def start(self) -> None:
+        self.seen.append(("started", self.arm.enabled))
+
+    def stop(self) -> None:
+        self.seen.append(("stopped", self.arm.enabled))
+
+
+def test_a_frontend_is_made_before_enabling_started_once_held_and_stopped_once_disabled(channel):
+    config = config_on(channel, "virtual")
+    seen: list[tuple[str, bool]] = []
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        with ArmServerCore(arm, frontends=[lambda server: RecordingFrontend(server, seen)]) as server:
+            assert server.mode == "holding" and seen == [("made", False), ("started", True)]
+        assert seen == [("made", False), ("started", True), ("stopped", False)]
+
+
+def test_a_frontend_that_cannot_be_made_fails_the_start_before_anything_is_enabled(channel):
+    def broken(server: ArmServerCore) -> RecordingFrontend:
+        raise AkarmError("this frontend has no transport", fix="install it")
+
+    config = config_on(channel, "virtual")
+    seen: list[tuple[str, bool]] = []
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = ArmServerCore(arm, frontends=[lambda server: RecordingFrontend(server, seen), broken])
+        with pytest.raises(AkarmError, match="this frontend has no transport"):
+            server.start()
+        assert not arm.enabled
+        assert seen == [("made", False), ("stopped", False)], "the one made is stopped, never started"
+
+
+def test_without_cyclone_dds_serving_ros_is_refused_before_anything_is_enabled(monkeypatch, channel):
+    for name in [m for m in sys.modules if m == "akarm.ros" or m.startswith("akarm.ros.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)  # as if the ros extra were not installed
+    config = config_on(channel, "virtual")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        server = akarm.ArmServer(arm)
+        with pytest.raises(AkarmError, match="need Cyclone DDS's Python binding, which is not installed") as e:
+            server.start()
+        assert "--no-ros" in e.value.fix and not arm.enabled
+        with akarm.ArmServer(arm, ros=False) as served:  # the CLI alone needs no DDS
+            assert served.mode == "holding"

@@ -1,0 +1,43 @@
+"""The simulator in a process of its own, on akarm_local: what the benchmarks and `akarm bench` use."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import akarm
+from akarm.errors import StateError
+from akarm.sim.process import SimulatorProcess
+
+from .conftest import ROBOTS
+
+
+def test_an_arm_moves_against_a_simulator_in_another_process(channel):
+    robot = ROBOTS / "planar2.yaml"
+    cpus = sorted(os.sched_getaffinity(0))[:1] if hasattr(os, "sched_getaffinity") else None
+    with SimulatorProcess(robot, channel=channel, cpus=cpus) as sim:
+        if cpus:
+            status = Path(f"/proc/{sim.pid}/status").read_text()
+            assert f"Cpus_allowed_list:\t{cpus[0]}" in status
+        config = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)
+        # real time against another process on a possibly busy machine: the watchdog is relaxed
+        with akarm.Arm(config, feedback_timeout=0.5) as arm:
+            arm.enable()
+            target = np.array([0.3, -0.4])
+            arm.move_to(target)
+            arm.sleep(0.5)
+            assert np.max(np.abs(arm.state().q - target)) < 5e-3
+        assert sim.cpu_seconds() > 0.0
+    with pytest.raises(StateError, match="not running"):
+        _ = sim.pid
+
+
+def test_a_simulator_that_cannot_start_says_why(tmp_path, channel):
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("joints: [\n")
+    with pytest.raises(StateError, match="did not start") as e, SimulatorProcess(bad, channel=channel):
+        pass
+    assert "broken.yaml" in str(e.value)

@@ -1,0 +1,46 @@
+"""SimulatedArm with the simulator in a process of its own (akarm_local, real time): the same frames
+and faults as in lock step, and a simulator that dies is reported."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from akarm import FeedbackTimeout, StateError
+from akarm.protocol import mit
+from akarm.sim import faults
+from akarm.testing.rig import SimulatedArm
+
+from ..sim.test_sim_rig import DOWN, PLANAR2, counts_match
+
+
+def test_in_its_own_process_on_akarm_local_the_frames_and_faults_are_the_same() -> None:
+    with SimulatedArm.start(PLANAR2, "akarm_local", timing="slow", pose=DOWN) as rig:
+        assert rig.transport == "akarm_local" and rig.clock is None
+        with rig.arm() as arm:
+            assert arm.config.rate_hz == 25.0                  # the slow profile's loop
+            arm.enable()
+            arm.move_to("home")
+            assert np.allclose(arm.state().q, rig.config.pose("home"), atol=0.02)
+            rig.inject("elbow", faults.Unplugged())
+            with pytest.raises(FeedbackTimeout, match="elbow"):
+                arm.sleep(3.0)
+        rig.clear_faults()
+        assert rig.enabled_joints() == ["elbow"]             # unplugged, it never heard the EXIT
+        counts_match(rig, faulted=("elbow",))                 # every frame, across processes
+        assert len(rig.frames(joint="elbow", to_motor=True)) > rig.state()[1].frames_in   # sent while cut off
+        last = {f.joint: f.data for f in rig.frames(to_motor=True)}
+        assert last["shoulder"] == mit.EXIT
+
+
+def test_a_simulator_that_dies_is_reported_when_leaving() -> None:
+    rig = SimulatedArm.start(PLANAR2, "akarm_local", timing="slow")
+    os.kill(rig.process.pid, signal.SIGKILL)
+    rig.process.proc.wait(30)
+    with pytest.raises(StateError, match="the simulator stopped before the test ended: exit status -9"):
+        rig.close()
+    assert math.isnan(float("nan"))

@@ -1,0 +1,78 @@
+"""One command line, parsed: negative values without `--`, targets as poses, values or named joints,
+former option names, one word per meaning (the verbs run: tests/system/test_cli_options.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from akarm.cli import VERBS, build_parser, main
+
+from .conftest import ROBOTS
+
+PLANAR2 = str(ROBOTS / "planar2.yaml")
+ARM6 = str(ROBOTS / "arm6.yaml")
+
+
+def parse(argv: list[str]):
+    return build_parser().parse_args(argv)
+
+
+def test_negative_values_need_no_double_dash_and_options_after_them_parse() -> None:
+    for words in (["-0.1,0.2"], ["-0.1", "0.2"], ["-.5,-.5"], ["elbow=-0.2"], ["shoulder=-1e-3", "elbow=-0.2"]):
+        args = parse(["move", PLANAR2, *words, "--speed", "0.5", "--hold", "1"])
+        assert args.target == words and args.speed == 0.5 and args.hold == 1.0
+    args = parse(["move", PLANAR2, "-1.2,0.3", "-i", "virtual", "-c", "x"])
+    assert args.target == ["-1.2,0.3"] and args.interface == "virtual"
+
+
+def test_targets_are_read_as_poses_values_or_named_joints() -> None:
+    from akarm.cli.move import parse_target
+    from akarm.errors import ArgumentError
+    from akarm.robotfile.load import load_robot
+
+    arm6 = load_robot(ARM6)
+    assert parse_target(["ready"], arm6) == "ready"
+    assert parse_target(["0,0.1,0.2,0,0,-0.3"], arm6) == [0, 0.1, 0.2, 0, 0, -0.3]
+    assert parse_target(["0", "0.1", "0.2", "0", "0", "-0.3"], arm6) == [0, 0.1, 0.2, 0, 0, -0.3]
+    assert parse_target(["elbow=0.5", "wrist_pitch=-0.2"], arm6) == {"elbow": 0.5, "wrist_pitch": -0.2}
+    ready = list(arm6.pose("ready"))
+    ready[2] = 1.0
+    assert parse_target(["ready", "elbow=1.0"], arm6) == ready
+    with pytest.raises(ArgumentError, match=r"no pose named 'redy' \(did you mean 'ready'\?\)"):
+        parse_target(["redy"], arm6)
+    with pytest.raises(ArgumentError, match=r"no joint named 'elbw' \(did you mean 'elbow'\?\)"):
+        parse_target(["elbw=0.5"], arm6)
+    with pytest.raises(ArgumentError, match="'x' is not a number"):
+        parse_target(["elbow=x"], arm6)
+    with pytest.raises(ArgumentError, match="2 value"):
+        parse_target(["0.1,0.2"], arm6)
+
+
+@pytest.mark.parametrize(("argv", "new"), [
+    (["sim", PLANAR2, "--duration", "1"], "--seconds"),
+    (["sim", PLANAR2, "--rate", "1000"], "--plant-rate"),
+    (["check", PLANAR2, "--rate", "250"], "--loop-rate"),
+    (["check", PLANAR2, "-r", "250"], "--loop-rate"),
+    (["bench", PLANAR2, "--rate", "250"], "--loop-rate"),
+    (["teach", PLANAR2, "out.csv", "--rate", "20"], "--sample-rate"),
+])
+def test_former_option_names_say_the_new_one(argv: list[str], new: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2 and f"is now {new}" in capsys.readouterr().err
+
+
+def test_one_word_per_meaning_across_verbs() -> None:
+    options = {verb: {o for a in build_parser()._subparsers._group_actions[0].choices[verb]._actions  # type: ignore
+                      for o in a.option_strings if a.help != "==SUPPRESS=="} for verb in VERBS}
+    everything = set().union(*options.values())
+    assert "--duration" not in everything and "--rate" not in everything
+    for verb in ("sim", "enable", "teach", "bench"):
+        assert "--seconds" in options[verb]
+    assert "--loop-rate" in options["check"] and "--loop-rate" in options["bench"]
+    assert "--sample-rate" in options["teach"] and "--plant-rate" in options["sim"]
+    # every verb that takes a robot file takes the bus overrides, bench included
+    for verb in VERBS:
+        if verb in ("demo", "plot", "init"):
+            continue
+        assert {"-i", "-c", "-b", "--bus-kwargs"} <= options[verb], verb

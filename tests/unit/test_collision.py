@@ -1,0 +1,108 @@
+"""The collision observer on exact data, thresholds from the robot file, and the collision error (the
+reflex against the simulator: tests/sim/test_collision.py)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import akarm
+from akarm.arm import Arm
+from akarm.control.collision import DEFAULT_GAIN, MomentumObserver
+from akarm.dynamics.model import RobotModel
+from akarm.errors import ArgumentError, CollisionError, ConfigError
+
+from .conftest import ROBOTS
+
+ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
+
+PLANAR2 = akarm.load_robot(ROBOTS / "planar2.yaml")
+
+
+def test_the_observer_follows_an_external_torque_step_with_its_time_constant() -> None:
+    """planar2 integrated finely under a smooth torque, a 1.5 N·m push on the elbow from t = 0.5 s;
+    the observer sees positions, velocities and the motor torque every 2 ms."""
+    model = RobotModel(PLANAR2, armature=True)
+    obs = MomentumObserver(model, [0.2, 0.1], [0.02, 0.01], [0.0, 0.0])
+    q, v = np.array([0.3, -0.6]), np.zeros(2)
+    h, every = 1e-4, 20  # integration step (s), steps per observer sample
+    push = np.array([0.0, 1.5])
+    out = []
+    for k in range(int(0.7 / h)):
+        t = k * h
+        if k % every == 0:
+            tau_m = model.gravity(q) + np.array([2.0 * math.sin(3 * t), 0.8 * math.cos(5 * t)])
+            if k == 0:
+                obs.reset(q, v, tau_m)
+            else:
+                out.append((t, obs.update(q, v, tau_m, every * h).copy()))
+        ext = push if t >= 0.5 else np.zeros(2)
+        friction = np.array([0.2, 0.1]) * np.tanh(v / 0.02) + np.array([0.02, 0.01]) * v
+        v = v + h * model.forward_dynamics(q, v, tau_m - friction + ext)
+        q = q + h * v
+    times = np.array([t for t, _ in out])
+    r = np.array([x for _, x in out])
+    assert np.max(np.abs(r[times < 0.5])) < 0.02  # nothing pushes: (almost) nothing seen
+    at = lambda s: r[np.argmin(np.abs(times - (0.5 + s)))]  # noqa: E731
+    tau = 1.0 / DEFAULT_GAIN
+    assert at(tau)[1] == pytest.approx(1.5 * (1 - math.exp(-1)), abs=0.1)  # 63 % after one time constant
+    assert at(5 * tau)[1] == pytest.approx(1.5, abs=0.05)
+    assert abs(at(5 * tau)[0]) < 0.05  # and on the joint it is on, only
+
+
+def test_thresholds_come_from_the_yaml_and_change_at_run_time(tmp_path: Path, channel: str) -> None:
+    text = (ROBOTS / "planar2.yaml").read_text().replace("urdf: planar2.urdf", f"urdf: {ROBOTS / 'planar2.urdf'}")
+    text = text.replace("  limits: {velocity: 4.0, acceleration: 20.0, jerk: 200.0}",
+                        "  limits: {velocity: 4.0, acceleration: 20.0, jerk: 200.0}\n  collision: {threshold: 1.5}")
+    text = text.replace("    gains: {kp: 20.0, kd: 0.8}", "    gains: {kp: 20.0, kd: 0.8}\n"
+                                                           "    collision: {threshold: 0.7}\n"
+                                                           "    friction: {coulomb: 0.3, viscous: 0.03, offset: -0.05}")
+    path = tmp_path / "planar2.yaml"
+    path.write_text(text)
+    config = akarm.load_robot(path)
+    assert [j.collision_threshold for j in config.joints] == [1.5, 0.7]  # `defaults:` and the joint's own
+    assert config.joints[1].friction.offset == -0.05
+    arm = Arm(config)
+    assert arm.collision_thresholds == {"shoulder": 1.5, "elbow": 0.7}
+    arm.set_collision(thresholds={"elbow": None}, reaction="hold")
+    assert arm.collision_thresholds == {"shoulder": 1.5, "elbow": None}
+    assert arm.collision_reaction == "hold"
+    for bad in ({"wrist": 1.0}, [1.0], [1.0, -2.0], [1.0, math.inf]):
+        with pytest.raises(ArgumentError):
+            arm.set_collision(thresholds=bad)
+    with pytest.raises(ArgumentError):
+        arm.set_collision(reaction="ignore")
+    with pytest.raises(ArgumentError):
+        Arm(config, collision_reaction="ignore")  # type: ignore[arg-type]
+
+    path.write_text(text.replace("collision: {threshold: 0.7}", "collision: {threshold: -1}"))
+    with pytest.raises(ConfigError) as e:
+        akarm.load_robot(path)
+    assert "collision threshold" in str(e.value) and ":" in str(e.value.problems[0])
+
+
+def test_collision_error_is_a_safety_stop_naming_joint_and_torque() -> None:
+    e = CollisionError("collision: an external torque of +2.50 N·m", torque=2.5, threshold=1.1, joint="elbow",
+                       fix="clear the obstacle")
+    assert isinstance(e, akarm.SafetyStop) and isinstance(e, akarm.AkarmError)
+    assert str(e).startswith("joint 'elbow': collision: an external torque of +2.50 N·m")
+    assert e.torque == 2.5 and e.threshold == 1.1 and e.reaction == "disable"
+
+
+def test_the_gravity_check_follows_the_payload_set_at_run_time() -> None:
+    arm = Arm(ARM6)
+    empty = {p.joint: p.torque for p in arm.gravity_check()}
+    assert empty["shoulder_lift"] == pytest.approx(14.7, abs=0.1)  # akarm check's number for the file
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", akarm.ConfigWarning)
+        arm.set_payload(0.5, (0.0, 0.0, 0.05))  # the motors hold this everywhere: no warning
+    loaded = {p.joint: p.torque for p in arm.gravity_check()}
+    assert loaded["shoulder_lift"] > empty["shoulder_lift"] + 4.0  # 0.5 kg about a metre out
+    with pytest.warns(akarm.ConfigWarning, match="shoulder_lift needs up to"):
+        arm.set_payload(5.0, (0.0, 0.0, 0.05))
+    arm.clear_payload()
+    assert {p.joint: p.torque for p in arm.gravity_check()} == empty

@@ -1,0 +1,132 @@
+"""Identification's parts on exact data: too little data, the excitation within the limits, saving into
+a block-style file (against the simulator: tests/system/test_identify.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import akarm
+from akarm.arm import Arm
+from akarm.dynamics.model import RobotModel
+from akarm.errors import StateError
+from akarm.identify import Identification, JointFit, PayloadFit
+from akarm.identify.fit import excitation, torque_speed
+from akarm.identify.fit import fit as identify_fit
+from akarm.telemetry.log import TelemetryLog
+
+from .conftest import ROBOTS
+
+ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
+
+
+@pytest.mark.parametrize("samples", [0, 1, 30, 50])
+def test_a_log_shorter_than_the_filter_window_is_too_little_data(samples: int) -> None:
+    # at 500 Hz the 0.1 s window is 51 samples: a shorter log once reached a numpy ValueError
+    model = RobotModel(ARM6)
+    model.clear_payload()
+    t = np.arange(samples) / 500.0
+    z = np.zeros((samples, 6))
+    log = TelemetryLog(ARM6.joint_names, t, z, z, z, z, z, z)
+    with pytest.raises(StateError) as info:
+        identify_fit(model, log)
+    assert f"{samples} samples" in str(info.value) and "excite for longer" in info.value.fix
+
+
+def test_the_excitation_stays_within_every_limit_and_half_the_torque() -> None:
+    arm = Arm(ARM6)
+    path = excitation(arm.limits, ARM6.pose("home"), amplitude=0.7, duration=20)
+    assert np.all(path.q >= arm.limits.lower) and np.all(path.q <= arm.limits.upper)
+    assert np.allclose(path.q[0], ARM6.pose("home")) and np.allclose(path.q[-1], ARM6.pose("home"))
+    v = np.gradient(path.q, path.t, axis=0)
+    assert np.all(np.max(np.abs(v), axis=0) <= 0.8 * arm.limits.velocity * 1.05)
+    model = RobotModel(ARM6, armature=True)
+    s, joint, peak = torque_speed(model, path, [j.limits.torque for j in ARM6.joints])
+    assert 0 < s < 1 and ARM6.joint_names[joint] in ("shoulder_lift", "elbow")
+    assert peak * s * s <= 0.5 * ARM6.joints[joint].limits.torque + 1e-6 + abs(model.gravity(ARM6.pose("home"))[joint])
+
+
+@pytest.mark.parametrize(("robot", "amplitude", "duration"), [("arm6", 3.0, 30.0), ("planar2", 3.0, 30.0),
+                                                               ("arm6", 0.5, 8.0)])
+def test_the_excitation_uses_at_most_80_percent_of_the_limits_ramps_included(robot: str, amplitude: float,
+                                                                             duration: float) -> None:
+    # the envelope's ramps add amplitude × its derivative: with a large amplitude they once took
+    # arm6's velocity to 96 % of its limit
+    config = akarm.load_robot(ROBOTS / f"{robot}.yaml")
+    arm = Arm(config)
+    path = excitation(arm.limits, config.pose("home"), amplitude=amplitude, duration=duration, rate_hz=4000)
+    v = np.gradient(path.q, path.t, axis=0)
+    a = np.gradient(v, path.t, axis=0)
+    j = np.gradient(a, path.t, axis=0)[3:-3]  # (the ends of a numerical third derivative are off)
+    used = [np.max(np.abs(x), axis=0) / lim for x, lim in ((v, arm.limits.velocity), (a, arm.limits.acceleration),
+                                                          (j, arm.limits.jerk))]
+    assert np.max(used) <= 0.8 * 1.002, np.round(used, 3)
+    assert np.max(used) > 0.7  # and it does use them (to 80 %)
+
+
+BLOCK_STYLE = """\
+# planar2 written in block style
+name: planar2
+urdf: planar2.urdf
+tool_frame: tool0
+buses:
+  arm:
+    interface: socketcan
+    channel: can0
+defaults:
+  mode: mit
+  limits:
+    velocity: 4.0
+    acceleration: 20.0
+    jerk: 200.0
+payload:            # a guess
+  mass: 0.1
+  com:
+    - 0.0
+    - 0.0
+    - 0.0
+joints:
+  - name: shoulder
+    can_id: 1
+    motor: AK80-9
+    friction:       # from the datasheet
+      coulomb: 0.3
+      viscous: 0.01
+    gains:
+      kp: 40.0
+      kd: 1.5
+  - name: elbow     # the forearm
+    can_id: 2
+    motor: AK60-6
+    gains:
+      kp: 20.0
+      kd: 0.8
+# the end
+"""
+
+
+def test_save_into_a_block_style_file_gives_each_joint_its_own_values(tmp_path: Path) -> None:
+    robot = tmp_path / "planar2.yaml"
+    robot.write_text(BLOCK_STYLE)
+    (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
+    result = Identification((JointFit("shoulder", 0.41, 0.021, 0.011, 0.02, threshold=1.5),
+                             JointFit("elbow", 0.12, 0.0031, -0.012, 0.01, threshold=0.75)),
+                            PayloadFit(0.35, (0.01, 0.0, 0.02)), 1000, 8.0)
+    result.save(robot)
+    config = akarm.load_robot(robot)  # it loads
+    assert config.payload.mass == pytest.approx(0.35) and np.allclose(config.payload.com, (0.01, 0.0, 0.02))
+    for joint, fit in zip(config.joints, result.joints, strict=True):
+        assert joint.name == fit.name
+        assert (joint.friction.coulomb, joint.friction.viscous, joint.friction.offset) == \
+            pytest.approx((fit.coulomb, fit.viscous, fit.offset))
+        assert joint.collision_threshold == pytest.approx(fit.threshold)
+        assert joint.gains.kp == (40.0 if fit.name == "shoulder" else 20.0)
+    text = robot.read_text()
+    replaced = {"payload:", "mass: 0.1", "com:", "- 0.0", "friction:", "coulomb: 0.3", "viscous: 0.01"}
+    for line in BLOCK_STYLE.splitlines():  # every line not replaced is kept, and the replaced keys' comments
+        if line.split("#")[0].strip() not in replaced:
+            assert line in text.splitlines(), line
+    assert "payload: {mass: 0.3500, com: [0.0100, 0.0000, 0.0200]}            # a guess" in text
+    assert "    friction: {coulomb: 0.4100, viscous: 0.02100, offset: 0.0110}       # from the datasheet" in text

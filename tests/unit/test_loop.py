@@ -1,0 +1,74 @@
+"""The control loop's timing: skipped slots on a stepped clock, the busy-waiting real clock, and
+what asking for real-time conditions does to the process."""
+
+from __future__ import annotations
+
+import pytest
+
+from akarm import clock as clock_mod
+from akarm.clock import RealClock, SteppedClock
+from akarm.control.loop import ControlLoop
+
+
+def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():
+    clock = SteppedClock()
+    starts: list[float] = []
+
+    def cycle(now: float, slot: int) -> None:
+        starts.append(now)
+        if len(starts) == 3:
+            clock.sleep_until(now + 0.0075)  # this cycle overruns by 3.75 periods
+
+    loop = ControlLoop(500.0, clock, cycle)
+    loop.step(6)
+    assert starts[:3] == pytest.approx([0.002, 0.004, 0.006])
+    # the slots at 0.008 and 0.010 were missed and are skipped; the cycle runs at once in the 0.012
+    # slot, late by 1.5 ms, and the next ones are back on the grid: no burst of catch-up cycles
+    assert starts[3] == pytest.approx(0.0135)
+    assert starts[4:] == pytest.approx([0.014, 0.016])
+    s = loop.stats.summary()
+    assert s.missed == 2 and s.cycles == 6
+    assert s.late_max == pytest.approx(0.0015)
+
+
+def test_stats_summarise_stage_times():
+    clock = SteppedClock()
+    loop = ControlLoop(100.0, clock, lambda now, slot: loop.stats.stage[slot].__setitem__(0, 1e-4 * (slot + 1)),
+                       stages=("work",))
+    loop.step(100)
+    s = loop.stats.summary()
+    assert s.stage_mean["work"] == pytest.approx(1e-4 * 50.5)
+    assert s.compute_max == pytest.approx(1e-2)
+    assert s.rate == pytest.approx(100.0)
+    assert "work" in s.table()
+
+
+class _FakeTime:
+    """``perf_counter`` and ``sleep`` for :class:`RealClock` alone: a microsecond passes per read."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+        self.naps: list[float] = []
+
+    def perf_counter(self) -> float:
+        self.t += 1e-6
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.naps.append(s)
+        self.t += s
+
+
+def test_a_busy_real_time_loop_naps_a_tenth_of_each_wait(monkeypatch):
+    fake = _FakeTime()
+    monkeypatch.setattr(clock_mod, "time", fake)
+    monkeypatch.setattr(clock_mod, "_yield", lambda: None)
+    monkeypatch.setattr(clock_mod, "_realtime_thread", lambda: True)
+    c = RealClock(busy=True)
+    t = c.now() + 0.010
+    c.sleep_until(t)
+    assert fake.t >= t
+    assert len(fake.naps) == 1 and fake.naps[0] == pytest.approx(0.001, abs=1e-6)
+    monkeypatch.setattr(clock_mod, "_realtime_thread", lambda: False)
+    c.sleep_until(fake.t + 0.010)
+    assert len(fake.naps) == 1  # not a real-time thread: no nap, it only yields

@@ -1,0 +1,85 @@
+"""Recordings on their own: keyframe and path files round trip, bad files get clear errors, the
+recorder keeps its grid through a stall (teach and replay on the simulator:
+tests/sim/test_teach.py)."""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+import pytest
+
+from akarm import RecordingError
+from akarm.motion import recording as rec
+
+from ..sim.test_teach import NAMES, sweep
+
+
+def test_keyframes_round_trip_and_are_readable(tmp_path) -> None:
+    kf = rec.Keyframes(NAMES, (rec.Keyframe((0.1, -0.2), "pick"), rec.Keyframe((0.3, 0.25))), robot="planar2")
+    path = kf.save(tmp_path / "k.yaml")
+    text = path.read_text()
+    assert "pick" in text and "units: rad" in text and "shoulder" in text
+    back = rec.load(path, NAMES)
+    assert back == kf
+    assert not list(tmp_path.glob(".*.tmp"))
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask  # like open(), not mkstemp's 0600
+
+
+def test_path_round_trip_with_header_naming_joints_and_units(tmp_path) -> None:
+    p = sweep()
+    path = p.save(tmp_path / "p.csv")
+    assert path.read_text().splitlines()[0] == "t [s],shoulder [rad],elbow [rad]"
+    back = rec.load(path, NAMES)
+    np.testing.assert_allclose(back.q, p.q, atol=1e-6)
+    np.testing.assert_allclose(back.t, p.t, atol=1e-6)
+
+
+@pytest.mark.parametrize(("name", "content", "message"), [
+    ("trunc.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,0.1", "row 3 has 2 values"),
+    ("nan.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,nan,0.2\n", "not finite"),
+    ("text.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.01,abc,0.2\n", "not a number"),
+    ("back.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.0,0.1,0.2\n", "time does not increase"),
+    ("head.csv", "time,a,b\n0,0,0\n", "header must start"),
+    ("short.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n", "fewer than two samples"),
+    ("bad.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1, 0.2\n", "not valid YAML at line"),
+    ("k.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1]}\n", "keyframe 0 needs `q:` with 2"),
+    ("none.yaml", "just: text\n", "not an akarm keyframe file"),
+    ("other.yaml", "joints: [a, b]\nkeyframes:\n  - {q: [0.1, 0.2]}\n", "recorded for joints"),
+    ("x.txt", "", "unknown recording type"),
+])
+def test_corrupt_or_truncated_recordings_get_clear_errors(tmp_path, name, content, message) -> None:
+    f = tmp_path / name
+    f.write_text(content)
+    with pytest.raises(RecordingError, match=re.escape(message)):
+        rec.load(f, NAMES)
+
+
+def test_missing_file_is_a_recording_error(tmp_path) -> None:
+    with pytest.raises(RecordingError, match="cannot read"):
+        rec.load(tmp_path / "nope.csv", NAMES)
+
+
+def test_the_recorder_keeps_its_grid_through_a_stall() -> None:
+    from akarm.control.motions import PathRecorder as _PathRecorder
+
+    rec = _PathRecorder(100.0, duration=0.1)
+    cycles = [k * 0.002 for k in range(20)] + [0.0615 + k * 0.002 for k in range(40)]  # 21.5 ms stall at 40 ms
+    for now in cycles:
+        rec.sample(now, np.zeros(2))
+    # the 10 ms grid up to the stall; the first cycle after it stands for 60 ms (40 and 50 are lost,
+    # not sent in a burst), then the first cycle at or after each grid point, the last at 100 ms
+    assert np.allclose(rec.times, [0.0, 0.01, 0.02, 0.03, 0.0615, 0.0715, 0.0815, 0.0915, 0.1015])
+    assert rec.finished
+
+
+def test_a_stall_across_the_end_of_a_timed_recording_does_not_stretch_it() -> None:
+    from akarm.control.motions import PathRecorder
+
+    rec = PathRecorder(100.0, duration=0.1)
+    for now in [k * 0.002 for k in range(49)] + [0.1768]:  # a 79 ms stall across the last grid point
+        rec.sample(now, np.zeros(2))
+    assert rec.finished and rec.times[-1] == pytest.approx(0.09) and len(rec.times) == 10

@@ -258,3 +258,22 @@ def test_telemetry_that_is_not_telemetry(tmp_path: Path) -> None:
     path.write_bytes(b"PK not a zip")
     with pytest.raises(RecordingError, match="cannot read the telemetry file"):
         telemetry.load(path)
+
+
+# ---- the limits, documented in one place ---------------------------------------------------------
+def test_the_readmes_limits_table_holds_every_limit_with_its_value() -> None:
+    from akarm import files
+    from akarm.robotfile import nodes
+
+    constants = {name: getattr(module, name) for module in (files, nodes, urdf_mod, motors, rec, bounds, telemetry)
+                 for name in dir(module) if name.startswith("MAX_") and isinstance(getattr(module, name), int | float)}
+    constants.pop("MAX_TRAJECTORY_POINTS")  # a planner's bound (akarm.motion.bounds), not a file's
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    rows = text.split("<!-- limits:", 1)[1].split("\n\n", 1)[0].splitlines()[3:]  # after the comment and header
+    units = {"MiB": 1 << 20, "h": 3600}
+    table = {}
+    for row in rows:
+        _, _, limit, name = (cell.strip() for cell in row.strip("|").split("|"))
+        amount, unit = (limit.rsplit(" ", 1) if limit.split()[-1] in units else (limit, ""))
+        table[name.strip("`")] = float(amount.replace(" ", "")) * units.get(unit, 1)
+    assert table == constants

@@ -41,7 +41,7 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "plan
 ONE_DOF = ("revolute", "continuous", "prismatic")
 
 #: Bytes of a URDF (meshes are files of their own; a humanoid's URDF has a few hundred thousand).
-MAX_URDF_BYTES = 16 << 20
+MAX_URDF_BYTES = 8 << 20
 #: ``<joint>`` elements of a URDF, fixed ones included (a humanoid has about a hundred).
 MAX_URDF_JOINTS = 1000
 #: ``<link>`` elements of a URDF.

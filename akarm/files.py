@@ -123,11 +123,13 @@ def number(n: float) -> str:
 
 def over(found: str, limit: float, unit: str, name: str) -> str:
     """``"... over the limit of 10 000 keyframes (MAX_KEYFRAMES)"``: a refusal naming its limit."""
-    return f"{found}, over the limit of {number(limit)} {unit} ({name})"
+    return f"{found}, over the limit of {number(limit)} {unit}" + (f" ({name})" if name else "")
 
 
-def _too_large(what: str, size: int | str, max_bytes: int, name: str) -> FileProblem:
-    return FileProblem(over(f"the {what} is {size} bytes", max_bytes, "bytes", name),
+def _too_large(what: str, size: int | None, max_bytes: int, name: str) -> FileProblem:
+    """The file of ``size`` bytes (``None``: more than the limit, not a regular file) is too large."""
+    found = f"more than {number(max_bytes)}" if size is None else number(size)
+    return FileProblem(over(f"the {what} is {found} bytes", max_bytes, "bytes", name),
                        f"is it the right file? akarm reads at most {number(max_bytes)} bytes of a {what}")
 
 
@@ -137,8 +139,7 @@ def _open_problem(e: OSError, what: str) -> FileProblem:
     return FileProblem(f"cannot read the {what}: {e.strerror or e}", "check the path and its permissions")
 
 
-def read_bytes(path: str | os.PathLike[str], max_bytes: int, *, what: str = "file",
-               name: str = "max_bytes") -> bytes:
+def read_bytes(path: str | os.PathLike[str], max_bytes: int, *, what: str = "file", name: str = "") -> bytes:
     """The file's bytes, if it holds at most ``max_bytes`` (a regular file is refused by its size
     before anything is read; anything else is read to one byte past the limit, no further).
 
@@ -158,11 +159,11 @@ def read_bytes(path: str | os.PathLike[str], max_bytes: int, *, what: str = "fil
     except OSError as e:
         raise _open_problem(e, what) from None
     if len(data) > max_bytes:
-        raise _too_large(what, f"more than {max_bytes}", max_bytes, name)
+        raise _too_large(what, None, max_bytes, name)
     return data
 
 
-def read_text(path: str | os.PathLike[str], max_bytes: int, *, what: str = "file", name: str = "max_bytes") -> str:
+def read_text(path: str | os.PathLike[str], max_bytes: int, *, what: str = "file", name: str = "") -> str:
     """:func:`read_bytes`, as UTF-8 text.
 
     Raises:
@@ -356,7 +357,7 @@ def compose_yaml(text: str, limits: YamlLimits) -> yaml.Node | None:
             undefined anchor or inside its own anchor, a second document.
     """
     if len(text) > limits.max_bytes:  # (a character is at least a byte)
-        raise _too_large(limits.kind, f"more than {limits.max_bytes}", limits.max_bytes, limits.bytes_name)
+        raise _too_large(limits.kind, None, limits.max_bytes, limits.bytes_name)
     try:
         return _Composer(text, limits).single()
     except yaml.MarkedYAMLError as e:
@@ -482,7 +483,7 @@ def _count_rows(f: io.BufferedReader, limit: int, read: int, max_bytes: int, wha
     while chunk := f.read(_CHUNK):
         read += len(chunk)
         if read > max_bytes:  # (not a regular file, or one that grows)
-            raise _too_large(what, f"more than {max_bytes}", max_bytes, bytes_name)
+            raise _too_large(what, None, max_bytes, bytes_name)
         n += chunk.count(b"\n")
         last = chunk[-1:]
         if n > limit:

@@ -26,8 +26,8 @@ from typing import Any, Literal
 from akarm.errors import ConfigError, ConfigProblem, UnknownMotorError, did_you_mean
 from akarm.files import FileProblem, YamlLimits, load_yaml
 
-__all__ = ["MAX_MOTOR_FILE_BYTES", "MAX_MOTOR_FILE_NODES", "Catalogue", "MotorModel", "default_catalogue", "get",
-           "load", "names"]
+__all__ = ["MAX_MOTOR_FILE_BYTES", "MAX_MOTOR_FILE_NODES", "MOTOR_FILE_LIMITS", "Catalogue", "MotorModel",
+           "default_catalogue", "get", "load", "names"]
 
 _DATA_FILE = Path(__file__).parent.parent / "data" / "motors.yaml"
 
@@ -35,6 +35,7 @@ _DATA_FILE = Path(__file__).parent.parent / "data" / "motors.yaml"
 MAX_MOTOR_FILE_BYTES = 1 << 20
 #: Values in a motor file, aliases counted at their full size (the bundled one has 400).
 MAX_MOTOR_FILE_NODES = 100_000
+#: How a motor file is read.
 MOTOR_FILE_LIMITS = YamlLimits("motor file", MAX_MOTOR_FILE_BYTES, "MAX_MOTOR_FILE_BYTES", MAX_MOTOR_FILE_NODES,
                                "MAX_MOTOR_FILE_NODES")
 

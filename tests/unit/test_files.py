@@ -42,7 +42,7 @@ def test_a_file_is_read_up_to_its_limit_and_refused_one_byte_past_it(tmp_path: P
 
 
 def test_an_endless_file_is_read_to_one_byte_past_the_limit_no_further() -> None:
-    with pytest.raises(FileProblem, match=r"more than 4096 bytes, over the limit of 4 096 bytes \(MAX_X\)"):
+    with pytest.raises(FileProblem, match=r"more than 4 096 bytes, over the limit of 4 096 bytes \(MAX_X\)"):
         read_bytes("/dev/zero", 4096, what="file", name="MAX_X")
 
 

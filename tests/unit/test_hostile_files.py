@@ -111,7 +111,7 @@ def test_a_urdf_past_its_size(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     path = chain_urdf(tmp_path / "c.urdf", 3)
     monkeypatch.setattr(urdf_mod, "MAX_URDF_BYTES", 100)
     _, (p,) = read_urdf(path)
-    assert p.message == f"the URDF is {path.stat().st_size} bytes, over the limit of 100 bytes (MAX_URDF_BYTES)"
+    assert p.message == f"the URDF is {number(path.stat().st_size)} bytes, over the limit of 100 bytes (MAX_URDF_BYTES)"
 
 
 # ---- robot files and motor files -----------------------------------------------------------------

@@ -30,7 +30,8 @@ import itertools
 import os
 import stat
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -139,6 +140,20 @@ def _open_problem(e: OSError, what: str) -> FileProblem:
     return FileProblem(f"cannot read the {what}: {e.strerror or e}", "check the path and its permissions")
 
 
+@contextmanager
+def _opened(path: str | os.PathLike[str], max_bytes: int, what: str, name: str) -> Iterator[io.BufferedReader]:
+    """The file open for reading, refused first when it is a regular file of more than ``max_bytes``;
+    an OSError while it is open is a :class:`FileProblem` too."""
+    try:
+        with open(path, "rb") as f:
+            info = os.fstat(f.fileno())
+            if stat.S_ISREG(info.st_mode) and info.st_size > max_bytes:
+                raise _too_large(what, info.st_size, max_bytes, name)
+            yield f
+    except OSError as e:
+        raise _open_problem(e, what) from None
+
+
 def read_bytes(path: str | os.PathLike[str], max_bytes: int, *, what: str = "file", name: str = "") -> bytes:
     """The file's bytes, if it holds at most ``max_bytes`` (a regular file is refused by its size
     before anything is read; anything else is read to one byte past the limit, no further).
@@ -148,16 +163,8 @@ def read_bytes(path: str | os.PathLike[str], max_bytes: int, *, what: str = "fil
     Raises:
         FileProblem: not found, unreadable (a directory, no permission), or larger than the limit.
     """
-    try:
-        with open(path, "rb") as f:
-            info = os.fstat(f.fileno())
-            if stat.S_ISDIR(info.st_mode):
-                raise IsADirectoryError(21, "it is a directory")
-            if stat.S_ISREG(info.st_mode) and info.st_size > max_bytes:
-                raise _too_large(what, info.st_size, max_bytes, name)
-            data = f.read(max_bytes + 1)
-    except OSError as e:
-        raise _open_problem(e, what) from None
+    with _opened(path, max_bytes, what, name) as f:
+        data = f.read(max_bytes + 1)
     if len(data) > max_bytes:
         raise _too_large(what, None, max_bytes, name)
     return data
@@ -433,36 +440,26 @@ def read_csv_table(path: str | os.PathLike[str], *, what: str, max_bytes: int, b
         FileProblem: not found or unreadable, too large, too many rows, not UTF-8, a header line over
             64 KiB, a row with another number of values than the header, a value that is not a number.
     """
-    try:
-        with open(path, "rb") as f:
-            info = os.fstat(f.fileno())
-            if stat.S_ISDIR(info.st_mode):
-                raise IsADirectoryError(21, "it is a directory")
-            if stat.S_ISREG(info.st_mode) and info.st_size > max_bytes:
-                raise _too_large(what, info.st_size, max_bytes, bytes_name)
-            first = f.readline(_MAX_HEADER + 1)
-            if len(first) > _MAX_HEADER:
-                raise FileProblem(f"the {what}'s header line is longer than {_MAX_HEADER} bytes",
-                                  f"is it a {what}?", 1)
-            header = _csv_line(first, 1, what)
-            if check_header is not None:
-                check_header(header)
-            by_values = max_values is not None and max_values // max(1, len(header)) < max_rows
-            limit = max_values // max(1, len(header)) if max_values is not None and by_values else max_rows
-            start = f.tell()
-            n = _count_rows(f, limit, len(first), max_bytes, what, bytes_name)
-            if n > limit:
-                found = f"the {what} has more than {number(limit)} {rows}"
-                if max_values is not None and by_values:
-                    raise FileProblem(over(f"{found} of {len(header)} values", max_values, "values", values_name),
-                                      f"is it the right file? akarm reads at most {number(max_values)} values of "
-                                      f"a {what}")
-                raise FileProblem(over(found, max_rows, rows, rows_name),
-                                  f"is it the right file? akarm reads at most {number(max_rows)} {rows} of a {what}")
-            f.seek(start)
-            return header, _parse_rows(f, n, len(header), what)
-    except OSError as e:
-        raise _open_problem(e, what) from None
+    with _opened(path, max_bytes, what, bytes_name) as f:
+        first = f.readline(_MAX_HEADER + 1)
+        if len(first) > _MAX_HEADER:
+            raise FileProblem(f"the {what}'s header line is longer than {_MAX_HEADER} bytes", f"is it a {what}?", 1)
+        header = _csv_line(first, 1, what)
+        if check_header is not None:
+            check_header(header)
+        limit = max_rows if max_values is None else min(max_rows, max_values // max(1, len(header)))
+        start = f.tell()
+        n = _count_rows(f, limit, len(first), max_bytes, what, bytes_name)
+        if n > limit:
+            found = f"the {what} has more than {number(limit)} {rows}"
+            if limit < max_rows:
+                raise FileProblem(over(f"{found} of {len(header)} values", max_values or 0, "values", values_name),
+                                  f"is it the right file? akarm reads at most {number(max_values or 0)} values of "
+                                  f"a {what}")
+            raise FileProblem(over(found, max_rows, rows, rows_name),
+                              f"is it the right file? akarm reads at most {number(max_rows)} {rows} of a {what}")
+        f.seek(start)
+        return header, _parse_rows(f, n, len(header), what)
 
 
 def _csv_line(raw: bytes, line: int, what: str) -> list[str]:

@@ -24,6 +24,7 @@ from typing import Any
 
 from akarm.config import BusConfig, RobotConfig
 from akarm.errors import StateError
+from akarm.files import FileProblem, read_text
 
 __all__ = ["BASE", "BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir",
            "sweep_sockets"]
@@ -127,11 +128,14 @@ def _lock_exclusive(fd: int, patience: float = 0.05) -> bool:
 
 
 def _read(key: str) -> dict[str, Any] | None:
+    """What a server wrote in its lock file (a line of JSON; ``None`` when there is none or it is not
+    that: anything past 64 KiB is not)."""
     try:
-        text = _lock_path(key).read_text()
-        return json.loads(text) if text else None
-    except (OSError, ValueError):
+        text = read_text(_lock_path(key), 1 << 16, what="lock file")
+        found = json.loads(text) if text else None
+    except (FileProblem, ValueError, RecursionError):
         return None
+    return found if isinstance(found, dict) else None
 
 
 def _held(key: str) -> bool:

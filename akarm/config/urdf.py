@@ -30,13 +30,22 @@ from typing import NamedTuple
 from xml.parsers import expat
 
 from akarm.errors import did_you_mean
+from akarm.files import FileProblem, number, over, read_bytes
 
-__all__ = ["JOINT_TYPES", "Mimic", "Urdf", "UrdfJoint", "UrdfLink", "UrdfProblem", "pinocchio_complaint", "read_urdf"]
+__all__ = ["JOINT_TYPES", "MAX_URDF_BYTES", "MAX_URDF_JOINTS", "MAX_URDF_LINKS", "Mimic", "Urdf", "UrdfJoint",
+           "UrdfLink", "UrdfProblem", "pinocchio_complaint", "read_urdf"]
 
 #: joint types of the URDF specification
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 #: joint types with one degree of freedom and a position in rad or m
 ONE_DOF = ("revolute", "continuous", "prismatic")
+
+#: Bytes of a URDF (meshes are files of their own; a humanoid's URDF has a few hundred thousand).
+MAX_URDF_BYTES = 8 << 20
+#: ``<joint>`` elements of a URDF, fixed ones included (a humanoid has about a hundred).
+MAX_URDF_JOINTS = 1000
+#: ``<link>`` elements of a URDF.
+MAX_URDF_LINKS = 1000
 
 _CHECK = "check it with `check_urdf FILE` (liburdfdom-tools) or in RViz"
 
@@ -127,17 +136,19 @@ class Urdf:
         children = self._children()
         order: list[str] = []
         seen: set[str] = set()
-
-        def walk(link: str) -> None:
-            if link in seen:  # (a loop: reported by read_urdf)
-                return
-            seen.add(link)
-            for j in children.get(link, []):
-                order.append(j.name)
-                walk(j.child)
-
-        if self.root:
-            walk(self.root)
+        if not self.root:
+            return order
+        seen.add(self.root)
+        below = [iter(children.get(self.root, []))]  # per link on the way down, its joints still to walk
+        while below:  # (a walk with its own stack: a chain of any length, no recursion)
+            j = next(below[-1], None)
+            if j is None:
+                below.pop()
+                continue
+            order.append(j.name)
+            if j.child not in seen:  # (a loop: reported by read_urdf)
+                seen.add(j.child)
+                below.append(iter(children.get(j.child, [])))
         return order
 
     def _children(self) -> dict[str, list[UrdfJoint]]:
@@ -164,16 +175,26 @@ def _float(text: str | None) -> float | None:
     return v
 
 
+#: a joint's elements that are read (the first of each; the others, and a link's own but <inertial>, are passed over)
+_JOINT_PARTS = ("parent", "child", "origin", "axis", "limit", "mimic")
+
+
 class _Scan:
-    """A streaming parse that keeps line numbers: the robot's direct children (<joint>, <link>) and
-    their direct children (<parent>, <child>, <limit>, <mimic>, <inertial>), and <mass> one deeper."""
+    """A streaming parse that keeps line numbers: the robot's direct children (<joint>, <link>), a
+    joint's parts (:data:`_JOINT_PARTS`) and a link's <inertial>'s <mass>, <inertia> and <origin>.
+
+    It keeps nothing else (memory in proportion to the joints and links), and stops with a
+    :class:`~akarm.files.FileProblem` at the joint or link past :data:`MAX_URDF_JOINTS` or
+    :data:`MAX_URDF_LINKS`.
+    """
 
     def __init__(self) -> None:
         self.stack: list[str] = []
         self.root: _Element | None = None
-        self.tops: list[tuple[_Element, list[_Element]]] = []
+        self.tops: list[tuple[_Element, dict[str, _Element]]] = []
         #: index in tops -> <inertial>'s <mass>, <inertia>, <origin>
         self.inertials: dict[int, dict[str, _Element]] = {}
+        self.counts = {"joint": 0, "link": 0}
         self.xacro_line: int | None = None
         self.parser = expat.ParserCreate()
         self.parser.StartElementHandler = self.start
@@ -188,11 +209,20 @@ class _Scan:
         if depth == 0:
             self.root = _Element(tag, attrs, line)
         elif depth == 1 and tag in ("joint", "link"):
-            self.tops.append((_Element(tag, attrs, line), []))
-        elif depth == 2 and stack[1] in ("joint", "link") and self.tops:
-            self.tops[-1][1].append(_Element(tag, attrs, line))
+            self._count(tag, line)
+            self.tops.append((_Element(tag, attrs, line), {}))
+        elif depth == 2 and stack[1] == "joint" and tag in _JOINT_PARTS and self.tops:
+            self.tops[-1][1].setdefault(tag, _Element(tag, attrs, line))
         elif depth == 3 and stack[1] == "link" and stack[2] == "inertial" and self.tops:
             self.inertials.setdefault(len(self.tops) - 1, {}).setdefault(tag, _Element(tag, attrs, line))
+
+    def _count(self, tag: str, line: int) -> None:
+        self.counts[tag] += 1
+        limit, name = (MAX_URDF_JOINTS, "MAX_URDF_JOINTS") if tag == "joint" else (MAX_URDF_LINKS, "MAX_URDF_LINKS")
+        if self.counts[tag] > limit:
+            raise FileProblem(over(f"the URDF has more than {number(limit)} {tag}s", limit, f"{tag}s", name),
+                              "is it the right file? akarm drives arms, not chains of thousands of links: "
+                              "remove the joints and links no motor drives or holds", line)
 
     def end(self, tag: str) -> None:
         self.stack.pop()
@@ -206,13 +236,11 @@ def read_urdf(path: str | os.PathLike[str]) -> tuple[Urdf | None, list[UrdfProbl
         ``<robot>``, unreadable); ``problems`` lists everything wrong, each with a line and a fix.
     """
     p = Path(path)
-    try:
-        data = p.read_bytes()
-    except OSError as e:
-        return None, [UrdfProblem(None, f"cannot read the URDF: {e.strerror or e}", "check the path and permissions")]
     scan = _Scan()
     try:
-        scan.parser.Parse(data, True)
+        scan.parser.Parse(read_bytes(p, MAX_URDF_BYTES, what="URDF", name="MAX_URDF_BYTES"), True)
+    except FileProblem as e:
+        return None, [UrdfProblem(e.line, e.what, e.fix)]
     except expat.ExpatError as e:
         return None, [UrdfProblem(e.lineno, f"not well-formed XML: {expat.ErrorString(e.code)}",
                                   "fix the XML on or just before this line (an unclosed or mistyped tag, a stray "
@@ -230,11 +258,11 @@ def read_urdf(path: str | os.PathLike[str]) -> tuple[Urdf | None, list[UrdfProbl
 
     links: dict[str, UrdfLink] = {}
     joints: dict[str, UrdfJoint] = {}
-    for k, (el, children) in enumerate(scan.tops):
+    for k, (el, parts) in enumerate(scan.tops):
         if el.tag == "link":
             _read_link(el, scan.inertials.get(k, {}), links, problems)
         else:
-            _read_joint(el, children, joints, problems)
+            _read_joint(el, parts, joints, problems)
 
     urdf = Urdf(path=p, name=root.attrs.get("name", p.stem), joints=joints, links=links)
     _check_tree(urdf, problems, root.line)
@@ -340,16 +368,14 @@ def _joint_kind(el: _Element, joints: dict[str, UrdfJoint], problems: list[UrdfP
     return name, jtype
 
 
-def _read_joint(el: _Element, children: list[_Element], joints: dict[str, UrdfJoint],
+def _read_joint(el: _Element, first: dict[str, _Element], joints: dict[str, UrdfJoint],
                 problems: list[UrdfProblem]) -> None:
+    """A <joint>, from its element and the first of each of its parts."""
     kind = _joint_kind(el, joints, problems)
     if kind is None:
         return
     name, jtype = kind
     label = f"joint {name!r}"
-    first: dict[str, _Element] = {}
-    for c in children:
-        first.setdefault(c.tag, c)
     ends = {}
     for key in ("parent", "child"):
         end = first.get(key)

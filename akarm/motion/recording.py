@@ -35,10 +35,25 @@ import numpy as np
 import yaml
 
 from akarm.errors import ArgumentError, LimitError, RecordingError
-from akarm.files import atomic_write
+from akarm.files import FileProblem, YamlLimits, atomic_write, load_yaml, over, read_csv_table
+from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES
 from akarm.motion.trajectory import JointLimits, Timed
+from akarm.robotfile.nodes import MAX_JOINTS
 
-__all__ = ["Keyframe", "Keyframes", "PathPlan", "PathRecording", "check_path", "load", "load_keyframes", "load_path"]
+__all__ = ["KEYFRAME_FILE_LIMITS", "MAX_KEYFRAME_FILE_BYTES", "MAX_KEYFRAME_FILE_NODES", "MAX_PATH_FILE_BYTES",
+           "Keyframe", "Keyframes", "PathPlan", "PathRecording", "check_path", "load", "load_keyframes", "load_path"]
+
+
+#: Bytes of a keyframe file (10 000 keyframes of 32 joints take about 4 MB).
+MAX_KEYFRAME_FILE_BYTES = 16 << 20
+#: Values in a keyframe file, aliases counted at their full size: 10 000 keyframes of 32 joints and their names.
+MAX_KEYFRAME_FILE_NODES = MAX_KEYFRAMES * (MAX_JOINTS + 8)
+#: How a keyframe file is read: at most :data:`~akarm.motion.bounds.MAX_KEYFRAMES` entries in a list.
+KEYFRAME_FILE_LIMITS = YamlLimits("keyframe file", MAX_KEYFRAME_FILE_BYTES, "MAX_KEYFRAME_FILE_BYTES",
+                                  MAX_KEYFRAME_FILE_NODES, "MAX_KEYFRAME_FILE_NODES", max_items=MAX_KEYFRAMES,
+                                  items="keyframes", items_name="MAX_KEYFRAMES")
+#: Bytes of a path recording (an hour at 500 Hz of 6 joints, as akarm writes it, is 140 MB).
+MAX_PATH_FILE_BYTES = 512 << 20
 
 
 @dataclass(frozen=True)
@@ -100,20 +115,18 @@ def _bad(path: Path, what: str, fix: str) -> RecordingError:
 
 
 def load_keyframes(path: str | os.PathLike[str], joint_names: Sequence[str] | None = None) -> Keyframes:
-    """Read a keyframe YAML; check it has one finite value per joint (and the right joints, if given).
+    """Read a keyframe YAML within :data:`KEYFRAME_FILE_LIMITS`; check it has one finite value per
+    joint (and the right joints, if given).
 
     Raises:
-        RecordingError: the file is missing, not YAML, truncated or inconsistent; says where.
+        RecordingError: the file is missing, past a limit (named), not YAML, truncated or
+            inconsistent; says where.
     """
     p = Path(path)
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise _bad(p, f"cannot read: {e.strerror}", "check the path") from None
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise _bad(p, f"not valid YAML{where} (truncated or edited by hand?)", "fix or re-record the file") from None
+        doc = load_yaml(p, KEYFRAME_FILE_LIMITS)
+    except FileProblem as e:
+        raise _bad(p, e.what if e.line is None else f"line {e.line}: {e.what}", e.fix) from None
     if not isinstance(doc, dict) or not isinstance(doc.get("keyframes"), list) or not isinstance(doc.get("joints"),
                                                                                                    list):
         raise _bad(p, "not an akarm keyframe file (needs `joints:` and `keyframes:` lists)",
@@ -136,44 +149,46 @@ def load_keyframes(path: str | os.PathLike[str], joint_names: Sequence[str] | No
 
 
 def load_path(path: str | os.PathLike[str], joint_names: Sequence[str] | None = None) -> PathRecording:
-    """Read a path CSV; check the header, every row, and that time increases.
+    """Read a path CSV within its limits (:data:`MAX_PATH_FILE_BYTES`, :data:`~akarm.motion.bounds.MAX_PATH_SAMPLES`
+    samples, counted before any is kept, and :data:`~akarm.motion.bounds.MAX_DURATION`); check the
+    header, every row, and that time increases.
 
     Raises:
-        RecordingError: missing, truncated or malformed file; says which row.
+        RecordingError: missing, past a limit (named), truncated or malformed file; says which row.
     """
     p = Path(path)
+
+    def check(header: list[str]) -> None:
+        if not header or header[0] != "t [s]":
+            raise FileProblem("not an akarm path recording (the header must start with 't [s]')",
+                              "record one with `akarm teach --continuous`")
+        names = tuple(h.rsplit(" [", 1)[0] for h in header[1:])
+        if joint_names is not None and names != tuple(joint_names):
+            raise FileProblem(f"recorded for joints {list(names)}, the arm has {list(joint_names)}",
+                              "replay it on the robot it was taught on")
+
     try:
-        with p.open(newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError) as e:
-        raise _bad(p, f"cannot read: {e}", "check the path") from None
-    if not rows or not rows[0] or rows[0][0] != "t [s]":
-        raise _bad(p, "not an akarm path recording (the header must start with 't [s]')",
-                   "record one with `akarm teach --continuous`")
-    header = rows[0]
-    names = tuple(h.rsplit(" [", 1)[0] for h in header[1:])
-    if joint_names is not None and names != tuple(joint_names):
-        raise _bad(p, f"recorded for joints {list(names)}, the arm has {list(joint_names)}",
-                   "replay it on the robot it was taught on")
-    data = []
-    for k, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise _bad(p, f"row {k} has {len(row)} values, expected {len(header)} (truncated file?)",
-                       "delete the broken rows or re-record")
-        try:
-            vals = [float(x) for x in row]
-        except ValueError:
-            raise _bad(p, f"row {k} has a value that is not a number", "fix that row") from None
-        if not all(math.isfinite(v) for v in vals):
-            raise _bad(p, f"row {k} has a value that is not finite", "fix that row")
-        data.append(vals)
-    if len(data) < 2:
+        header, arr = read_csv_table(p, what="path recording", max_bytes=MAX_PATH_FILE_BYTES,
+                                     bytes_name="MAX_PATH_FILE_BYTES", max_rows=MAX_PATH_SAMPLES,
+                                     rows_name="MAX_PATH_SAMPLES", rows="samples", check_header=check)
+    except FileProblem as e:
+        raise _bad(p, e.what, e.fix) from None
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise _bad(p, f"row {int(np.argmax(bad)) + 2} has a value that is not finite", "fix that row")
+    if len(arr) < 2:
         raise _bad(p, "has fewer than two samples", "record for longer")
-    arr = np.array(data)
     t = arr[:, 0] - arr[0, 0]
     if np.any(np.diff(t) <= 0):
         k = int(np.argmax(np.diff(t) <= 0)) + 3
         raise _bad(p, f"time does not increase at row {k}", "rows must be in time order")
+    if not t[-1] <= MAX_DURATION:
+        k = int(np.argmax(t > MAX_DURATION)) + 2
+        gap = f" (row {k} comes {t[k - 2] - t[k - 3]:.6g} s after row {k - 1})" if k > 2 else ""
+        raise _bad(p, over(f"the path lasts {t[-1]:.6g} s{gap}", MAX_DURATION, "s", "MAX_DURATION"),
+                   "is it the right file? cut it into recordings of at most "
+                   f"{MAX_DURATION / 3600:g} h, or fix the times in column 't [s]'")
+    names = tuple(h.rsplit(" [", 1)[0] for h in header[1:])
     return PathRecording(names, t, arr[:, 1:])
 
 

@@ -23,13 +23,21 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from akarm.errors import ConfigError, ConfigProblem, UnknownMotorError, did_you_mean
+from akarm.files import FileProblem, YamlLimits, load_yaml
 
-__all__ = ["Catalogue", "MotorModel", "default_catalogue", "get", "load", "names"]
+__all__ = ["MAX_MOTOR_FILE_BYTES", "MAX_MOTOR_FILE_NODES", "MOTOR_FILE_LIMITS", "Catalogue", "MotorModel",
+           "default_catalogue", "get", "load", "names"]
 
 _DATA_FILE = Path(__file__).parent.parent / "data" / "motors.yaml"
+
+#: Bytes of a motor file (``AKARM_MOTORS``, :func:`load`; the bundled one has 6 500).
+MAX_MOTOR_FILE_BYTES = 1 << 20
+#: Values in a motor file, aliases counted at their full size (the bundled one has 400).
+MAX_MOTOR_FILE_NODES = 100_000
+#: How a motor file is read.
+MOTOR_FILE_LIMITS = YamlLimits("motor file", MAX_MOTOR_FILE_BYTES, "MAX_MOTOR_FILE_BYTES", MAX_MOTOR_FILE_NODES,
+                               "MAX_MOTOR_FILE_NODES")
 
 
 @dataclass(frozen=True, slots=True)
@@ -201,17 +209,9 @@ class Catalogue(Mapping[str, MotorModel]):
 
 def _read_yaml(path: Path) -> Mapping[str, Any]:
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise ConfigError([ConfigProblem(str(path), None, f"cannot read motor file: {e.strerror}",
-                                          "check the path")]) from None
-    try:
-        data = yaml.safe_load(text) or {}
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        raise ConfigError([ConfigProblem(str(path), line, f"not valid YAML: {getattr(e, 'problem', e)}",
-                                          "fix the YAML syntax")]) from None
+        data = load_yaml(path, MOTOR_FILE_LIMITS) or {}
+    except FileProblem as e:
+        raise ConfigError([ConfigProblem(str(path), e.line, e.what, e.fix)]) from None
     if not isinstance(data, Mapping):
         raise ConfigError([ConfigProblem(str(path), None, "a motor file must map model names to fields",
                                           "write `AK80-9: {t_max: 18.0, ...}` entries")])

@@ -5,17 +5,19 @@ keep their position (``start_mark``), plain values do not. The schema (:mod:`aka
 walks that tree and the checks (:mod:`akarm.robotfile.checks`) report at its nodes, into one
 :class:`Findings`: problems, warnings, each with its file, 1-based line and fix.
 
-Limits, as they stand:
+Limits (the README's "Limits" table): :func:`compose` is the one place a robot file is parsed, and
+it reads it within :data:`ROBOT_FILE_LIMITS` (:func:`akarm.files.compose_yaml`): at most
+:data:`MAX_ROBOT_FILE_BYTES` bytes, nested at most :data:`akarm.files.MAX_YAML_DEPTH` levels, at
+most :data:`MAX_ROBOT_FILE_NODES` values with every alias counted as the whole value it repeats
+(an alias bomb is refused as the alias is read, before anything expands it). A file past one is
+one problem naming the limit, raised at once, as are a file that cannot be read, is not UTF-8 or
+is not valid YAML (nothing else can be checked).
 
-- The whole file is read into memory (``yaml.compose`` of its text); a file that cannot be read, is
-  not UTF-8 or is not valid YAML is one problem, raised at once (nothing else can be checked).
-- Only the safe loader's tags; anchors and aliases (``&a``/``*a``) are resolved by PyYAML into shared
-  nodes. Nothing bounds the file's size, nesting depth or node count yet, and PyYAML's composer and
-  :func:`plain` recurse once per nesting level: bounds belong in :func:`compose`, the one place a
-  robot file is parsed.
-- The schema's own walk recurses only as deep as the schema is (a handful of levels), whatever the
-  input; only values taken as they are (:func:`plain`: a python-can keyword argument, a motor
-  entry) are constructed to their full depth.
+Only the safe loader's tags; anchors and aliases (``&a``/``*a``) are resolved into shared nodes.
+Nothing here recurses once per level of the input: the composition keeps its own stack, the
+schema's walk recurses only as deep as the schema is (a handful of levels), and the values taken
+as they are (:func:`plain`: a python-can keyword argument, a motor entry) are at most
+:data:`~akarm.files.MAX_YAML_DEPTH` deep.
 """
 
 from __future__ import annotations
@@ -26,8 +28,20 @@ from typing import Any
 import yaml
 
 from akarm.errors import ConfigError, ConfigProblem
+from akarm.files import FileProblem, YamlLimits, construct, read_yaml
 
-__all__ = ["NOT_SCALAR", "Findings", "compose", "describe", "line", "plain", "scalar"]
+__all__ = ["MAX_JOINTS", "MAX_ROBOT_FILE_BYTES", "MAX_ROBOT_FILE_NODES", "NOT_SCALAR", "ROBOT_FILE_LIMITS", "Findings",
+           "compose", "describe", "line", "plain", "scalar"]
+
+#: Bytes of a robot file (arm6.yaml has 3 300).
+MAX_ROBOT_FILE_BYTES = 1 << 20
+#: Values (scalars, lists, mappings) in a robot file, aliases counted at their full size (arm6.yaml has 240).
+MAX_ROBOT_FILE_NODES = 100_000
+#: Joints under a robot file's ``joints:`` (the gravity check's cost grows with the cube of their number).
+MAX_JOINTS = 32
+#: How a robot file is read.
+ROBOT_FILE_LIMITS = YamlLimits("robot file", MAX_ROBOT_FILE_BYTES, "MAX_ROBOT_FILE_BYTES", MAX_ROBOT_FILE_NODES,
+                               "MAX_ROBOT_FILE_NODES")
 
 
 def line(node: yaml.Node | None) -> int | None:
@@ -53,13 +67,14 @@ class Findings:
         self.warnings: list[ConfigProblem] = []
         #: warnings :func:`~akarm.robotfile.load.load_robot` also issues as :class:`~akarm.errors.ConfigWarning`
         self.issued: list[ConfigProblem] = []
-        self._constructor: yaml.SafeLoader | None = None
+        self._constructor: yaml.constructor.SafeConstructor | None = None
 
     @property
-    def constructor(self) -> yaml.SafeLoader:
-        """The safe loader that builds this file's plain values (one per file: it keeps what it built)."""
+    def constructor(self) -> yaml.constructor.SafeConstructor:
+        """The safe loader's constructor that builds this file's plain values (one per file: it keeps
+        what it built)."""
         if self._constructor is None:
-            self._constructor = yaml.SafeLoader("")
+            self._constructor = yaml.constructor.SafeConstructor()
         return self._constructor
 
     def add(self, at: yaml.Node | int | None, message: str, fix: str = "", *, file: str | None = None,
@@ -89,38 +104,24 @@ class Findings:
 
 
 def compose(path: Path) -> yaml.Node | None:
-    """The file's YAML node tree (``None`` for a file with no document).
+    """The file's YAML node tree (``None`` for a file with no document), read within :data:`ROBOT_FILE_LIMITS`.
 
     Raises:
-        ConfigError: the file cannot be read, or is not valid YAML (with the line where the parser stopped).
+        ConfigError: the file cannot be read, is past a limit (named, with the line where it was
+            passed), or is not valid YAML (with the line where the parser stopped).
     """
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError([ConfigProblem(str(path), None, "robot file not found",
-                                         "check the path (relative paths are from the current directory)")]) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError([ConfigProblem(str(path), None, f"cannot read the robot file: {e}",
-                                         "check the path and that it is a UTF-8 text file")]) from None
-    try:
-        return yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark or e.context_mark
-        at = mark.line + 1 if mark is not None else None
-        what = " ".join(x for x in (e.context, e.problem) if x)
-        raise ConfigError([ConfigProblem(str(path), at, f"not valid YAML: {what}",
-                                         "fix the YAML syntax on or just before this line "
-                                         "(indentation, a missing ':' or a stray quote)")]) from None
-    except yaml.YAMLError as e:
-        raise ConfigError([ConfigProblem(str(path), None, f"not valid YAML: {e}", "fix the YAML syntax")]) from None
+        return read_yaml(path, ROBOT_FILE_LIMITS)[1]
+    except FileProblem as e:
+        raise ConfigError([ConfigProblem(str(path), e.line, e.what, e.fix)]) from None
 
 
 def plain(node: yaml.Node, found: Findings) -> Any:
     """The node as a plain Python value (``None``, reported, when the safe loader cannot build it)."""
     try:
-        return found.constructor.construct_object(node, deep=True)
-    except yaml.YAMLError as e:
-        found.add(node, f"cannot read this value: {getattr(e, 'problem', e)}", "write a plain YAML value")
+        return construct(node, found.constructor)
+    except FileProblem as e:
+        found.add(e.line, e.what, e.fix)
         return None
 
 

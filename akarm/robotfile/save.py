@@ -21,7 +21,8 @@ import yaml
 
 from akarm.config import Friction, Payload
 from akarm.errors import ConfigError, ConfigProblem
-from akarm.files import atomic_write
+from akarm.files import FileProblem, atomic_write, read_yaml
+from akarm.robotfile.nodes import ROBOT_FILE_LIMITS
 
 __all__ = ["JointValues", "flow_collision", "flow_friction", "flow_payload", "save_values"]
 
@@ -168,10 +169,9 @@ def save_values(path: str | Path, *, payload: Payload | None = None, joints: Map
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-        root = yaml.compose(text)
-    except (OSError, yaml.YAMLError) as e:
-        raise ConfigError([ConfigProblem(str(p), None, f"cannot read it: {e}", "check the path")]) from None
+        text, root = read_yaml(p, ROBOT_FILE_LIMITS)
+    except FileProblem as e:
+        raise ConfigError([ConfigProblem(str(p), e.line, f"cannot read it: {e.what}", e.fix)]) from None
     if not isinstance(root, yaml.MappingNode):
         raise ConfigError([ConfigProblem(str(p), None, "it is not a robot file (not a mapping)", "check the path")])
     new = _apply(text, _edits(text, root, payload, joints or {}, p))

@@ -30,8 +30,9 @@ import yaml
 
 from akarm.config import JointConfig, Payload, RobotConfig
 from akarm.config.canconfig import RESERVED_BUS_KEYS
+from akarm.files import over
 from akarm.protocol.motors import did_you_mean
-from akarm.robotfile.nodes import NOT_SCALAR, Findings, describe, plain, scalar
+from akarm.robotfile.nodes import MAX_JOINTS, NOT_SCALAR, Findings, describe, plain, scalar
 
 __all__ = [
     "BUS",
@@ -504,19 +505,27 @@ class Table(Kind):
 
 @dataclass(frozen=True)
 class ListOf(Kind):
-    """A non-empty list of entries of one :class:`Section`."""
+    """A non-empty list of entries of one :class:`Section`, at most ``most`` of them (the limit ``most_name``)."""
 
     of: Section
+    most: int
+    most_name: str
 
     def read(self, node: yaml.Node, what: str, fix: str, found: Findings, ctx: Context) -> Any:
         if not isinstance(node, yaml.SequenceNode) or not node.value:
             found.add(node, f"`{what}:` must be a non-empty list of {self.of.title}s",
                       f"write `- {self.of.named_by}: ...` items under {what}:")
             return INVALID
+        if len(node.value) > self.most:
+            found.add(node, over(f"`{what}:` lists {len(node.value)} {self.of.title}s", self.most,
+                                 f"{self.of.title}s", self.most_name),
+                      f"akarm drives at most {self.most} {self.of.title}s from one robot file (the gravity check's "
+                      "cost grows with the cube of their number)")
+            return INVALID
         return [Item(None, item, self.of.read(item, self.of.title, fix, found, ctx)) for item in node.value]
 
     def text(self) -> str:
-        return f"list of {self.of.title}s (below)"
+        return f"list of {self.of.title}s (below), at most {self.most}"
 
 
 # --------------------------------------------------------------------------- after reading
@@ -693,7 +702,7 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
         "(akarm/data/motors.yaml; `base: MODEL` to start from another)"),
         "catalogue models added or overridden for this robot"),
     Key("defaults", DEFAULTS, "joint keys shared by every joint"),
-    Key("joints", ListOf(JOINT), "the joints motors drive", required=True,
+    Key("joints", ListOf(JOINT, MAX_JOINTS, "MAX_JOINTS"), "the joints motors drive", required=True,
         fix="list the actuated joints under `joints:`"),
     Key("locked", Table(Number(unit="rad or m"), "locked: {name}", "URDF joint → position (rad, or m for prismatic "
         "joints)"), "URDF joints no motor drives, held at a position",

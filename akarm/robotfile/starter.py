@@ -49,7 +49,9 @@ from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 from akarm.dynamics.gravity import GravityPeak, gravity_peaks, sample_box
 from akarm.errors import ConfigError, ConfigProblem
+from akarm.files import over
 from akarm.protocol.motors import Catalogue, MotorModel, default_catalogue
+from akarm.robotfile.nodes import MAX_JOINTS
 from akarm.robotfile.schema import JOINT, PAYLOAD, ROBOT_FILE, Section
 
 __all__ = ["A_REF", "F_NATURAL", "JointSuggestion", "Suggestion", "suggest"]
@@ -196,6 +198,27 @@ def _name(text: str) -> str:
     return json.dumps(text)
 
 
+def _driven(path: Path, movable: list[UrdfJoint]) -> list[UrdfJoint]:
+    """The joints a motor drives: revolute and continuous ones, not a ``<mimic>`` nor one others mimic
+    (a gripper's, a Robotiq's finger_joint: its own motor, not an AK; held).
+
+    Raises:
+        ConfigError: none, or more than :data:`~akarm.robotfile.nodes.MAX_JOINTS` (before Pinocchio is asked).
+    """
+    mimicked = {j.mimic.joint for j in movable if j.mimic is not None}
+    driven = [j for j in movable if j.type in ("revolute", "continuous") and j.mimic is None and j.name not in mimicked]
+    if not driven:
+        raise _problems(path, [(None, "the URDF has no revolute or continuous joint for a motor to drive",
+                                "akarm drives revolute and continuous joints")])
+    if len(driven) > MAX_JOINTS:
+        raise _problems(path, [(driven[MAX_JOINTS].line, over(f"the URDF has {len(driven)} revolute and continuous "
+                                                              "joints for motors to drive", MAX_JOINTS, "joints",
+                                                              "MAX_JOINTS"),
+                                f"a robot file drives at most {MAX_JOINTS}: make the joints no motor drives fixed "
+                                "in a copy of the URDF, or split the robot")])
+    return driven
+
+
 def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *, payload: float = 0.0,
             margin: float = 1.5, catalogue: Catalogue | None = None) -> Suggestion:
     """A starting robot file for ``urdf_path``, to be written at ``output`` (its ``urdf:`` is relative to it).
@@ -219,17 +242,11 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     urdf, found = read_urdf(path)
     if urdf is None or found:
         raise _problems(path, [(p.line, p.message, p.fix) for p in found])
+    movable = urdf.movable
+    driven = _driven(path, movable)
     complaint = pinocchio_complaint(path)
     if complaint is not None:
         raise _problems(path, [(None, f"not a valid robot model: {complaint}", "fix the URDF")])
-
-    movable = urdf.movable
-    # a joint others mimic is a gripper's (a Robotiq's finger_joint): its own motor, not an AK; held
-    mimicked = {j.mimic.joint for j in movable if j.mimic is not None}
-    driven = [j for j in movable if j.type in ("revolute", "continuous") and j.mimic is None and j.name not in mimicked]
-    if not driven:
-        raise _problems(path, [(None, "the URDF has no revolute or continuous joint for a motor to drive",
-                                "akarm drives revolute and continuous joints")])
     held = {j.name: _held_at(j) for j in movable if j not in driven and j.mimic is None
             and j.type in ("revolute", "continuous", "prismatic")}
     locked = dict(held)

@@ -13,6 +13,7 @@ import csv
 import io
 import math
 import os
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,11 +21,16 @@ from pathlib import Path
 import numpy as np
 
 from akarm.errors import RecordingError
-from akarm.files import atomic_write
+from akarm.files import FileProblem, atomic_write, number, over, read_csv_table
 
 Values = Sequence[float] | np.ndarray
 
-__all__ = ["FIELDS", "Telemetry", "TelemetryLog", "load"]
+__all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog", "load"]
+
+#: Bytes of a telemetry file: a CSV's, or an NPZ's arrays uncompressed.
+MAX_TELEMETRY_BYTES = 512 << 20
+#: Numbers in a telemetry file, cycles × (1 + 7 × joints): 25 minutes of 6 joints at 500 Hz (256 MB).
+MAX_TELEMETRY_VALUES = 32_000_000
 
 #: The per-joint fields of a record, with their units.
 FIELDS = (("q_des", "rad"), ("dq_des", "rad/s"), ("q", "rad"), ("dq", "rad/s"), ("tau", "N·m"),
@@ -87,35 +93,80 @@ class TelemetryLog:
 
 
 def load(path: str | os.PathLike[str]) -> TelemetryLog:
-    """Read a telemetry file written by :meth:`TelemetryLog.save`.
+    """Read a telemetry file written by :meth:`TelemetryLog.save`, within :data:`MAX_TELEMETRY_BYTES`
+    and :data:`MAX_TELEMETRY_VALUES` (refused before its arrays are allocated).
 
     Raises:
-        RecordingError: the file is missing, truncated or not a telemetry log.
+        RecordingError: the file is missing, past a limit (named), truncated or not a telemetry log.
     """
     p = Path(path)
     try:
         if p.suffix == ".npz":
-            with np.load(p) as z:
-                names = tuple(str(n) for n in z["joint_names"])
-                known = [f for f, _ in FIELDS if f != "tau_ext" or f in z.files]  # older logs: no tau_ext
-                return TelemetryLog(names, z["t"], *(z[f] for f in known))
-        with p.open(newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
-    except (OSError, KeyError, ValueError) as e:
-        raise RecordingError(f"cannot read telemetry {p}: {e}", fix="pass a .csv or .npz written by akarm") from None
-    if not rows or not rows[0] or rows[0][0] != "t [s]":
-        raise RecordingError(f"{p} is not an akarm telemetry CSV (no 't [s]' header)",
-                             fix="pass a file written by Arm.telemetry().save()")
-    header = rows[0]
+            return _load_npz(p)
+        header, data = read_csv_table(p, what="telemetry file", max_bytes=MAX_TELEMETRY_BYTES,
+                                      bytes_name="MAX_TELEMETRY_BYTES", max_rows=MAX_TELEMETRY_VALUES,
+                                      rows_name="MAX_TELEMETRY_VALUES", rows="cycles", max_values=MAX_TELEMETRY_VALUES,
+                                      values_name="MAX_TELEMETRY_VALUES", check_header=_check_header)
+    except FileProblem as e:
+        raise RecordingError(f"{p}: {e.what}", fix=e.fix) from None
     fields = len(FIELDS) if header[-1].startswith("tau_ext.") else len(FIELDS) - 1  # older logs: no tau_ext
     per_field = (len(header) - 1) // fields
     names = tuple(h.split(".", 1)[1].rsplit(" [", 1)[0] for h in header[1:1 + per_field])
-    try:
-        data = np.array([[float(x) for x in r] for r in rows[1:]], dtype=float).reshape(-1, len(header))
-    except ValueError:
-        raise RecordingError(f"{p} has a malformed or truncated row", fix="re-record the log") from None
     cols = [data[:, 1 + k * per_field:1 + (k + 1) * per_field] for k in range(fields)]
     return TelemetryLog(names, data[:, 0], *cols)
+
+
+def _check_header(header: list[str]) -> None:
+    if not header or header[0] != "t [s]":
+        raise FileProblem("not an akarm telemetry CSV (no 't [s]' header)",
+                          "pass a file written by Arm.telemetry().save()")
+    fields = len(FIELDS) if header[-1].startswith("tau_ext.") else len(FIELDS) - 1
+    if (len(header) - 1) % fields or not all("." in h for h in header[1:]):
+        raise FileProblem(f"not an akarm telemetry CSV (its {len(header)} columns are not 't [s]' and "
+                          f"{fields} fields per joint)", "pass a file written by Arm.telemetry().save()")
+
+
+def _load_npz(p: Path) -> TelemetryLog:
+    """An ``.npz`` log: every array's size read from its header (and checked against the bytes the
+    archive holds for it) before any is loaded."""
+    try:
+        with zipfile.ZipFile(p) as z:
+            sizes = {info.filename.removesuffix(".npy"): _npy_size(z, info) for info in z.infolist()}
+            size, values = sum(b for b, _ in sizes.values()), sum(v for _, v in sizes.values())
+            if size > MAX_TELEMETRY_BYTES:
+                raise FileProblem(over(f"the telemetry file's arrays hold {number(size)} bytes", MAX_TELEMETRY_BYTES,
+                                       "bytes", "MAX_TELEMETRY_BYTES"), "is it the right file?")
+            if values > MAX_TELEMETRY_VALUES:
+                raise FileProblem(over(f"the telemetry file holds {number(values)} values", MAX_TELEMETRY_VALUES,
+                                       "values", "MAX_TELEMETRY_VALUES"), "is it the right file?")
+        with np.load(p) as z:
+            names = tuple(str(n) for n in z["joint_names"])
+            known = [f for f, _ in FIELDS if f != "tau_ext" or f in z.files]  # older logs: no tau_ext
+            t = z["t"]
+            arrays = [z[f] for f in known]
+    except FileNotFoundError:
+        raise FileProblem("telemetry file not found", "check the path") from None
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise FileProblem(f"cannot read the telemetry file: {e}", "pass a .csv or .npz written by akarm") from None
+    if t.ndim != 1 or any(a.shape != (len(t), len(names)) for a in arrays):
+        raise FileProblem("its arrays do not fit together (t: one value a cycle; every field: one a cycle and joint)",
+                          "pass a .npz written by akarm")
+    return TelemetryLog(names, t, *arrays)
+
+
+def _npy_size(z: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[int, int]:
+    """Bytes and values of one array of an ``.npz``, from its header (no array is read)."""
+    with z.open(info) as f:
+        version = np.lib.format.read_magic(f)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+    count = math.prod(shape)
+    if dtype.hasobject or count * dtype.itemsize > info.file_size:
+        raise FileProblem(f"its array {info.filename!r} is not what its header says",
+                          "pass a .npz written by akarm")
+    return count * dtype.itemsize, count
 
 
 class Telemetry:

@@ -45,7 +45,7 @@ def test_path_round_trip_with_header_naming_joints_and_units(tmp_path) -> None:
     ("back.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n0.0,0.1,0.2\n", "time does not increase"),
     ("head.csv", "time,a,b\n0,0,0\n", "header must start"),
     ("short.csv", "t [s],shoulder [rad],elbow [rad]\n0.0,0.1,0.2\n", "fewer than two samples"),
-    ("bad.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1, 0.2\n", "not valid YAML at line"),
+    ("bad.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1, 0.2\n", "line 4: not valid YAML"),
     ("k.yaml", "joints: [shoulder, elbow]\nkeyframes:\n  - {q: [0.1]}\n", "keyframe 0 needs `q:` with 2"),
     ("none.yaml", "just: text\n", "not an akarm keyframe file"),
     ("other.yaml", "joints: [a, b]\nkeyframes:\n  - {q: [0.1, 0.2]}\n", "recorded for joints"),
@@ -59,7 +59,7 @@ def test_corrupt_or_truncated_recordings_get_clear_errors(tmp_path, name, conten
 
 
 def test_missing_file_is_a_recording_error(tmp_path) -> None:
-    with pytest.raises(RecordingError, match="cannot read"):
+    with pytest.raises(RecordingError, match="path recording not found"):
         rec.load(tmp_path / "nope.csv", NAMES)
 
 

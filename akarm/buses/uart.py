@@ -45,7 +45,9 @@ One motor per port: the serial protocol has no addresses.
 
 from __future__ import annotations
 
+import binascii
 import collections
+import struct
 import threading
 import time
 import weakref
@@ -75,7 +77,7 @@ if TYPE_CHECKING:
     from akarm.config import RobotConfig
 
 __all__ = ["DEFAULT_BAUDRATE", "ERRORS_IN_ROW", "INTERFACE", "STATUS_FIELDS", "UartBus", "diagnose",
-           "serial_config", "to_uart"]
+           "position_speed", "serial_config", "setup_status", "to_uart"]
 
 INTERFACE = "akarm_uart"
 #: What a poll asks for (GET_VALUES_SETUP): all a servo status frame carries, and the motor's ID.
@@ -94,6 +96,39 @@ _MOTION = frozenset({servo.ServoPacket.SET_DUTY, servo.ServoPacket.SET_CURRENT, 
 _SETUP_REPLY = 1 + sum(st.size for f, st, _ in SETUP_FIELDS if STATUS_FIELDS & f)  #: its payload's length: 19
 
 _open: weakref.WeakValueDictionary[str, UartBus] = weakref.WeakValueDictionary()
+
+
+# The hot path, every control cycle: SET_POS_SPD out, the status poll's reply in, as whole-struct work
+# on the wire's integers (the generic codecs check each field: five times the cost, for frames whose
+# fields are in range by construction). tests/unit/test_uart_transport.py checks both against the codecs.
+_CAN_POS_SPD = struct.Struct(">ihh")  # degrees x 10 000, tens of ERPM, tens of ERPM/s
+_UART_POS_SPD = struct.Struct(">Biii")  # command, degrees x 1000, ERPM, ERPM/s
+_SETUP = struct.Struct(">BhhiiBiB")  # the poll's reply: 50, MOSFET and motor °C x 10, Iq A x 100, ERPM, fault,
+#                                      degrees x 1e6, motor ID (ValueField bit order)
+_STATUS = struct.Struct(">hhhbB")  # the servo status frame: 0.1°, 10 ERPM, 0.01 A, °C, error code
+_STATUS_CODES = bytes(status_code(k) for k in range(256))
+
+
+def _clamp(x: int, lo: int, hi: int) -> int:
+    return lo if x < lo else hi if x > hi else x
+
+
+def position_speed(data: bytes | bytearray) -> bytes:
+    """The UART SET_POS_SPD frame for a CAN SET_POS_SPD frame's 8 data bytes (speed beyond the UART
+    field's ±100 000 ERPM is limited to it)."""
+    p, v, a = _CAN_POS_SPD.unpack(data)
+    payload = _UART_POS_SPD.pack(uart.UartPacket.SET_POS_SPD, round(p / 10), _clamp(10 * v, -100_000, 100_000),
+                                 max(0, 10 * a))
+    crc = binascii.crc_hqx(payload, 0)
+    return b"\x02\x0d" + payload + bytes((crc >> 8, crc & 0xFF, 3))
+
+
+def setup_status(payload: bytes) -> tuple[int, bytes]:
+    """The servo status frame ``(ID, 8 bytes)`` for a reply to the poll (:data:`STATUS_FIELDS`, 19 bytes)."""
+    _, mos, mot, iq, erpm, fault, udeg, motor_id = _SETUP.unpack(payload)
+    return (0x2900 | motor_id, _STATUS.pack(_clamp(round(udeg / 100_000), -32768, 32767),
+                                            _clamp(round(erpm / 10), -32768, 32767), _clamp(iq, -32768, 32767),
+                                            _clamp(round(max(mos, mot) / 10), -128, 127), _STATUS_CODES[fault]))
 
 
 def to_uart(command: servo.ServoCommand) -> bytes:
@@ -217,18 +252,27 @@ class UartBus(can.BusABC):
         if not msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             self.unsent += 1
             return
-        try:
-            command = servo.decode_command(msg.arbitration_id, msg.data)
-        except ProtocolError:
-            self.unsent += 1
-            return
-        if self.motor_id is not None and command.motor_id != self.motor_id:
-            self.foreign += 1  # on CAN another motor would take it; there is none on this port
-            return
-        try:
-            frame = to_uart(command)
-        except ProtocolError as e:
-            raise can.CanOperationError(f"{self.channel_info}: {e.what}") from None
+        aid, data = msg.arbitration_id, msg.data
+        if aid >> 8 == servo.ServoPacket.SET_POS_SPD and len(data) == 8 and aid < 0x10000:  # every cycle
+            if self.motor_id is not None and aid & 0xFF != self.motor_id:
+                self.foreign += 1
+                return
+            frame = position_speed(data)
+            packet = servo.ServoPacket.SET_POS_SPD
+        else:
+            try:
+                command = servo.decode_command(aid, data)
+            except ProtocolError:
+                self.unsent += 1
+                return
+            if self.motor_id is not None and command.motor_id != self.motor_id:
+                self.foreign += 1  # on CAN another motor would take it; there is none on this port
+                return
+            try:
+                frame = to_uart(command)
+            except ProtocolError as e:
+                raise can.CanOperationError(f"{self.channel_info}: {e.what}") from None
+            packet = command.packet
         try:
             self._write(frame)
         except OSError as e:
@@ -236,8 +280,8 @@ class UartBus(can.BusABC):
         if self._port.backlog > BACKLOG_LIMIT:
             raise can.CanOperationError(f"{self.channel_info} takes no more bytes ({self._port.backlog} waiting): "
                                         "nothing reads the other end")
-        if command.packet in _MOTION and (command.packet is not servo.ServoPacket.SET_CURRENT
-                                          or abs(command.values[0]) >= _MIN_CURRENT):
+        if packet in _MOTION and (packet is not servo.ServoPacket.SET_CURRENT
+                                  or abs(command.values[0]) >= _MIN_CURRENT):
             self._armed_until = self._window + _ARMED_WINDOWS
 
     # -- in --------------------------------------------------------------------------------------
@@ -314,13 +358,12 @@ class UartBus(can.BusABC):
 
     def _status(self, payload: bytes) -> tuple[int, bytes] | None:
         """The servo status frame for a reply payload, or ``None`` (not a status reply)."""
+        if payload[0] == uart.UartPacket.GET_VALUES_SETUP and self._setup and len(payload) == _SETUP.size:
+            aid, data = setup_status(payload)
+            self.motor_id = aid & 0xFF
+            return aid, data
         try:
-            if payload[0] == uart.UartPacket.GET_VALUES_SETUP and self._setup:
-                f = uart.decode_get_values_setup(payload, STATUS_FIELDS)
-                V = uart.ValueField
-                fields = (int(f[V.MOTOR_ID]), f[V.POSITION], f[V.SPEED], f[V.IQ_CURRENT],
-                          max(f[V.MOSFET_TEMPERATURE], f[V.MOTOR_TEMPERATURE]), int(f[V.ERROR]))
-            elif payload[0] == uart.UartPacket.GET_VALUES:
+            if payload[0] == uart.UartPacket.GET_VALUES:
                 g = uart.decode_get_values(payload)
                 fields = (g.controller_id, g.position_deg, g.speed_erpm, g.iq_current,
                           max(g.mosfet_temperature, g.motor_temperature), g.fault)

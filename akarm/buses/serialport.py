@@ -10,7 +10,13 @@ are never cut or interleaved, and a control loop never waits on a port.
 A pseudo-terminal pair (:func:`open_pty`) is two ends of one line: bytes written to one end are read
 at the other. The other end's path (``/dev/pts/N``) is what a controller opens, as it would open
 ``/dev/ttyUSB0``. Both ends are put in raw mode (no echo, no line editing, no CR/LF mapping), and a
-baud rate means nothing on them: bytes arrive as soon as they are written.
+baud rate means nothing on them.
+
+Bytes written to a pseudo-terminal reach the other end through a kernel work queue: usually at once,
+but on a loaded machine a moment later. Lock-step tests read right after the other end wrote, so
+when both ends of a pair are open in this process, each end counts what the other wrote, and a read
+waits (up to :data:`CATCH_UP` s) until all of it has arrived: a lock-step run over a pair then
+depends on nothing but the code.
 """
 
 from __future__ import annotations
@@ -28,7 +34,19 @@ from akarm.errors import BusError
 __all__ = ["DEFAULT_BAUDRATE", "Port", "open_pty", "open_serial"]
 
 DEFAULT_BAUDRATE = 921_600  #: the AK drivers' serial port (AK manual §5.2.2)
+CATCH_UP = 0.5  #: s a read waits for bytes the other end of a pair in this process wrote (see the docstring)
 _READ = 65_536
+
+
+class _Pair:
+    """A pseudo-terminal pair made in this process: the bytes written into each end so far."""
+
+    def __init__(self) -> None:
+        self.to_master = 0  # written at the controller's end (the path), for the master to read
+        self.to_slave = 0  # written at the master, for the path's end to read
+
+
+_pairs: dict[str, _Pair] = {}  # by the path of the pair's other end
 
 
 class Port:
@@ -40,12 +58,15 @@ class Port:
             own methods (a pyserial port without one, as on Windows).
         serial: the pyserial port behind ``fd``, if any (closed with it).
         keep: more file descriptors closed with the port (a pseudo-terminal's other end, kept open).
+        pair: for :func:`open_pty` and :func:`open_serial`: this is an end (the master: True) of the
+            in-process pair at that path.
 
     Attributes:
         bytes_in, bytes_out: bytes read and written so far.
     """
 
-    def __init__(self, name: str, fd: int | None, serial: Any = None, keep: tuple[int, ...] = ()) -> None:
+    def __init__(self, name: str, fd: int | None, serial: Any = None, keep: tuple[int, ...] = (),
+                 pair: tuple[_Pair, bool, str] | None = None) -> None:
         self.name = name
         self._fd = fd
         self._serial = serial
@@ -54,8 +75,20 @@ class Port:
         self._closed = False
         self.bytes_in = 0
         self.bytes_out = 0
+        # an end of a pair made in this process: where its writes are counted, and what the other end wrote
+        self._pair: _Pair | None = None
+        self._master = False
+        self._expected0 = 0  # the other end's count when this end began to read
+        self._pair_path = ""
         if fd is not None:
             os.set_blocking(fd, False)
+            if pair is not None:
+                self._pair, self._master, self._pair_path = pair
+                self._expected0 = self._sent_to_me()
+
+    def _sent_to_me(self) -> int:
+        pair = self._pair
+        return 0 if pair is None else pair.to_master if self._master else pair.to_slave
 
     def __repr__(self) -> str:
         return f"Port({self.name!r}, in={self.bytes_in}, out={self.bytes_out}, backlog={len(self._pending)})"
@@ -73,11 +106,15 @@ class Port:
         """The file descriptor to wait on, or ``None``."""
         return self._fd
 
-    def read(self) -> bytes:
+    def read(self, check: bool = False) -> bytes:
         """Every byte that has arrived, without waiting (``b""``: none).
 
+        ``check``: when nothing has arrived, also find out whether the port hung up (one more system
+        call: a caller that hears nothing for a while asks).
+
         Raises:
-            OSError: the port failed (a USB adapter unplugged, the other end of a pseudo-terminal closed).
+            OSError: the port failed (a USB adapter unplugged, the other end of a pseudo-terminal
+                closed); a hang-up only with ``check``, or where reading itself fails.
         """
         if self._fd is None:
             n = self._serial.in_waiting
@@ -91,16 +128,49 @@ class Port:
                     break
                 except InterruptedError:
                     continue
-                if not chunk:  # no data (a tty with VMIN 0), or a hang-up: then select says readable
-                    if not chunks and select.select([self._fd], [], [], 0)[0]:
-                        raise OSError(errno.EIO, f"{self.name}: the port was closed or unplugged")
+                if not chunk:  # no data (a tty with VMIN 0), or a hang-up: readable, yet nothing to read
+                    if check and not chunks and select.select([self._fd], [], [], 0)[0]:
+                        try:
+                            chunk = os.read(self._fd, _READ)  # bytes that came just after the first look
+                        except BlockingIOError:
+                            break
+                        if not chunk:
+                            raise OSError(errno.EIO, f"{self.name}: the port was closed or unplugged")
+                        chunks.append(chunk)
                     break
                 chunks.append(chunk)
                 if len(chunk) < _READ:
                     break
             data = b"".join(chunks)
+            if self._pair is not None:
+                data += self._catch_up(len(data))
         self.bytes_in += len(data)
         return data
+
+    def _catch_up(self, got: int) -> bytes:
+        """What the other end of an in-process pair wrote that has not arrived yet (waiting at most
+        :data:`CATCH_UP` s; what never comes is forgiven)."""
+        assert self._fd is not None
+        missing = self._sent_to_me() - self._expected0 - self.bytes_in - got
+        if missing <= 0:
+            return b""
+        chunks: list[bytes] = []
+        end = time.monotonic() + CATCH_UP
+        while missing > 0 and (left := end - time.monotonic()) > 0:
+            with contextlib.suppress(InterruptedError):
+                select.select([self._fd], [], [], left)
+            try:
+                chunk = os.read(self._fd, _READ)
+            except (BlockingIOError, InterruptedError):
+                continue
+            if not chunk:
+                time.sleep(0.0002)
+                continue
+            chunks.append(chunk)
+            missing -= len(chunk)
+        if missing > 0:
+            self._expected0 += missing  # lost (a full buffer): do not wait for them again
+        return b"".join(chunks)
 
     def write(self, data: bytes) -> None:
         """Queue ``data`` behind the backlog and write what the port takes now.
@@ -133,6 +203,12 @@ class Port:
                 return
             del pending[:n]
             self.bytes_out += n
+            pair = self._pair
+            if pair is not None:
+                if self._master:
+                    pair.to_slave += n
+                else:
+                    pair.to_master += n
 
     def discard_input(self) -> None:
         """Drop every byte that arrived and was not read (stale replies from before)."""
@@ -141,7 +217,9 @@ class Port:
                 self._serial.reset_input_buffer()
         elif self._fd is not None:
             with contextlib.suppress(OSError):
-                self.read()
+                os.read(self._fd, _READ)
+        if self._pair is not None:
+            self._expected0 = self._sent_to_me() - self.bytes_in
 
     def wait(self, timeout: float) -> None:
         """Wait until bytes arrive or ``timeout`` s pass."""
@@ -158,6 +236,8 @@ class Port:
         if self._closed:
             return
         self._closed = True
+        if self._master and _pairs.get(self._pair_path) is self._pair:
+            del _pairs[self._pair_path]
         if self._serial is not None:
             with contextlib.suppress(Exception):
                 self._serial.close()
@@ -196,7 +276,8 @@ def open_serial(path: str, baudrate: int = DEFAULT_BAUDRATE, *, exclusive: bool 
         with contextlib.suppress(Exception):  # a pseudo-terminal or a driver without it
             port.set_low_latency_mode(True)
     fd = getattr(port, "fd", None)
-    return Port(path, fd if isinstance(fd, int) else None, port)
+    pair = _pairs.get(path)
+    return Port(path, fd if isinstance(fd, int) else None, port, pair=None if pair is None else (pair, False, path))
 
 
 def _open_fix(path: str, error: BaseException) -> str:
@@ -229,4 +310,5 @@ def open_pty() -> tuple[Port, str]:
     for fd in (slave, master):
         tty.setraw(fd)
     path = os.ttyname(slave)
-    return Port(f"pty {path}", master, keep=(slave,)), path
+    pair = _pairs[path] = _Pair()
+    return Port(f"pty {path}", master, keep=(slave,), pair=(pair, True, path)), path

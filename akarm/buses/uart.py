@@ -329,15 +329,13 @@ class UartBus(can.BusABC):
             if self._filters is None or self._matches_filters(msg):
                 return msg
 
-    def _read(self) -> None:
+    def _read(self, check: bool = False) -> None:
         if self._failed is not None:
             raise self._failed
         try:
-            data = self._port.read()
+            data = self._port.read(check)
         except OSError as e:
-            self._failed = BusError(f"{self.channel_info} failed: {e}",
-                                    fix="check the adapter is plugged in (a simulator's end of the line: that it "
-                                        "still runs); then close the arm and open it again")
+            self._failed = self._port_failed(e)
             raise self._failed from None
         if not data:
             return
@@ -345,6 +343,11 @@ class UartBus(can.BusABC):
         if len(self._raw) < _KEEP:
             self._raw += data[:_KEEP - len(self._raw)]
         self._take(self._decoder.feed(data))
+
+    def _port_failed(self, error: OSError) -> BusError:
+        return BusError(f"{self.channel_info} failed, unplugged or closed at its other end ({error})",
+                        fix="check the adapter is plugged in (a simulator's end of the line: that it still runs); "
+                            "then close the arm and open it again")
 
     def _take(self, payloads: list[bytes]) -> None:
         for payload in payloads:
@@ -393,6 +396,8 @@ class UartBus(can.BusABC):
     def _end_window(self) -> None:
         """Judge the window that ends (if a poll began it), then poll: a new window begins."""
         if self._polled:
+            if not self._good and not self._bytes:
+                self._read(check=True)  # a silent port: hung up? (bytes just come are taken too)
             self._judge()
         self._stale = self._decoder.buffered > 0
         self._window += 1
@@ -401,9 +406,10 @@ class UartBus(can.BusABC):
         self._raw.clear()
         try:
             self._write(self._request)
-        except OSError:
-            self._polled = False  # the read says what failed
-            return
+        except OSError as e:
+            self._polled = False
+            self._failed = self._port_failed(e)
+            raise self._failed from None
         self._polled = True
         self.polls += 1
 

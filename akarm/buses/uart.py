@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import binascii
 import collections
+import math
 import struct
 import threading
 import time
@@ -214,6 +215,7 @@ class UartBus(can.BusABC):
         self._window = 0  # windows ended so far
         self._armed_until = -1  # bad windows raise while _window < this
         self._polled = False  # a poll went out when the current window began
+        self._polled_at = -math.inf  # time.monotonic() of the last poll
         self._good = 0  # good replies in the current window
         self._bytes = 0  # bytes received in the current window
         self._crc0 = 0  # the decoder's CRC error count when the window began
@@ -295,7 +297,9 @@ class UartBus(can.BusABC):
             BusError: the port failed (unplugged; the other end closed).
         """
         deadline = None if timeout is None else time.monotonic() + timeout
-        window_end = time.monotonic() + self.poll_interval
+        # the window began with the last poll, whoever called then: callers that wait a little at a time
+        # (a probe going round several buses 1 ms each) still get a poll every poll_interval
+        window_end = self._polled_at + self.poll_interval
         while True:
             msg = self._next()
             if msg is not None:
@@ -309,7 +313,7 @@ class UartBus(can.BusABC):
             if now >= window_end:
                 if not self._flush_stale():
                     self._end_window()
-                window_end = now + self.poll_interval
+                window_end = self._polled_at + self.poll_interval
                 continue
             if deadline is not None and now >= deadline:
                 return None
@@ -411,6 +415,7 @@ class UartBus(can.BusABC):
             self._failed = self._port_failed(e)
             raise self._failed from None
         self._polled = True
+        self._polled_at = time.monotonic()
         self.polls += 1
 
     def _judge(self) -> None:

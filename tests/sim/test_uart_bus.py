@@ -159,6 +159,17 @@ def test_one_poll_per_window_and_a_waiting_caller_polls_on_its_own(line) -> None
         assert bus.polls >= 5
 
 
+def test_a_caller_that_waits_a_little_at_a_time_still_gets_its_polls(line) -> None:
+    import time
+
+    motor, path = line
+    with UartBus(path, multi_turn=False, poll_interval=0.002) as bus:
+        end = time.monotonic() + 0.03
+        while time.monotonic() < end:  # as akarm status goes round several buses, 1 ms each
+            assert bus.recv(0.0005) is None
+        assert bus.polls >= 2 and motor.read() == uart.encode_get_values_setup(STATUS_FIELDS) * bus.polls
+
+
 # ------------------------------------------------------------------------------------------------
 # faults on the wire
 # ------------------------------------------------------------------------------------------------

@@ -10,7 +10,8 @@ answers on the line instead of sending CAN status frames:
   have, at the port's baud rate): position, speed, Iq, temperature (the same value as MOSFET and
   motor temperature), the fault code (:func:`akarm.protocol.uart.packets.fault_code` of the error
   the driver reports), the motor's ID (its ``can_id``), the supply voltage.
-- SET_DETECT starts a ROTOR_POSITION report every 10 ms (the rotor's angle within its turn).
+- SET_DETECT starts a ROTOR_POSITION report every 10 ms (the position GET_VALUES reports, in the
+  report's thousandths of a degree: the manual's example, 1750.628°, is no angle within one turn).
 - SET_POS_MULTI, SET_POS_SINGLE and SET_POS_UNLIMITED set :attr:`UartServoDriver.position_mode`; in
   single-turn mode reported positions are wrapped into 0-360°.
 - FW_VERSION is answered with version 1.0 and the name ``akarm-sim``.
@@ -151,7 +152,7 @@ class UartServoDriver(ServoDriver):
                      uart.ValueField.INPUT_VOLTAGE: v.input_voltage, uart.ValueField.ERROR: v.fault,
                      uart.ValueField.POSITION: v.position_deg, uart.ValueField.MOTOR_ID: v.controller_id}
             mask = int(cmd.values[0])
-            self._reply(uart.encode_get_values_setup_reply({f: x for f, x in every.items() if mask & f}), t)
+            self._reply(uart.encode_get_values_setup_reply({f: x for f, x in every.items() if mask & int(f)}), t)
         elif pk is uart.UartPacket.SET_DETECT:
             self.detect = True
             self._next_detect = t + DETECT_PERIOD
@@ -161,15 +162,19 @@ class UartServoDriver(ServoDriver):
         elif pk is uart.UartPacket.FW_VERSION:
             self._reply(uart.encode_frame(bytes((uart.UartPacket.FW_VERSION, 1, 0)) + b"akarm-sim"), t)
 
+    def _position_deg(self, p_raw: float) -> float:
+        """The position the driver reports for raw motor position ``p_raw`` (rad), in its degrees."""
+        deg = units.rad_to_servo_deg(self.motor, self._reported_position(p_raw))
+        if self.position_mode == "single":
+            deg %= 360.0
+        return min(max(deg, -_I32_DEG), _I32_DEG)  # what an int32 of millionths of a degree holds
+
     def _values(self) -> uart.GetValues:
         """What GET_VALUES reports now."""
         p_raw, v = self._state()
         mp, mv = self._measured(p_raw, v)
         m = self.motor
-        deg = units.rad_to_servo_deg(m, self._reported_position(mp))
-        if self.position_mode == "single":
-            deg %= 360.0
-        deg = min(max(deg, -_I32_DEG), _I32_DEG)  # what an int32 of millionths of a degree holds
+        deg = self._position_deg(mp)
         amps = self.torque / self.kt_out
         temperature = round(self.temperature, 1)
         return uart.GetValues(temperature, temperature, amps, 0.0, 0.0, amps, 0.0, units.rad_s_to_erpm(m, mv),
@@ -218,8 +223,7 @@ class UartServoDriver(ServoDriver):
         super()._timers(t)
         if self.detect and t + 1e-9 >= self._next_detect:
             p_raw, _ = self._state()
-            rotor = math.degrees(self._measured(p_raw, 0.0)[0] * self.motor.gear_ratio) % 360.0
-            self._reply(uart.encode_rotor_position(rotor), t)
+            self._reply(uart.encode_rotor_position(self._position_deg(self._measured(p_raw, 0.0)[0])), t)
             self._next_detect += DETECT_PERIOD
             if self._next_detect <= t:
                 self._next_detect = t + DETECT_PERIOD

@@ -10,6 +10,7 @@ the last line says so (:attr:`RemoteArm.held`).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -89,6 +90,7 @@ def via_server(args: argparse.Namespace, served: Callable[[RemoteArm, argparse.N
     """``served(arm, args)`` for a :class:`RemoteArm` of the server that drives this robot's buses, and
     its exit code; ``None`` when no server drives them."""
     from akarm.buses.ownership import any_server, find_server
+    from akarm.errors import SafetyStop
 
     if not any_server():  # the common case, decided without loading the robot
         return None
@@ -103,5 +105,9 @@ def via_server(args: argparse.Namespace, served: Callable[[RemoteArm, argparse.N
     arm = RemoteArm(config, info)
     try:
         return served(arm, args)
+    except SafetyStop:  # the stop that ended what this verb did: latched by the server
+        print(f"akarm {args.verb}: akarm serve (pid {arm.pid}) stopped the arm for safety and latched the stop: "
+              f"nothing moves until `akarm enable {args.robot}` acknowledges it", file=sys.stderr)
+        raise
     finally:
         arm.close()

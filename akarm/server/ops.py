@@ -142,6 +142,19 @@ def _container_problem(value: object, tp: Any) -> str | None:
     return None
 
 
+def _same_kind(value: object, tp: Any) -> bool:
+    """True when ``value`` is the JSON kind ``tp`` describes (whatever its contents or size)."""
+    if isinstance(value, list):
+        return _is_list(tp)
+    if isinstance(value, dict):
+        return _is_map(tp)
+    if isinstance(value, bool):
+        return tp is bool
+    if isinstance(value, int | float):
+        return tp in (int, float)
+    return isinstance(value, str) and tp is str
+
+
 def _problem(value: object, tp: Any) -> str | None:
     """Why ``value`` is not a ``tp`` (a phrase), or ``None`` when it is one."""
     members = _members(tp)
@@ -149,9 +162,9 @@ def _problem(value: object, tp: Any) -> str | None:
         problems = [_problem(value, m) for m in members]
         if any(p is None for p in problems):
             return None
-        # one member of the same shape (a list for a list type): its own, more precise, problem
+        # the member of the same kind (a list for a list type, text for str): its own, more precise, problem
         for m, p in zip(members, problems, strict=True):
-            if (isinstance(value, list) and _is_list(m)) or (isinstance(value, dict) and _is_map(m)):
+            if _same_kind(value, m):
                 return p
         return f"must be {describe(tp)}, not {_json_kind(value)}"
     if tp is Any:

@@ -208,7 +208,9 @@ class SocketServer:
                         self.log(f"akarm serve: cannot accept a control connection: {e.strerror}; closing the "
                                  "connection idle longest, retrying")
                     short = True
-                    self._evict()  # its descriptor is what the waiting connection needs
+                    if self._evict():  # its descriptor is what the waiting connection needs: soon free
+                        time.sleep(0.001)
+                        continue
                 else:
                     self.log(f"akarm serve: accepting a control connection failed ({e}); going on")
                 time.sleep(_ACCEPT_RETRY)
@@ -397,8 +399,15 @@ class SocketClient:
     def call(self, op: str, **args: Any) -> Any:
         request = next(self._ids)
         try:
-            self._file.write(json.dumps({"id": request, "op": op, "args": args}).encode() + b"\n")
-            self._file.flush()
+            try:
+                self._file.write(json.dumps({"id": request, "op": op, "args": args}).encode() + b"\n")
+                self._file.flush()
+            except OSError:  # refused (too many connections) or closed: its last word says why, if any
+                line = self._file.readline()
+                answer = json.loads(line) if line else {}
+                if answer.get("ok") is False:
+                    raise rebuild_error(answer.get("error") or {}) from None
+                raise
             while True:  # answers to calls cut short before (Ctrl-C while waiting) come first: skip them
                 line = self._file.readline()
                 if not line:

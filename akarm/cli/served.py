@@ -4,7 +4,10 @@ Each such verb calls :func:`via_server` first thing in its ``run``, with the fun
 own module) that does the verb through a :class:`RemoteArm`. It returns ``None`` when no server
 drives the robot's buses (the verb then does what it always did), else that function's exit code.
 Output is the verb's own, except that the arm is left held by the server instead of disabled, and
-the last line says so (:attr:`RemoteArm.held`).
+the last line says so (:attr:`RemoteArm.held`). A safety stop the server latched while the verb ran
+is the verb's error, as without a server (its class and text), with a line saying that only
+``akarm enable`` acknowledges it; verbs that move ask the server's ``ready`` first, which refuses
+while a stop is latched (the server never re-enables an arm a stop disabled).
 """
 
 from __future__ import annotations

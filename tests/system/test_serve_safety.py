@@ -291,3 +291,39 @@ def test_status_after_a_served_disable_reads_the_motors_with_their_age(stack: St
     text = stack.cli("status")
     assert "asked with EXIT" in text.stdout and "age (s)" in text.stdout
     stack.call("enable")
+
+
+def test_a_script_serving_its_arm_gets_the_same_latch(tmp_path: Path):
+    """ArmServer in a script: its follow() (what every frontend calls) is refused while a stop is
+    latched, refuse_if_latched() says so, and only its enable() acknowledges it."""
+    import akarm
+    from akarm.errors import StopLatched
+
+    robot = relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)
+    channel = unique("script")
+    with SimulatorProcess(robot, channel=channel, pose="down", control=True) as sim, \
+            akarm.Arm(load_robot(robot).with_bus(interface="akarm_local", channel=channel)) as arm, \
+            akarm.ArmServer(arm, ros=False, log=lambda text: None) as server:
+        assert server.latched is None
+        server.refuse_if_latched()  # nothing latched: nothing raised
+        sim.control.inject("elbow", faults.Unplugged())  # type: ignore[union-attr]
+        assert wait_until(lambda: server.latched is not None and not arm.enabled, 30.0)
+        stop = server.latched
+        assert stop is not None and stop.name == "FeedbackTimeout" and stop.error.joint == "elbow"
+        errors = []
+        for _ in range(3):
+            with pytest.raises(StopLatched) as e:
+                server.follow(["elbow"], [1.0], [[0.3]])
+            errors.append(e.value)
+        assert errors[0] is not errors[1] and errors[0].stop == "FeedbackTimeout" and server.counts["refused"] == 3
+        with pytest.raises(StopLatched, match="refused: the arm stopped for safety"):
+            server.refuse_if_latched()
+        server.disable()  # limp: the stop stays latched
+        assert server.latched is stop and server.mode == "fault"
+        sim.control.clear_faults()  # type: ignore[union-attr]
+        server.enable()  # acknowledged, enabled without a kick
+        assert server.latched is None and arm.enabled and server.mode == "holding"
+        motion = server.follow(["elbow"], [1.0], [[0.3]])
+        assert motion is not None
+        motion.wait()
+        assert abs(arm.state().q[1] - 0.3) < 5e-3

@@ -329,7 +329,7 @@ def test_past_the_connection_limit_the_idle_longest_goes_and_busy_ones_stay(tmp_
         assert wait_until(lambda: len(blocked) == 2, 2.0)
         fourth = SocketClient(path, timeout=10)  # the idle `first` makes room; the busy two stay
         assert fourth.call("hi") == "hi"
-        with pytest.raises(StateError, match="closed the connection|lost the connection"):
+        with pytest.raises(StateError, match=r"closed the connection|lost the connection"):
             first.call("again")
         block(fourth)
         assert wait_until(lambda: len(blocked) == 3 and server.connections == 3, 2.0)

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("cyclonedds")
 
-from akarm.ros.dds import LOOPBACK_CONFIG, discovery  # noqa: E402
+from akarm.ros.dds import LOOPBACK_CONFIG, discovery
 
 
 def parsed(config: str | None) -> ET.Element:

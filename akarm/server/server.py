@@ -386,11 +386,12 @@ class ArmServerCore:
             self.arm.disable()
 
     def hold(self) -> None:
-        """Come to rest and hold (ending teach mode)."""
+        """Come to rest and hold (ending teach mode); refused while a stop is latched (it names the stop)."""
         with self._cmd, self._fresh_errors():
             if self._teaching:
                 self._end_teach()
                 return
+            self.refuse_if_latched()
             self.arm.hold()
 
     def _end_teach(self) -> None:

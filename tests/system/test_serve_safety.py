@@ -8,7 +8,8 @@ of their own; this test process is also a ROS 2 participant.
   joint blocked), `teach` or `enable --seconds` makes that verb exit 1 naming the error.
 - The stop latches: the next served `move`, `teach` and a ROS 2 trajectory are refused, and nothing
   moves (the simulator's frames: no ENTER, no command with kp > 0); `akarm status` and the ROS 2
-  diagnostics show it; after `akarm enable`, a move arrives.
+  diagnostics show it; after `akarm enable`, a move arrives. Over ROS 2, `akarm/hold` is refused,
+  `akarm/disable` leaves the stop latched, and `akarm/enable` acknowledges it.
 - Refusals keep no memory: the server's RSS stays flat over thousands of them.
 - Status: after a served `disable` the arm falls; `status --json` then matches the simulator's
   positions within 1 mrad, each joint with its age.
@@ -32,7 +33,7 @@ pytest.importorskip("cyclonedds")
 from akarm.buses.ownership import find_server
 from akarm.protocol import mit
 from akarm.robotfile.load import load_robot
-from akarm.ros import msgs
+from akarm.ros import dds, msgs
 from akarm.server.socket import SocketClient
 from akarm.sim import faults
 from akarm.sim.process import SimulatorProcess
@@ -200,6 +201,27 @@ def test_a_collision_during_a_served_move_stops_it_naming_the_collision(stack: S
     assert stop["error"] in ("CollisionError", "TrackingError"), stop  # the reflex, or the following error
     refused = stack.cli("move", "down")
     assert refused.returncode == 1 and stop["error"] in refused.stderr
+
+
+def test_over_ros_2_hold_is_refused_and_only_the_enable_service_acknowledges_the_stop(stack: Stack):
+    stack.fresh()
+    stack.sim.control.inject("elbow", faults.Unplugged())  # type: ignore[union-attr]
+    stop = stack.stopped()
+    stack.sim.control.clear_faults()  # type: ignore[union-attr]  # the cause removed: still latched
+    mark = stack.frames_mark()
+    hold, disable, enable = (dds.TriggerClient(stack.watch.node, f"akarm/{name}")
+                             for name in ("hold", "disable", "enable"))
+    rep = hold.call(timeout=20)
+    assert not rep.success and "refused: the arm stopped for safety" in rep.message and stop["error"] in rep.message
+    assert disable.call(timeout=20).success  # limp: the stop stays latched
+    assert stack.call("status")["stop"] == stop and stack.call("status")["mode"] == "fault"
+    time.sleep(0.5)
+    assert_nothing_moved(stack, mark)
+    rep = enable.call(timeout=20)
+    assert rep.success and "holding" in rep.message, rep.message + stack.log()
+    status = stack.call("status")
+    assert status["stop"] is None and status["mode"] == "holding", status
+    assert "acknowledged" in "".join(stack.server.lines[-10:])
 
 
 @pytest.mark.parametrize("verb", ["teach", "enable"])

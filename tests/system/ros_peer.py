@@ -2,7 +2,8 @@
 inside a network namespace (``ip netns exec NS python tests/system/ros_peer.py ...``).
 
 It looks for the server's ``joint_trajectory`` reader, listens to ``joint_states``, publishes a
-trajectory moving one joint, and calls ``akarm/hold``, for ``--seconds``; then prints one JSON line:
+trajectory moving one joint, and calls ``akarm/hold``, for ``--seconds`` at most (it ends once it has
+called ``akarm/hold`` and heard 50 ``joint_states``); then prints one JSON line:
 what it saw and did. Cyclone DDS's configuration is the environment's (``CYCLONEDDS_URI``).
 """
 
@@ -47,6 +48,8 @@ def main() -> None:
                     held = bool(hold.call(timeout=3.0).success)
                 except AkarmError:
                     held = False
+            if held is not None and heard > 50:
+                break  # done: the sooner it ends, the less a loaded machine can stop the arm meanwhile
         time.sleep(0.05)
     print(json.dumps({"matched": matched, "joint_states": heard, "sent": sent, "held": held}), flush=True)
     node.close()

@@ -29,7 +29,10 @@ import pytest
 
 pytest.importorskip("cyclonedds")
 
+from akarm.buses.ownership import find_server
+from akarm.robotfile.load import load_robot
 from akarm.ros.dds import LOOPBACK_CONFIG
+from akarm.server.socket import SocketClient
 from akarm.sim.process import SimulatorProcess
 
 from .conftest import ROBOTS, relaxed_robot
@@ -108,6 +111,33 @@ def elbow(sim: SimulatorProcess) -> float:
     return next(d.position for d in sim.control.state() if d.name == "elbow")  # type: ignore[union-attr]
 
 
+def commands(ns: Namespaces, where: str, srv: Served, sim: SimulatorProcess, robot: Path, channel: str, domain: int,
+             namespace: str, config: str, step: float) -> dict:
+    """The participant in ``where`` moves the elbow by ``step``: what it saw. A safety stop of a loaded
+    machine meanwhile (the loop did not run for 0.5 s) refuses it: acknowledged (the server's control
+    socket is a file, reachable from here) and tried again, twice at most; the test is about who can
+    reach the server, not about the load."""
+    info = find_server(load_robot(robot).with_bus(interface="akarm_local", channel=channel))
+    assert info is not None, "".join(srv.lines)
+
+    def acknowledged() -> bool:
+        with SocketClient(str(info["socket"]), timeout=60) as c:
+            stop = c.call("status")["stop"]
+            if stop is not None:
+                print("a safety stop on a loaded machine, acknowledged:", stop["text"])
+                c.call("enable")
+        return stop is not None
+
+    for _ in range(3):
+        acknowledged()
+        q0 = elbow(sim)
+        seen = peer(ns, where, domain, namespace, config, q0 + step)
+        if abs(elbow(sim) - (q0 + step)) < 0.02 or not acknowledged():
+            break
+    assert abs(elbow(sim) - (q0 + step)) < 0.02, f"{where} commands it:\n" + "".join(srv.lines[-20:])
+    return seen
+
+
 def test_by_default_a_participant_outside_loopback_neither_sees_nor_moves_the_arm_and_with_ros_network_it_does(
         namespaces: Namespaces, tmp_path: Path):
     robot = relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)
@@ -122,18 +152,17 @@ def test_by_default_a_participant_outside_loopback_neither_sees_nor_moves_the_ar
             assert outside == {"matched": False, "joint_states": 0, "sent": 0, "held": None}, outside
             assert abs(elbow(sim) - q0) < 0.01, "nothing moved"
             assert not any("ROS 2: " in line and "participant" in line for line in srv.lines)
-            inside = peer(namespaces, namespaces.server, domain, ns_default, LOOPBACK_CONFIG, q0 + 0.3)
+            # a participant on the same machine (the server's namespace) sees it and commands it
+            inside = commands(namespaces, namespaces.server, srv, sim, robot, channel, domain, ns_default,
+                              LOOPBACK_CONFIG, 0.3)
             assert inside["matched"] and inside["joint_states"] > 50, inside  # it is up, on its loopback
-            assert abs(elbow(sim) - (q0 + 0.3)) < 0.02, "a participant on the same machine commands it"
         # --ros-network: the network
         ns_open = unique("open")
         with Served(channel, ns_open, robot, domain, args=["--ros-network"], prefix=namespaces.run(namespaces.server),
                     env=ros_env()) as srv:
             assert any("the network (multicast discovery); --ros-network" in line for line in srv.lines)
-            q0 = elbow(sim)
-            outside = peer(namespaces, namespaces.peer, domain, ns_open, OUTSIDE, q0 + 0.5)
+            outside = commands(namespaces, namespaces.peer, srv, sim, robot, channel, domain, ns_open, OUTSIDE, 0.5)
             assert outside["matched"] and outside["joint_states"] > 50 and outside["held"] is True, outside
-            assert abs(elbow(sim) - (q0 + 0.5)) < 0.02, "a participant on the network commands it"
             time.sleep(0.5)
             log = "".join(srv.lines)
             assert "ROS 2: joint_trajectory from participant " in log and ": accepted" in log, log

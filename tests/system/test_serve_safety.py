@@ -69,14 +69,18 @@ class Stack:
             return c.call(op, **args)  # type: ignore[no-any-return]
 
     def fresh(self) -> None:
-        """No fault in the simulator, no stop latched, the arm held at ``down`` (hanging, no gravity torque).
-        A stop of a loaded machine on the way (a real-time loop that did not run for 0.5 s) is acknowledged
-        and the move tried again, twice at most: the tests are about what a stop does, not about the load."""
+        """No fault in the simulator, no stop latched, the arm held at ``down`` (hanging, no gravity torque)."""
         self.sim.control.clear_faults()  # type: ignore[union-attr]
+        self.move("down")
+
+    def move(self, target: str) -> None:
+        """A served ``move`` to ``target``, enabled first. A stop of a loaded machine on the way (a real-time
+        loop that did not run for 0.5 s) is acknowledged and the move tried again, twice at most: the tests
+        are about what a stop does, not about the load."""
         for _ in range(3):
             if self.call("status")["stop"] is not None or not self.call("state", read=False)["enabled"]:
                 self.call("enable")
-            out = self.cli("move", "down")
+            out = self.cli("move", target)
             if out.returncode == 0:
                 return
         raise AssertionError(out.stderr + self.log())
@@ -284,7 +288,7 @@ def test_status_after_a_served_disable_reads_the_motors_with_their_age(stack: St
     """After a served disable the limp arm falls from ``home`` and then creeps (a few mrad/s): ``status
     --json`` must give where the simulated motors are while it reads them, not where they were let go."""
     stack.fresh()
-    assert stack.cli("move", "home").returncode == 0  # horizontal: it falls when let go
+    stack.move("home")  # horizontal: it falls when let go
     out = stack.cli("disable")
     assert out.returncode == 0 and "limp" in out.stdout
     time.sleep(3.0)  # fallen

@@ -20,6 +20,7 @@ raises on purpose; anything else escaping akarm is a bug.
     │       └── UartSilent         no byte from the motor
     ├── ArgumentError          a bad argument: wrong type or shape, not finite, out of its domain, an unknown name
     ├── StateError             an Arm call that does not fit its state (move before enable, ...)
+    │   └── StopLatched        a command refused: a safety stop is latched until an explicit enable
     ├── LimitError             a target or a planned path past a joint limit
     │   ├── UnreachableError   a Cartesian pose or path the tool cannot reach
     │   └── SingularityError   a Cartesian pose or path at (or through) a singularity
@@ -68,6 +69,7 @@ __all__ = [
     "SingularityError",
     "StaleFeedback",
     "StateError",
+    "StopLatched",
     "TrackingError",
     "TrajectoryError",
     "UartBadCrc",
@@ -245,6 +247,23 @@ class ArgumentError(AkarmError, ValueError):
 
 class StateError(AkarmError):
     """An :class:`~akarm.Arm` call that does not fit the arm's state (e.g. move before enable)."""
+
+
+class StopLatched(StateError):
+    """A command refused because a safety stop is latched: ``akarm serve`` stopped the arm for safety
+    and nothing moves until the stop is acknowledged by an explicit enable (``akarm enable``, the
+    ``akarm/enable`` service, ``ArmServer.enable()``). Each refusal is a new object.
+
+    Attributes:
+        stop: the latched stop's error class, e.g. ``"FeedbackTimeout"`` (``""`` if unknown).
+        time: when the arm stopped, s since the epoch (``None`` if unknown).
+    """
+
+    def __init__(self, what: str, *, stop: str = "", time: float | None = None, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.stop = stop
+        self.time = time
+        super().__init__(what, joint=joint, fix=fix)
 
 
 class LimitError(AkarmError):

@@ -68,7 +68,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(module.run(args) or 0)
     except AkarmError as e:
-        print(f"akarm {args.verb}: error: {e}", file=sys.stderr)
+        from akarm.errors import SafetyStop
+
+        name = f"{type(e).__name__}: " if isinstance(e, SafetyStop) else ""  # a stop says which one
+        print(f"akarm {args.verb}: error: {name}{e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as e:
         print(f"akarm {args.verb}: interrupted", file=sys.stderr)

@@ -9,8 +9,11 @@
 While it runs, ``move``, ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` for this robot
 use it (the arm stays held between them), a second controller on its buses is refused, and ROS 2
 sees ``NS/joint_states``, ``NS/joint_trajectory``, ``NS/akarm/status`` and the
-``NS/akarm/enable|disable|hold`` services (``docs/ros2.md``). Ctrl-C or SIGTERM: the arm is damped,
-then disabled, and the exit status is 0.
+``NS/akarm/enable|disable|hold`` services (``docs/ros2.md``): on this machine only (loopback) unless
+``--ros-network`` (or ROS 2's ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``, ``ROS_STATIC_PEERS``, a
+``CYCLONEDDS_URI`` of your own) opens it to the network. A safety stop latches: nothing moves until
+``akarm enable`` (or the ``akarm/enable`` service) acknowledges it. Ctrl-C or SIGTERM: the arm is
+damped, then disabled, and the exit status is 0.
 """
 
 from __future__ import annotations
@@ -35,6 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
+    parser.add_argument("--ros-network", action="store_true",
+                        help="let ROS 2 participants on other machines see and command the arm (ROS 2's SUBNET "
+                             "discovery range; default: this machine only, unless ROS_AUTOMATIC_DISCOVERY_RANGE, "
+                             "ROS_STATIC_PEERS or CYCLONEDDS_URI say otherwise)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,8 +52,12 @@ def run(args: argparse.Namespace) -> int:
 
     config = load_from_args(args)
     arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)
+    if args.no_ros and args.ros_network:
+        from akarm.errors import ArgumentError
+
+        raise ArgumentError("--ros-network and --no-ros contradict each other", fix="give one of them")
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
-                       joint_states_hz=args.joint_states_hz)
+                       joint_states_hz=args.joint_states_hz, ros_network=args.ros_network)
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
                                                                                            signal.SIGTERM)}

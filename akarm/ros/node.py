@@ -6,9 +6,15 @@ With ``NS`` the namespace:
   positions (rad), velocities (rad/s) and torques (N·m), stamped with the wall clock;
 - ``NS/joint_trajectory`` (trajectory_msgs/JointTrajectory), in: executed with the semantics of
   ros2_control's JointTrajectoryController topic (:meth:`~akarm.server.server.ArmServerCore.follow`);
-- ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, fault text, loop statistics,
-  the last refused trajectory;
-- ``NS/akarm/enable``, ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
+- ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, a latched safety stop (ERROR:
+  its error, joint, time and text), loop statistics, the oldest feedback's age, the last refused
+  trajectory;
+- ``NS/akarm/enable`` (acknowledges a latched stop), ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
+
+``joint_states`` is stamped with the time of its readings (the oldest joint's), not the time it is
+sent: a disabled arm's silent joints show their age. Whom the node talks to is :func:`akarm.ros.dds.discovery`'s
+(this machine only, unless opened); every command it takes (a trajectory, a service call) is logged
+with the DDS participant that sent it.
 
 One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
 service requests are answered in threads of their own (enabling and disabling take a while).
@@ -28,7 +34,7 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from akarm.errors import AkarmError
 from akarm.ros import msgs
-from akarm.ros.dds import ANY, Node, TriggerServer, sample_info
+from akarm.ros.dds import ANY, Discovery, Node, TriggerServer, sample_info, sender
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
@@ -63,10 +69,11 @@ class RosNode:
     """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own."""
 
     def __init__(self, server: ArmServerCore, domain: int, namespace: str, joint_states_hz: float,
-                 status_hz: float) -> None:
+                 status_hz: float, reach: Discovery | None = None) -> None:
         self.server = server
+        self._said = (0.0, 0)  # when a command was last logged, and how many were not since
         try:
-            self.node = Node(domain, namespace)
+            self.node = Node(domain, namespace, reach)
             self._open()
         except DDSException as e:  # a bad CYCLONEDDS_URI (an interface this machine lacks), no network
             with contextlib.suppress(Exception):
@@ -74,6 +81,12 @@ class RosNode:
             raise AkarmError(f"Cyclone DDS could not start the ROS 2 node in domain {domain}: {e}",
                              fix="check CYCLONEDDS_URI (its network interface must exist here; unset it for "
                                  "the default), or serve without ROS 2 (akarm serve --no-ros)") from None
+        if reach is not None:
+            for warning in reach.warnings:
+                server.log(f"akarm serve: warning: {warning}")
+            server.log(f"akarm serve: ROS 2 reaches {reach.describe()}")
+        if self.node.note:
+            server.log(f"akarm serve: warning: {self.node.note}; it applies")
         self.js_period = 1.0 / joint_states_hz
         self.status_period = 1.0 / status_hz
         self._running = threading.Event()
@@ -95,6 +108,18 @@ class RosNode:
         self._waitset = WaitSet(n.participant)
         for c in (self._traj_cond, self._wake, *(s.condition for s in self._services)):
             self._waitset.attach(c)
+
+    def _heard(self, text: str) -> None:
+        """Log a command taken from DDS: five a second in full, then counted (said when the second is over)."""
+        start, count = self._said
+        now = time.monotonic()
+        if now - start >= 1.0:
+            if count > 5:
+                self.server.log(f"akarm serve: ROS 2: {count - 5} more commands in that second, not shown")
+            start, count = now, 0
+        self._said = (start, count + 1)
+        if count < 5:
+            self.server.log(f"akarm serve: ROS 2: {text}")
 
     # -- services ------------------------------------------------------------------------------
     def _enable(self) -> tuple[bool, str]:
@@ -145,15 +170,10 @@ class RosNode:
             return
         for msg in self._traj.take(16):
             if sample_info(msg).valid_data:
-                with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
-                    times, positions, velocities = trajectory_arrays(msg)
-                    if msg.points and not times:
-                        self.server.refuse("every point of the trajectory is already in the past "
-                                           "(header.stamp + time_from_start)",
-                                           fix="stamp it with the current time, or leave the stamp zero")
-                    self.server.follow(list(msg.joint_names), times, positions, velocities)
+                self._trajectory(msg)
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
             for req in s.take():  # joint_states must go on meanwhile
+                self._heard(f"{s.name} called by {s.caller(req)}")
                 threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
         now = time.monotonic()
         if now >= next_js:
@@ -164,16 +184,35 @@ class RosNode:
             next_status = now + self.status_period
         self._next = [next_js, next_status]
 
+    def _trajectory(self, msg: msgs.JointTrajectory) -> None:
+        """Take a JointTrajectory: follow it, or refuse it (reported by the server: status, log)."""
+        who = sender(self._traj, msg)
+        what = f"joint_trajectory from {who}: {len(msg.points)} points for {', '.join(msg.joint_names)[:200]}"
+        try:
+            times, positions, velocities = trajectory_arrays(msg)
+            if msg.points and not times:
+                self.server.refuse("every point of the trajectory is already in the past "
+                                   "(header.stamp + time_from_start)",
+                                   fix="stamp it with the current time, or leave the stamp zero")
+            self.server.follow(list(msg.joint_names), times, positions, velocities)
+        except AkarmError as e:
+            self._heard(f"{what}: refused ({type(e).__name__})")
+            return
+        self._heard(f"{what}: accepted")
+
     def publish_joint_states(self) -> None:
+        """``joint_states`` stamped with when its readings were taken (the oldest joint's)."""
         s = self.server.arm.state()
-        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(time.time()), ""), self.names,
+        age = max((j.age for j in s.joints), default=0.0)
+        stamp = time.time() - (age if age < 1e9 else 0.0)  # never heard: now (the positions are NaN)
+        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(stamp), ""), self.names,
                                        s.q.tolist(), s.dq.tolist(), s.tau.tolist()))
         self.published += 1
 
     def publish_status(self) -> None:
         doc = self.server.status()
         mode = doc["mode"]
-        text = doc["fault"] if mode == "fault" else mode
+        text = f"safety stop latched: {doc['stop_error']}: {doc['fault']}" if mode == "fault" else mode
         values = [msgs.KeyValue(k, str(v)) for k, v in doc.items()]
         cfg = self.server.arm.config
         st = msgs.DiagnosticStatus(_LEVEL.get(mode, 1), f"akarm: {cfg.name}", text, cfg.name, values)

@@ -78,10 +78,12 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
                 c.call("limit")
             assert (e.value.joint, e.value.fix) == ("elbow", "a smaller target")
             assert str(e.value) == str(LimitError("past the range", joint="elbow", fix="a smaller target"))
-            with pytest.raises(akarm.SafetyStop, match="over-temperature"):  # its own constructor: the parent class
+            with pytest.raises(MotorFault, match="over-temperature") as fault:  # its class, text and attributes
                 c.call("fault")
-            with pytest.raises(AkarmError, match="server error: KeyError"):
+            assert fault.value.code == 1 and str(fault.value) == "joint 'elbow': over-temperature (fix: let it cool)"
+            with pytest.raises(AkarmError, match="akarm serve failed on this request") as bug:
                 c.call("nonsense")
+            assert "KeyError" not in str(bug.value) and "nonsense" not in str(bug.value), "a bug's text stays inside"
             assert c.call("add", a=1, b=1) == 2, "the connection survives an error"
     finally:
         server.close()

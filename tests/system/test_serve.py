@@ -49,9 +49,10 @@ def unique(stem: str) -> str:
 class Served:
     """``akarm serve`` in a child process, started and stopped by a ``with`` block."""
 
-    def __init__(self, channel: str, namespace: str, robot: Path, domain: int = DOMAIN) -> None:
+    def __init__(self, channel: str, namespace: str, robot: Path, domain: int = DOMAIN, args: tuple[str, ...] = ()
+                 ) -> None:
         self.command = [sys.executable, "-m", "akarm", "serve", str(robot), "-i", "akarm_local", "-c", channel,
-                        "--domain", str(domain), "--namespace", namespace]
+                        "--domain", str(domain), "--namespace", namespace, *args]
         self.lines: list[str] = []
         self.proc: subprocess.Popen[str] | None = None
 

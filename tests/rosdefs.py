@@ -15,11 +15,12 @@ from typing import Any
 
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-__all__ = ["FJT", "STORES", "serialize", "typestore"]
+__all__ = ["CANCEL", "FJT", "STORES", "serialize", "typestore"]
 
 #: The typestore each distribution's test uses (rosbags has no rolling: kilted's is the newest).
 STORES = {"humble": Stores.ROS2_HUMBLE, "jazzy": Stores.ROS2_JAZZY, "rolling": Stores.ROS2_KILTED}
 FJT = "control_msgs/action/FollowJointTrajectory"
+CANCEL = "action_msgs/msg/CancelGoal"  # action_msgs/srv/CancelGoal's parts (rosbags keys every type as a msg)
 
 JOINT_TOLERANCE = """
 string name
@@ -97,8 +98,8 @@ IMPLICIT = {
     f"{FJT}_GetResult_Request": "unique_identifier_msgs/UUID goal_id\n",
     f"{FJT}_GetResult_Response": f"int8 status\n{FJT}_Result result\n",
     f"{FJT}_FeedbackMessage": f"unique_identifier_msgs/UUID goal_id\n{FJT}_Feedback feedback\n",
-    "action_msgs/srv/CancelGoal_Request": "action_msgs/GoalInfo goal_info\n",
-    "action_msgs/srv/CancelGoal_Response": "int8 ERROR_NONE=0\nint8 ERROR_REJECTED=1\nint8 ERROR_UNKNOWN_GOAL_ID=2\n"
+    f"{CANCEL}_Request": "action_msgs/GoalInfo goal_info\n",
+    f"{CANCEL}_Response": "int8 ERROR_NONE=0\nint8 ERROR_REJECTED=1\nint8 ERROR_UNKNOWN_GOAL_ID=2\n"
                                            "int8 ERROR_GOAL_TERMINATED=3\nint8 return_code\n"
                                            "action_msgs/GoalInfo[] goals_canceling\n",
 }

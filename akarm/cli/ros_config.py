@@ -21,8 +21,10 @@ from typing import BinaryIO
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The verb's arguments."""
-    parser.add_argument("robot", metavar="ROBOT.yaml", help="the robot's YAML configuration")
+    """The verb's arguments (the bus overrides too, as every robot verb takes them; they change nothing here)."""
+    from akarm.cli.common import add_robot_arguments
+
+    add_robot_arguments(parser)
     parser.add_argument("--out", metavar="DIR", help="write the files into DIR (default: print them)")
     parser.add_argument("--namespace", default="", metavar="NS", help="akarm serve's --namespace (default none)")
     parser.add_argument("--controller", default="arm_controller", metavar="NAME",
@@ -37,14 +39,14 @@ def writes(data: bytes) -> Callable[[BinaryIO], object]:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from akarm.cli.common import load_from_args
     from akarm.files import atomic_write
-    from akarm.robotfile.load import load_robot
     from akarm.ros.action import action_name
     from akarm.ros.dds import ros_name
     from akarm.ros.moveit import moveit_config
 
     ros_name(args.namespace, action_name(args.controller))  # names ROS 2 takes, or a clear error
-    files = moveit_config(load_robot(args.robot), namespace=args.namespace, controller=args.controller)
+    files = moveit_config(load_from_args(args), namespace=args.namespace, controller=args.controller)
     if args.out is None:
         print("\n---\n".join(f"# {name}\n{text}" for name, text in files.items()), end="")
         return 0

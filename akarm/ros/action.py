@@ -32,7 +32,8 @@ The semantics are JointTrajectoryController's (ros2_controllers ``joint_trajecto
 - a safety stop aborts the goal with its text (``PATH_TOLERANCE_VIOLATED``: the arm no longer
   follows the path); so do a collision, a disable and the server stopping. Another command that
   replaces the motion (``joint_trajectory``, ``akarm move``) aborts it with ``INVALID_GOAL``;
-- a finished goal's result is kept :data:`RESULT_TIMEOUT` s (rcl_action's default), then forgotten.
+- a finished goal's result is kept :data:`RESULT_TIMEOUT` s (rcl_action's default), then forgotten;
+  at most :data:`MAX_RESULTS` of them.
 
 Everything runs in the ROS 2 node's thread (:class:`akarm.ros.node.RosNode` calls :meth:`ActionServer.poll`).
 """
@@ -76,6 +77,7 @@ __all__ = [
     "CANCELING",
     "EXECUTING",
     "FEEDBACK_HZ",
+    "MAX_RESULTS",
     "RESULT_TIMEOUT",
     "STOPPED_VELOCITY",
     "SUCCEEDED",
@@ -97,6 +99,8 @@ ERROR_NONE, ERROR_REJECTED, ERROR_UNKNOWN_GOAL_ID, ERROR_GOAL_TERMINATED = range
 FEEDBACK_HZ = 50.0
 #: s a finished goal's result stays available (rcl_action's default ``result_timeout``).
 RESULT_TIMEOUT = 10.0
+#: Finished goals kept at most (the oldest are forgotten first): a flood of goals keeps no memory.
+MAX_RESULTS = 100
 #: rad/s: the default goal tolerance on velocity. JointTrajectoryController's
 #: ``stopped_velocity_tolerance`` is 0.01 rad/s, but an AK driver reports velocity in steps of
 #: 2·v_max/4095 (0.022-0.024 rad/s) and a joint at rest reads half a step: 0.01 could never be met.
@@ -258,12 +262,19 @@ class ActionServer:
             period = 0.5 / FEEDBACK_HZ
             self._next_check += period * (1 + int((now - self._next_check) / period))  # skip, never burst
         self._retry_replies(now)
-        for gid in [g.id for g in self.goals.values() if g.ended is not None and now > g.ended + RESULT_TIMEOUT]:
-            del self.goals[gid]
-            self._changed = True
+        self._forget(now)
         if self._changed:
             self._changed = False
             self.status.write(at.GoalStatusArray([at.GoalStatus(g.info(), g.status) for g in self.goals.values()]))
+
+    def _forget(self, now: float) -> None:
+        """Drop the results older than RESULT_TIMEOUT, and the oldest past MAX_RESULTS."""
+        ended = [(g.id, g.ended) for g in self.goals.values() if g.ended is not None]
+        excess = max(0, len(ended) - MAX_RESULTS)
+        for k, (gid, t) in enumerate(ended):
+            if k < excess or now > t + RESULT_TIMEOUT:
+                del self.goals[gid]
+                self._changed = True
 
     def close(self) -> None:
         """The server is stopping: abort the active goal (the arm is disabled by now) and say so."""

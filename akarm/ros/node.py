@@ -56,6 +56,10 @@ class RosNode:
         try:
             self.node = Node(domain, namespace)
             self._open(controller, distro, node_name)
+        except AkarmError:  # a bad controller or node name, an unknown distribution: nothing left open
+            with contextlib.suppress(Exception):
+                self.node.close()
+            raise
         except DDSException as e:  # a bad CYCLONEDDS_URI (an interface this machine lacks), no network
             with contextlib.suppress(Exception):
                 self.node.close()

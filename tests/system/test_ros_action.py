@@ -133,10 +133,12 @@ def rig(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 @pytest.fixture(autouse=True)
 def enabled(rig: Rig) -> None:
     """Each test starts with the arm held: a stop an earlier test left (or the loaded machine caused:
-    see the report of a ForeignTraffic stop under load) is acknowledged first, and said."""
+    see the report of a ForeignTraffic stop under load) is acknowledged first, the arm brought
+    upright, and said."""
     if not all(s.enabled for s in rig.ctl.state()):
         print(f"the arm was stopped before this test; enabling it. Server:\n{''.join(rig.server.lines[-5:])}")
         assert dds.TriggerClient(rig.client.node, "akarm/enable").call(timeout=30).success
+        rig.settle()  # limp, the arm may have sagged anywhere (past a joint's range, which goals refuse)
 
 
 def assert_no_velocity_step(t: np.ndarray, v: np.ndarray, joint: str) -> None:

@@ -80,7 +80,8 @@ def main() -> None:
             client.wait_ready()
             frames = Frames(channel)
             time.sleep(1.0)
-            runs: list[tuple[float, float, float, bytes]] = []  # sent, reply received, result received, goal id
+            # sent, reply received, result received, goal id, target
+            runs: list[tuple[float, float, float, bytes, float]] = []
             failed: list[str] = []
             for k in range(args.goals):
                 target = args.between[k % 2]
@@ -97,11 +98,15 @@ def main() -> None:
                         print("the arm could not be enabled again: the figures below are from the goals before",
                               file=sys.stderr)
                         break
+                    # untimed: on to this goal's target, where the next goal sets out from (so that it moves)
+                    again = uuid.uuid4().bytes
+                    client.send(again, client.goal([names[args.joint]], [(args.duration, [target])]))
+                    client.result(again)
                     continue
-                runs.append((sent, replied, received, gid))
+                runs.append((sent, replied, received, gid, target))
             time.sleep(0.2)
             frames.close()
-            feedback = {gid: client.feedback_of(gid) for *_, gid in runs}
+            feedback = {r[3]: client.feedback_of(r[3]) for r in runs}
             client.close()
         finally:
             serve.terminate()
@@ -117,15 +122,14 @@ def main() -> None:
     t = np.array([c[0] for c in cmds])
     q = np.array([c[1].position for c in cmds])
     to_result, settle = [], []
-    for k, (sent, _, received, _) in enumerate(runs):
-        target = args.between[k % 2]
+    for sent, _, received, _, target in runs:
         sel = np.nonzero((t > sent) & (t < received + 0.2))[0]
         at_end = sel[np.abs(q[sel] - target) < 1e-3]  # within the command's position step (0.4 mrad) and a bit
         if len(at_end):
             to_result.append(received - t[at_end[0]])
             settle.append(t[at_end[0]] - sent)
     rates, gaps = [], []
-    for *_, gid in runs:
+    for *_, gid, _ in runs:
         ft = np.array([f[0] for f in feedback[gid]])
         if len(ft) > 2:
             rates.append((len(ft) - 1) / (ft[-1] - ft[0]))

@@ -33,6 +33,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
     "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
+    "ros-config": ("akarm.cli.ros_config", "print or write what MoveIt needs to drive akarm serve for a robot"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
     "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),

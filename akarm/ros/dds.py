@@ -45,9 +45,11 @@ __all__ = [
     "RANGES",
     "Discovery",
     "Node",
+    "ServiceServer",
     "TriggerClient",
     "TriggerServer",
     "discovery",
+    "latched_qos",
     "qos",
     "ros_name",
     "sample_info",
@@ -234,6 +236,17 @@ def qos(depth: int = 10, user_data: bytes | None = None) -> Qos:
     return Qos(*policies)
 
 
+def latched_qos() -> Qos:
+    """Reliable, transient local, keep last 1: a late reader gets the last sample (an action's status,
+    ``ros_discovery_info``), with the durability service history rmw_cyclonedds_cpp sets for it."""
+    return Qos(Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
+               Policy.Durability.TransientLocal, Policy.History.KeepLast(1),
+               Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(1), max_samples=-1,
+                                        max_instances=-1, max_samples_per_instance=-1),
+               Policy.Liveliness.Automatic(lease_duration=duration(infinite=True)),
+               Policy.WriterDataLifecycle(autodispose=False))
+
+
 def sample_info(sample: object) -> Any:
     """The DDS sample info cyclonedds attaches to a sample it delivers."""
     return cast(Any, sample).sample_info
@@ -269,6 +282,10 @@ def _user_data_key(q: Qos | None, key: str) -> str | None:
 class Node:
     """One DDS participant in ``domain`` with ROS 2 naming under ``namespace``.
 
+    Its USER_DATA says ``enclave=/;`` as rmw_cyclonedds_cpp's participants do (ROS 2's graph keeps
+    the participants that say it). :attr:`endpoints` are the readers and writers opened through it,
+    for ``ros_discovery_info`` (:mod:`akarm.ros.graph`).
+
     ``reach``: whom it talks to (:func:`discovery`); ``None``: Cyclone DDS's own configuration
     (``CYCLONEDDS_URI``, else its defaults). :attr:`note` says when the process had already made the
     domain with another configuration (the first one made applies to every participant in it).
@@ -283,7 +300,8 @@ class Node:
         ros_name(self.namespace, "x")  # validates the namespace
         self.reach = reach
         self.note = _open_domain(domain, reach.config) if reach is not None and reach.config is not None else None
-        self.participant = DomainParticipant(domain)
+        self.participant = DomainParticipant(domain, qos=Qos(Policy.Userdata(data=b"enclave=/;")))
+        self.endpoints: list[DataReader | DataWriter] = []
         self._closed = False
         self._ids = itertools.count(1)
         self._prefix = self.participant.get_guid().bytes[:12]
@@ -298,11 +316,23 @@ class Node:
         """The DDS topic of ROS 2 topic ``name`` (or of the raw DDS topic ``name`` with ``ros=False``)."""
         return Topic(self.participant, topic_name(self.namespace, name) if ros else name, data_type, qos=qos())
 
-    def publisher(self, name: str, data_type: Any) -> DataWriter:
-        return DataWriter(self.participant, self.topic(name, data_type), qos=qos())
+    def publisher(self, name: str, data_type: Any, q: Qos | None = None) -> DataWriter:
+        return self.writer(topic_name(self.namespace, name), data_type, q or qos())
 
     def subscription(self, name: str, data_type: Any, depth: int = 10) -> DataReader:
-        return DataReader(self.participant, self.topic(name, data_type), qos=qos(depth))
+        return self.reader(topic_name(self.namespace, name), data_type, qos(depth))
+
+    def writer(self, dds_topic: str, data_type: Any, q: Qos) -> DataWriter:
+        """A writer on the DDS topic ``dds_topic`` (listed in :attr:`endpoints`)."""
+        w = DataWriter(self.participant, Topic(self.participant, dds_topic, data_type, qos=qos()), qos=q)
+        self.endpoints.append(w)
+        return w
+
+    def reader(self, dds_topic: str, data_type: Any, q: Qos) -> DataReader:
+        """A reader of the DDS topic ``dds_topic`` (listed in :attr:`endpoints`)."""
+        r = DataReader(self.participant, Topic(self.participant, dds_topic, data_type, qos=qos()), qos=q)
+        self.endpoints.append(r)
+        return r
 
     def close(self) -> None:
         """Delete the participant and everything in it (other participants see it leave at once)."""
@@ -311,22 +341,22 @@ class Node:
             self.participant.__del__()  # explicit: left to the garbage collector, a ghost stays for a lease
 
 
-class TriggerServer:
-    """A ``std_srvs/Trigger`` service, answered by ``handler() -> (success, message)``.
+class ServiceServer:
+    """The service side of ROS 2 service ``name`` with request and response types of
+    :mod:`akarm.ros.msgs` (their first fields: the request header), as rmw_cyclonedds_cpp lays it out.
 
-    Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
+    :meth:`take` the requests when :attr:`condition` triggers a WaitSet, and :meth:`reply` to each.
     """
 
-    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
+    def __init__(self, node: Node, name: str, request_type: Any, response_type: Any) -> None:
         self.name = ros_name(node.namespace, name)
         rq, rr = service_topics(node.namespace, name)
         q = qos(user_data=node.unique_id("serviceid"))
-        self._reader = DataReader(node.participant, Topic(node.participant, rq, msgs.TriggerRequest, qos=qos()), qos=q)
-        self._writer = DataWriter(node.participant, Topic(node.participant, rr, msgs.TriggerResponse, qos=qos()), qos=q)
-        self.handler = handler
+        self._reader = node.reader(rq, request_type, q)
+        self._writer = node.writer(rr, response_type, q)
         self.condition = ReadCondition(self._reader, ANY)
 
-    def _client_ready(self, request_writer: int) -> str:
+    def client_ready(self, request_writer: int) -> str:
         """``yes`` when the requesting client's reply reader is matched, ``maybe``, or ``gone``
         (rmw_cyclonedds_cpp's check_for_response_reader)."""
         wr = self._reader.get_matched_publication_data(request_writer)
@@ -341,13 +371,39 @@ class TriggerServer:
                 return "yes"
         return "maybe"
 
-    def caller(self, req: msgs.TriggerRequest) -> str:
+    def caller(self, req: Any) -> str:
         """Who sent ``req``: its participant's GUID (see :func:`sender`)."""
         return sender(self._reader, req)
 
-    def take(self) -> list[msgs.TriggerRequest]:
+    def take(self) -> list[Any]:
         """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
         return [r for r in self._reader.take(16) if sample_info(r).valid_data]
+
+    def reply(self, request: Any, response: Any, wait: float = 0.1) -> str:
+        """Send ``response`` (its ``guid`` and ``seq`` are set from ``request``'s) to the client that sent
+        ``request``, once its reply reader is matched: waits up to ``wait`` s for that (as
+        rmw_cyclonedds_cpp, 100 ms). ``yes`` when sent; ``maybe`` or ``gone`` when not (not yet, never)."""
+        response.guid, response.seq = request.guid, request.seq
+        handle = sample_info(request).publication_handle
+        end = time.monotonic() + wait
+        state = self.client_ready(handle)
+        while state == "maybe" and time.monotonic() < end:
+            time.sleep(0.005)
+            state = self.client_ready(handle)
+        if state == "yes":
+            self._writer.write(response)
+        return state
+
+
+class TriggerServer(ServiceServer):
+    """A ``std_srvs/Trigger`` service, answered by ``handler() -> (success, message)``.
+
+    Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
+    """
+
+    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
+        super().__init__(node, name, msgs.TriggerRequest, msgs.TriggerResponse)
+        self.handler = handler
 
     def answer(self, req: msgs.TriggerRequest) -> bool:
         """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
@@ -355,16 +411,7 @@ class TriggerServer:
             ok, text = self.handler()
         except AkarmError as e:
             ok, text = False, str(e)
-        handle = sample_info(req).publication_handle
-        end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
-        state = self._client_ready(handle)
-        while state == "maybe" and time.monotonic() < end:
-            time.sleep(0.005)
-            state = self._client_ready(handle)
-        if state != "yes":
-            return False
-        self._writer.write(msgs.TriggerResponse(req.guid, req.seq, bool(ok), text))
-        return True
+        return self.reply(req, msgs.TriggerResponse(0, 0, bool(ok), text)) == "yes"
 
     def poll(self) -> int:
         """Answer every waiting request, one after the other; returns how many were answered."""

@@ -9,7 +9,10 @@ With ``NS`` the namespace:
 - ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, a latched safety stop (ERROR:
   its error, joint, time and text), loop statistics, the oldest feedback's age, the last refused
   trajectory;
-- ``NS/akarm/enable`` (acknowledges a latched stop), ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
+- ``NS/akarm/enable`` (acknowledges a latched stop), ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger);
+- ``NS/CONTROLLER/follow_joint_trajectory`` (control_msgs/action/FollowJointTrajectory): MoveIt's
+  way in (:mod:`akarm.ros.action`); it and ``joint_trajectory`` share one motion, the last one wins;
+- ``ros_discovery_info``, naming the node ``NS/NODE`` and its endpoints (:mod:`akarm.ros.graph`).
 
 ``joint_states`` is stamped with the time of its readings (the oldest joint's), not the time it is
 sent: a disabled arm's silent joints show their age. Whom the node talks to is :func:`akarm.ros.dds.discovery`'s
@@ -34,47 +37,36 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from akarm.errors import AkarmError
 from akarm.ros import msgs
+from akarm.ros.action import ActionServer
 from akarm.ros.dds import ANY, Discovery, Node, TriggerServer, sample_info, sender
+from akarm.ros.graph import DiscoveryInfo
+from akarm.ros.trajectory import TrajectoryRefused, check_trajectory
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
 
-__all__ = ["RosNode", "trajectory_arrays"]
+__all__ = ["RosNode"]
 
 _LEVEL = {"holding": 0, "moving": 0, "teach": 0, "disabled": 1, "fault": 2}
 
 
-def trajectory_arrays(msg: msgs.JointTrajectory, now: float | None = None) -> tuple[list[float], list[list[float]],
-                                                                                    list[list[float]] | None]:
-    """Times (s from now), positions and velocities of a JointTrajectory's points.
-
-    A zero ``header.stamp`` means "start now"; a later one shifts every point by the wait until
-    then; points whose time has already passed are dropped (as JointTrajectoryController does).
-    """
-    now = time.time() if now is None else now
-    stamp = msg.header.stamp.seconds()
-    offset = stamp - now if stamp > 0 else 0.0
-    times, positions, velocities = [], [], []
-    for p in msg.points:
-        t = p.time_from_start.seconds() + offset
-        if t < 0.0:
-            continue
-        times.append(t)
-        positions.append(list(p.positions))
-        velocities.append(list(p.velocities))
-    return times, positions, (velocities if any(velocities) else None)
-
-
 class RosNode:
-    """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own."""
+    """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own:
+    the node ``node_name``, whose FollowJointTrajectory action is ``controller``'s, with the message
+    layouts of ROS 2 ``distro`` (``humble``, ``jazzy``, ``rolling``)."""
 
     def __init__(self, server: ArmServerCore, domain: int, namespace: str, joint_states_hz: float,
-                 status_hz: float, reach: Discovery | None = None) -> None:
+                 status_hz: float, reach: Discovery | None = None, *, controller: str = "arm_controller",
+                 distro: str = "jazzy", node_name: str = "akarm") -> None:
         self.server = server
         self._said = (0.0, 0)  # when a command was last logged, and how many were not since
         try:
             self.node = Node(domain, namespace, reach)
-            self._open()
+            self._open(controller, distro, node_name)
+        except AkarmError:  # a bad controller or node name, an unknown distribution: nothing left open
+            with contextlib.suppress(Exception):
+                self.node.close()
+            raise
         except DDSException as e:  # a bad CYCLONEDDS_URI (an interface this machine lacks), no network
             with contextlib.suppress(Exception):
                 self.node.close()
@@ -95,7 +87,7 @@ class RosNode:
         self.published = 0
         self.errors = 0
 
-    def _open(self) -> None:
+    def _open(self, controller: str, distro: str, node_name: str) -> None:
         n = self.node
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
@@ -103,10 +95,13 @@ class RosNode:
         self._services = [TriggerServer(n, "akarm/enable", self._enable), TriggerServer(n, "akarm/disable",
                                                                                          self._disable),
                           TriggerServer(n, "akarm/hold", self._hold)]
+        self.action = ActionServer(n, self.server, controller, distro, heard=self._heard)
+        self.discovery = DiscoveryInfo(n, node_name, distro)
+        self.discovery.publish()  # every endpoint is open by now
         self._traj_cond = ReadCondition(self._traj, ANY)
         self._wake = GuardCondition(n.participant)
         self._waitset = WaitSet(n.participant)
-        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services)):
+        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services), *self.action.conditions):
             self._waitset.attach(c)
 
     def _heard(self, text: str) -> None:
@@ -146,6 +141,7 @@ class RosNode:
             self._wake.set(True)
         if self._thread is not None:
             self._thread.join(5.0)
+        self.action.close()
         self.node.close()
 
     def _run(self) -> None:
@@ -164,13 +160,14 @@ class RosNode:
 
     def _serve_once(self) -> None:
         next_js, next_status = self._next
-        wait = max(0.0, min(next_js, next_status) - time.monotonic())
-        self._waitset.wait(int(wait * 1e9))
+        wait = max(0.0, min(next_js, next_status, self.action.next_due()) - time.monotonic())
+        self._waitset.wait(int(min(wait, 1.0) * 1e9))
         if not self._running.is_set():
             return
         for msg in self._traj.take(16):
             if sample_info(msg).valid_data:
-                self._trajectory(msg)
+                self.follow_topic(msg)
+        self.action.poll()
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
             for req in s.take():  # joint_states must go on meanwhile
                 self._heard(f"{s.name} called by {s.caller(req)}")
@@ -184,18 +181,21 @@ class RosNode:
             next_status = now + self.status_period
         self._next = [next_js, next_status]
 
-    def _trajectory(self, msg: msgs.JointTrajectory) -> None:
-        """Take a JointTrajectory: follow it, or refuse it (reported by the server: status, log)."""
+    def follow_topic(self, msg: msgs.JointTrajectory) -> None:
+        """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:
+        a stop); a refusal is reported by the server (its log, ``akarm/status``) and nothing moves. Logged
+        with the participant that sent it."""
         who = sender(self._traj, msg)
         what = f"joint_trajectory from {who}: {len(msg.points)} points for {', '.join(msg.joint_names)[:200]}"
         try:
-            times, positions, velocities = trajectory_arrays(msg)
-            if msg.points and not times:
-                self.server.refuse("every point of the trajectory is already in the past "
-                                   "(header.stamp + time_from_start)",
-                                   fix="stamp it with the current time, or leave the stamp zero")
-            self.server.follow(list(msg.joint_names), times, positions, velocities)
-        except AkarmError as e:
+            points = check_trajectory(msg, self.server.arm.names, self.server.arm.limits)
+        except TrajectoryRefused as e:
+            e.report(self.server)
+            self._heard(f"{what}: refused ({type(e).__name__})")
+            return
+        try:
+            self.server.follow(points.joint_names, points.times, points.positions, points.velocities)
+        except AkarmError as e:  # refused: reported by the server (status, log)
             self._heard(f"{what}: refused ({type(e).__name__})")
             return
         self._heard(f"{what}: accepted")

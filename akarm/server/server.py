@@ -410,6 +410,13 @@ class ArmServerCore:
         if not self.arm.enabled:
             raise StateError("the arm is disabled", fix="enable it first (akarm enable, or the akarm/enable service)")
 
+    def check_motion_allowed(self) -> None:
+        """Raise what refuses a motion request now (a safety stop no enable has acknowledged, a disabled
+        arm, teach mode, the server stopping); return if one would be taken. Frontends call it before
+        they accept a request (the FollowJointTrajectory action, for its goals)."""
+        with self._cmd:
+            self._require_commandable()
+
     def _register(self, motion: Motion, seq: int) -> int:
         self._next_id += 1
         self._motions[self._next_id] = (motion, seq)

@@ -219,3 +219,17 @@ def test_without_cyclone_dds_serving_ros_is_refused_before_anything_is_enabled(m
         assert "--no-ros" in e.value.fix and not arm.enabled
         with akarm.ArmServer(arm, ros=False) as served:  # the CLI alone needs no DDS
             assert served.mode == "holding"
+
+
+def test_an_unknown_ros_distro_or_a_bad_controller_name_fails_the_start_before_anything_is_enabled(channel):
+    pytest.importorskip("cyclonedds")
+    config = config_on(channel, "virtual")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        for options, text in (({"ros_distro": "iron"}, "unknown ROS 2 distribution 'iron'"),
+                              ({"controller": "arm-1"}, "not a valid ROS 2 name"),
+                              ({"node_name": "9lives"}, "not a valid ROS 2 name")):
+            server = akarm.ArmServer(arm, domain=77, **options)
+            with pytest.raises(AkarmError, match=text):
+                server.start()
+            assert not arm.enabled

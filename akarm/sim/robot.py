@@ -79,6 +79,9 @@ class SimulatedRobot:
         max_lag: real time only: s the plant may fall behind the wall clock before time slips.
         faults: per joint name, faults in force from the start (e.g. a reply delay the controller
             meets at its first frame): ``{"elbow": faults.DelayReplies(0.06)}``.
+        clock: lock step only: a :class:`~akarm.clock.SteppedClock` to run on, shared with other
+            simulators (two arms in one process: one clock drives both, and both arms' loops); the
+            simulator starts at its time. Default: a clock of its own, from 0.
 
     Attributes:
         config: the configuration in force (with the bus override).
@@ -107,6 +110,7 @@ class SimulatedRobot:
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
         timing: str | TimingProfile | None = None,
         log_frames: bool = False,
+        clock: SteppedClock | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
@@ -126,8 +130,11 @@ class SimulatedRobot:
         self.plant = Plant(config, plist, dt)
         self.model = self.plant.model
         self.dt = self.plant.dt
-        self._k = 0                  # steps taken: simulated time is k·dt
-        self._t = 0.0
+        if clock is not None and realtime:
+            raise StateError("a simulator in real time runs on the wall clock, not on a given clock",
+                             fix="pass clock= with realtime=False (lock step)")
+        self._k = 0 if clock is None else math.floor(clock.now() / self.dt + 1e-6)  # steps: simulated time is k·dt
+        self._t = self._k * self.dt
         q_init: np.ndarray = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
         self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
         inertia = self.plant.joint_inertia()
@@ -184,7 +191,7 @@ class SimulatedRobot:
         if realtime:
             self.clock = RealClock()
         else:
-            self.clock = SteppedClock(0.0)
+            self.clock = clock if clock is not None else SteppedClock(0.0)
             self.clock.attach(self.advance_to)
 
     # ------------------------------------------------------------------ life cycle
@@ -220,7 +227,9 @@ class SimulatedRobot:
         return self
 
     def close(self) -> None:
-        """Stop the threads and shut every bus down. Safe to call twice."""
+        """Stop the threads and shut every bus down (in lock step, leave the clock). Safe to call twice."""
+        if isinstance(self.clock, SteppedClock):
+            self.clock.detach(self.advance_to)
         self._stop.set()
         for th in self._threads:
             th.join(timeout=2.0)

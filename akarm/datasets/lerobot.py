@@ -109,7 +109,8 @@ class EpisodeFrames:
         shapes = {np.shape(getattr(self, f)) for f in ("state", "velocity", "effort", "action")}
         if len(shapes) != 1 or len(next(iter(shapes))) != 2:
             raise ArgumentError(f"an episode's state, velocity, effort and action must be arrays of one shape "
-                                f"(frames × joints), got {sorted(shapes)}", fix="one row per frame, one column per joint")
+                                f"(frames × joints), got {sorted(shapes)}",
+                                fix="one row per frame, one column per joint")
 
     def __len__(self) -> int:
         return int(np.shape(self.state)[0])
@@ -204,7 +205,8 @@ def _write_json(path: Path, doc: Any) -> Path:
 def _tasks_table(tasks: Sequence[str]) -> pa.Table:
     """meta/tasks.parquet as pandas writes a DataFrame indexed by task (LeRobot reads it with pandas)."""
     pa, _ = _arrow()
-    table = pa.table({"task_index": pa.array(range(len(tasks)), pa.int64()), "task": pa.array(list(tasks), pa.string())})
+    table = pa.table({"task_index": pa.array(range(len(tasks)), pa.int64()),
+                      "task": pa.array(list(tasks), pa.string())})
     pandas_meta = {
         "index_columns": ["task"],
         "column_indexes": [{"name": None, "field_name": None, "pandas_type": "unicode", "numpy_type": "object",
@@ -263,7 +265,8 @@ class LeRobotDataset:
         shape = spec.get("shape") if isinstance(spec, dict) else None
         if isinstance(names, dict):  # LeRobot's older {"motors": [...]} form
             names = next(iter(names.values()), None)
-        if not (isinstance(shape, list) and len(shape) == 1 and isinstance(shape[0], int) and 0 < shape[0] <= MAX_JOINTS):
+        if not (isinstance(shape, list) and len(shape) == 1 and isinstance(shape[0], int)
+                and 0 < shape[0] <= MAX_JOINTS):
             raise RecordingError(f"{self.root / INFO}: the action's shape {shape!r} is not a vector of at most "
                                  f"{MAX_JOINTS} values", fix="pass a dataset of joint positions")
         if not (isinstance(names, list) and len(names) == shape[0] and all(isinstance(n, str) for n in names)):
@@ -414,7 +417,8 @@ class DatasetWriter:
             if self.root.is_dir() and any(self.root.iterdir()):
                 raise RecordingError(f"{self.root} is not empty and holds no LeRobot dataset",
                                      fix="record into a new or empty folder, or into a dataset recorded before")
-            self.info = {"codebase_version": CODEBASE_VERSION, "robot_type": robot_type, "total_episodes": 0,
+            self.info: dict[str, Any] = {
+                         "codebase_version": CODEBASE_VERSION, "robot_type": robot_type, "total_episodes": 0,
                          "total_frames": 0, "total_tasks": 0, "chunks_size": CHUNKS_SIZE,
                          "data_files_size_in_mb": DATA_FILE_MB, "video_files_size_in_mb": 200, "fps": fps,
                          "splits": {}, "data_path": DATA_PATH, "video_path": None, "features": _feature_spec(names)}
@@ -425,7 +429,8 @@ class DatasetWriter:
         ds = LeRobotDataset(self.root)
         if ds.fps != self.fps or ds.features != _feature_spec(self.joint_names):
             raise RecordingError(f"{self.root} holds a dataset of other joints or fps ({ds.fps} fps, joints "
-                                 f"{list(ds.joint_names)}; this recording: {self.fps} fps, joints {list(self.joint_names)})",
+                                 f"{list(ds.joint_names)}; this recording: {self.fps} fps, joints "
+                                 f"{list(self.joint_names)})",
                                  fix="record into a new folder, or with the same robot and --fps")
         self.info = dict(ds.info)
         self.tasks = list(ds.tasks)
@@ -436,14 +441,16 @@ class DatasetWriter:
             self._write_episodes()
         last = self.episode_rows[-1] if self.episode_rows else None
         if last is not None:
-            path = self.root / DATA_PATH.format(chunk_index=last["data/chunk_index"], file_index=last["data/file_index"])
+            path = self._data_path(last)
             data = self.pq.read_table(path)
             if data.num_rows != last["dataset_to_index"] - self._file_start(last):
                 self._write_data(path, self._committed(data))
         for stray in sorted((self.root / "data").glob("*/*.parquet")):  # a new file of an episode never committed
-            if last is None or stray > self.root / DATA_PATH.format(chunk_index=last["data/chunk_index"],
-                                                                     file_index=last["data/file_index"]):
+            if last is None or stray > self._data_path(last):
                 stray.unlink()
+
+    def _data_path(self, row: Mapping[str, Any]) -> Path:
+        return self.root / DATA_PATH.format(chunk_index=row["data/chunk_index"], file_index=row["data/file_index"])
 
     def _file_start(self, row: Mapping[str, Any]) -> int:
         """The dataset index of the first frame in ``row``'s data file."""

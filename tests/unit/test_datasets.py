@@ -147,7 +147,7 @@ def test_bad_episodes_and_bad_datasets_are_refused_by_name(tmp_path: Path) -> No
     three_episodes(tmp_path / "old")
     info = json.loads((tmp_path / "old/meta/info.json").read_text())
     (tmp_path / "old/meta/info.json").write_text(json.dumps(info | {"codebase_version": "v2.1"}))
-    with pytest.raises(RecordingError, match="version 'v2.1', not v3.0"):
+    with pytest.raises(RecordingError, match=r"version 'v2\.1', not v3\.0"):
         read_dataset(tmp_path / "old")
     (tmp_path / "old/meta/info.json").write_text(json.dumps(info | {"total_episodes": 10**9}))
     with pytest.raises(RecordingError, match="at most 100000 episodes"):

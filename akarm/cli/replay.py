@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",
                         help="paths: recorded speed × F (any F > 0); keyframes: fraction of the joint limits, "
                              "at most 1 (default 1)")
-    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv, .npz or .mcap) for akarm plot")
     add_profile_argument(parser)
 
 

@@ -34,7 +34,8 @@ def test_joints_pair_in_order_or_as_a_mapping_file_says(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("text", "match"), [
-    ("pairs:\n  - {leader: shoulder, follower: left_sholder}\n", r"no joint 'left_sholder' \(did you mean 'left_shoulder'"),
+    ("pairs:\n  - {leader: shoulder, follower: left_sholder}\n",
+     r"no joint 'left_sholder' \(did you mean 'left_shoulder'"),
     ("pairs:\n  - {leader: shoulder, follower: left_elbow}\n  - {leader: elbow, follower: left_elbow}\n",
      "follower joint 'left_elbow' is paired twice"),
     ("pairs:\n  - {leader: shoulder, follower: left_elbow, scale: 0}\n", "the scale not 0"),

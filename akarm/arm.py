@@ -510,8 +510,9 @@ class Arm:
         """Make the arm hand-guidable, its weight carried, until :meth:`end_teach`.
 
         MIT joints: kp = 0, kd = ``damping`` (N·m·s/rad, at most the joint's own kd), gravity
-        feed-forward at the measured pose, plus :meth:`set_extra_torque`'s torque. Servo joints: current mode with the gravity current
-        (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all but the following error).
+        feed-forward at the measured pose, plus :meth:`set_extra_torque`'s torque. Servo joints:
+        current mode with the gravity current (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all
+        but the following error).
         """
         if not (isinstance(damping, int | float) and math.isfinite(damping) and damping >= 0):
             raise ArgumentError(f"teach damping must be a finite number of N·m·s/rad, at least 0, got {damping!r}",

@@ -22,6 +22,8 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
 - ``{"cmd": "clear"}`` or ``{"cmd": "clear", "joint": "elbow"}``;
 - ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
+- ``{"cmd": "push", "torque": [N·m per joint] | null}``: push the arm from outside, as a hand would
+  (:meth:`~akarm.sim.SimulatedRobot.set_external_torque`), until changed; ``null`` lets go;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
   data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
 
@@ -114,6 +116,9 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
     if cmd == "clear":
         sim.clear_faults(req.get("joint"))
         return {}
+    if cmd == "push":
+        sim.set_external_torque(req.get("torque"))
+        return {}
     if cmd in ("state", "disable", "frames"):
         sim.wait_received(10.0)  # what was sent to the drivers before the request counts
         if cmd == "state":
@@ -124,7 +129,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
                                                  f.to_motor] for f in frames]}
     raise AkarmError(f"unknown request {req!r}",
-                     fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
+                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "disable" | "frames", ...}')
 
 
 class ChannelServer:
@@ -231,6 +236,10 @@ class SimulatorControl:
     def clear_faults(self, joint: str | None = None) -> None:
         """End the faults of ``joint`` (default: of every joint)."""
         self.request(cmd="clear", joint=joint)
+
+    def push(self, torque: list[float] | None) -> None:
+        """Push the arm with ``torque`` (N·m per joint, config order) until changed; ``None`` lets go."""
+        self.request(cmd="push", torque=None if torque is None else [float(x) for x in torque])
 
     def state(self) -> list[DriverState]:
         """Every driver as it is now, config order."""

@@ -13,7 +13,8 @@ It drives both arms through their public API only:
 
 - **Leader**: in teach mode (:meth:`akarm.Arm.teach`): its weight carried, a little damping, no stiffness.
 - **Engaging**: the follower first moves to the leader's pose at ``engage_speed`` (a fraction of its
-  limits), streamed every cycle, so engaging never makes it jump; it follows once it is there. A
+  limits), streamed every cycle, so engaging never makes it jump; it follows once it is there and
+  moves as the leader does (:data:`ENGAGE_TOLERANCE`, :data:`ENGAGE_SPEED_TOLERANCE`). A
   pose outside the follower's range is taken to the range's edge, where the follower waits (and
   says so) until the leader comes back.
 - **Following**: every cycle (:meth:`Teleop.step`, paced by the follower's loop) the leader's pose,
@@ -53,11 +54,13 @@ if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
     from akarm.motion.trajectory import JointLimits
 
-__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_TOLERANCE", "RESUME_TOLERANCE", "Step", "Summary", "Teleop",
-           "stopping_distance"]
+__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "RESUME_TOLERANCE", "Step", "Summary",
+           "Teleop", "stopping_distance"]
 
-#: rad: engaging ends when every follower joint's command is this close to its target.
+#: rad: engaging ends when every follower joint's command is this close to the leader's pose ...
 ENGAGE_TOLERANCE = 0.01
+#: rad/s: ... and the follower moves like the leader, each joint within this of its speed.
+ENGAGE_SPEED_TOLERANCE = 0.1
 #: rad: after a collision hold, the session engages again once the leader is this close to the follower.
 RESUME_TOLERANCE = 0.05
 #: The default force feedback limit: this share of each leader joint's torque limit.
@@ -91,7 +94,8 @@ class Step:
         follower_q, follower_dq, follower_tau: the follower's measured positions, velocities, torques (N·m).
         command: the leader's pose in the follower's joints, within its range (rad): what the follower is
             asked to be at (a dataset's ``action``).
-        target: what was streamed to the follower (the command, plus the stopping distance while following).
+        target: what was streamed to the follower: the command plus the stopping distance from the
+            leader's velocity (at the follower's limits, or at ``engage_speed`` of them while engaging).
         feedback: the torque applied to the leader (N·m; zeros without force feedback).
         latency: s from the leader's newest feedback to the follower's command that uses it.
         outside: the follower joints the leader would take past their range (held at its edge).
@@ -185,6 +189,7 @@ class Teleop:
         self.period = 1.0 / follower.config.rate_hz
         lim = follower.limits
         self._lower, self._upper = lim.lower, lim.upper
+        self._engage_limits = lim.scaled(self.engage_speed)
         self._phase = "idle"
         self._held = np.zeros(follower.n)
         self._outside: tuple[str, ...] = ()
@@ -248,7 +253,7 @@ class Teleop:
             raise StateError(f"the session is {self._phase}", fix="call start() first (or use `with Teleop(...)`)")
         leader, follower = self.leader, self.follower
         try:
-            follower.sleep(self.period)
+            follower.sleep(0.5 * self.period)  # until its next cycle: one, however late this call came
         except SafetyStop as e:
             self.stop_both()
             raise e from None
@@ -272,11 +277,11 @@ class Teleop:
             paired = self.pairing.follower_index
             if np.max(np.abs(command[paired] - fs.q_des[paired])) < RESUME_TOLERANCE:
                 self._engage("the leader is back at the follower: engaging again")
-        if self._phase == "following":
-            ahead = stopping_distance(self.pairing.follower_velocities(ls.dq), follower.limits)
-            target = np.clip(command + ahead, self._lower, self._upper)
+        velocity = self.pairing.follower_velocities(ls.dq)
         if self._phase != "holding":
             speed = self.engage_speed if self._phase == "engaging" else 1.0
+            limits = follower.limits if speed == 1.0 else self._engage_limits
+            target = np.clip(command + stopping_distance(velocity, limits), self._lower, self._upper)
             try:
                 follower.stream_to(target, speed, synchronize=False)
             except LimitError:  # the plan in force (within the range) goes on; the next cycle tries again
@@ -284,7 +289,8 @@ class Teleop:
             except SafetyStop as e:
                 self.stop_both()
                 raise e from None
-        if self._phase == "engaging" and np.max(np.abs(fs.q_des - command)) < ENGAGE_TOLERANCE:
+        if self._phase == "engaging" and np.max(np.abs(fs.q_des - command)) < ENGAGE_TOLERANCE and \
+                np.max(np.abs(fs.dq - velocity)) < ENGAGE_SPEED_TOLERANCE:
             self._phase = "following"
             self.say("engaged: the follower follows the leader")
         feedback = self._feedback(fs.tau_ext)

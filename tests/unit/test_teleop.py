@@ -70,3 +70,33 @@ def test_the_stopping_distance_is_where_ruckig_brings_a_joint_to_rest(v: float) 
     r.calculate(inp, traj)
     rest = traj.at_time(traj.duration)[0][0]
     assert stopping_distance(np.array([v]), limits)[0] == pytest.approx(rest, rel=1e-6, abs=1e-12)
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--record", "DIR"], "--record needs --task"),
+    (["--task", "wave"], "--task is for --record"),
+    (["--log", "run.csv"], "must end in .mcap"),
+    (["--seconds", "0"], "--seconds must be positive"),
+    (["--record", "DIR", "--task", "wave", "--fps", "0"], "--fps must be at least 1"),
+])
+def test_akarm_teleop_checks_its_options_before_anything_is_opened(args: list[str], said: str, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from akarm.cli import main
+
+    from .conftest import ROBOTS
+
+    robot = str(ROBOTS / "planar2.yaml")
+    argv = ["teleop", robot, robot, *[str(tmp_path / a) if a in ("DIR", "run.csv") else a for a in args]]
+    assert main(argv) == 1
+    assert said in capsys.readouterr().err
+
+
+def test_akarm_replay_of_a_dataset_needs_its_episode(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from akarm.cli import main
+
+    from .conftest import ROBOTS
+
+    assert main(["replay", str(ROBOTS / "planar2.yaml"), str(tmp_path)]) == 1
+    assert "is a folder: which of its episodes?" in capsys.readouterr().err
+    assert main(["replay", str(ROBOTS / "planar2.yaml"), str(tmp_path / "x.csv"), "--episode", "1"]) == 1
+    assert "--episode is for a dataset folder" in capsys.readouterr().err

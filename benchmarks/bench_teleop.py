@@ -64,9 +64,9 @@ def tracking(steps: list[Step], names: tuple[str, ...]) -> str:
     lines = []
     for j, name in enumerate(names):
         lag = lag_of(t, np.array([s.command[j] for s in following]), np.array([s.follower_q[j] for s in following]))
+        rms = np.sqrt(np.mean(err[:, j] ** 2))
         lines.append(f"    {name:<15} leader up to {speed[j]:5.2f} rad/s   follower - leader: max "
-                     f"{np.abs(err[:, j]).max() * 1e3:6.2f} mrad, RMS {np.sqrt(np.mean(err[:, j] ** 2)) * 1e3:5.2f} mrad"
-                     f"   lag {lag * 1e3:5.1f} ms")
+                     f"{np.abs(err[:, j]).max() * 1e3:6.2f} mrad, RMS {rms * 1e3:5.2f} mrad   lag {lag * 1e3:5.1f} ms")
     return "\n".join(lines)
 
 
@@ -80,7 +80,7 @@ def lockstep(robot: str, seconds: float) -> None:
         lc = config.with_bus(interface="virtual", channel=f"bench-lead-{os.getpid()}")
         fc = config.with_bus(interface="virtual", channel=f"bench-foll-{os.getpid()}")
         with SimulatedRobot(lc, realtime=False, clock=clock, q0=q0) as ls, \
-                SimulatedRobot(fc, realtime=False, clock=clock, q0=q0) as fs, \
+                SimulatedRobot(fc, realtime=False, clock=clock, q0=q0), \
                 Arm(lc, clock=clock) as leader, Arm(fc, clock=clock) as follower:
             leader.enable()
             follower.enable()
@@ -153,7 +153,8 @@ def realtime(robot: str, seconds: float, watchdog: float) -> None:
         print(f"  latency, leader feedback → follower command: p50 {summary.latency_p50 * 1e3:.2f} ms, "
               f"p99 {summary.latency_p99 * 1e3:.2f} ms, max {summary.latency_max * 1e3:.2f} ms")
         print(tracking(steps, tuple(follower.names)))
-        print(f"  simulators' CPU: leader {ls.cpu_seconds() / wall:.2f} s/s, follower {fs.cpu_seconds() / wall:.2f} s/s")
+        print(f"  simulators' CPU: leader {ls.cpu_seconds() / wall:.2f} s/s, "
+              f"follower {fs.cpu_seconds() / wall:.2f} s/s")
     print("  load average {:.2f} {:.2f} {:.2f} at the end".format(*os.getloadavg()))
 
 

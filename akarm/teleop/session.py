@@ -30,7 +30,7 @@ It drives both arms through their public API only:
   observer, :attr:`akarm.ArmState.tau_ext`), times the gain, limited to ``force_limit`` (default a fifth
   of each leader joint's torque limit), is the leader's extra torque: the hand feels what the
   follower touches. The follower's collision reflex then reacts by holding: the session holds too
-  (and says so) until the leader is brought back to the follower, then engages again.
+  (and says so) until the leader has been held at the follower for a moment, then engages again.
 - **Safety**: a safety stop of either arm stops both (damped, then disabled) and is raised; without
   force feedback the follower's reflex stays as it was built (armed, "disable" by default).
 """
@@ -54,15 +54,18 @@ if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
     from akarm.motion.trajectory import JointLimits
 
-__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "RESUME_TOLERANCE", "Step", "Summary",
-           "Teleop", "stopping_distance"]
+__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "RESUME_DWELL", "RESUME_TOLERANCE",
+           "Step", "Summary", "Teleop", "stopping_distance"]
 
 #: rad: engaging ends when every follower joint's command is this close to the leader's pose ...
 ENGAGE_TOLERANCE = 0.01
 #: rad/s: ... and the follower moves like the leader, each joint within this of its speed.
 ENGAGE_SPEED_TOLERANCE = 0.1
-#: rad: after a collision hold, the session engages again once the leader is this close to the follower.
+#: rad: after a collision hold, the session engages again once the leader has been this close to the
+#: follower, and slower than :data:`ENGAGE_SPEED_TOLERANCE`, for :data:`RESUME_DWELL` s.
 RESUME_TOLERANCE = 0.05
+#: s: how long the hand holds the leader there, still, before the follower engages again.
+RESUME_DWELL = 0.5
 #: The default force feedback limit: this share of each leader joint's torque limit.
 DEFAULT_FORCE_SHARE = 0.2
 #: Latencies kept for :meth:`Teleop.summary` (the last ones).
@@ -194,6 +197,7 @@ class Teleop:
         self._held = np.zeros(follower.n)
         self._outside: tuple[str, ...] = ()
         self._collision: CollisionError | None = None
+        self._resume_since: float | None = None
         self._reaction: str | None = None
         self.latency: collections.deque[float] = collections.deque(maxlen=LATENCY_SAMPLES)
         self.steps = 0
@@ -266,6 +270,7 @@ class Teleop:
         if follower.last_collision is not self._collision:  # its reflex stopped it and holds
             self._collision = follower.last_collision
             self._phase = "holding"
+            self._resume_since = None
             self._held = fs.q_des.copy()
             self.say(f"the follower touched something ({self._collision}); it holds: bring the leader back "
                      "to it to go on")
@@ -273,11 +278,9 @@ class Teleop:
         command = np.clip(wanted, self._lower, self._upper)
         self._report_range(wanted)
         target = command
-        if self._phase == "holding":
-            paired = self.pairing.follower_index
-            if np.max(np.abs(command[paired] - fs.q_des[paired])) < RESUME_TOLERANCE:
-                self._engage("the leader is back at the follower: engaging again")
         velocity = self.pairing.follower_velocities(ls.dq)
+        if self._phase == "holding":
+            self._resume(fs.time, command, velocity, fs.q_des)
         if self._phase != "holding":
             speed = self.engage_speed if self._phase == "engaging" else 1.0
             limits = follower.limits if speed == 1.0 else self._engage_limits
@@ -299,6 +302,18 @@ class Teleop:
         self.last = Step(fs.time, self._phase, ls.q, ls.dq, fs.q, fs.dq, fs.tau, command, target, feedback, latency,
                          self._outside)
         return self.last
+
+    def _resume(self, now: float, command: np.ndarray, velocity: np.ndarray, held: np.ndarray) -> None:
+        """Engage again once the hand has held the leader at the follower for :data:`RESUME_DWELL` s."""
+        paired = self.pairing.follower_index
+        if np.max(np.abs(command[paired] - held[paired])) >= RESUME_TOLERANCE or \
+                np.max(np.abs(velocity[paired])) >= ENGAGE_SPEED_TOLERANCE:
+            self._resume_since = None
+        elif self._resume_since is None:
+            self._resume_since = now
+        elif now - self._resume_since >= RESUME_DWELL:
+            self._resume_since = None
+            self._engage("the leader is back at the follower: engaging again")
 
     def _report_range(self, wanted: np.ndarray) -> None:
         names = self.follower.names

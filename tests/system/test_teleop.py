@@ -259,3 +259,36 @@ def test_lerobots_own_loader_reads_a_recorded_dataset(tmp_path: Path) -> None:
     assert int(item["episode_index"]) == 1 and int(item["frame_index"]) == 7 and item["task"] == "point"
     assert float(item["timestamp"]) == pytest.approx(7 / 30, abs=1e-6)
     np.testing.assert_allclose(item["action"].numpy(), eps[1][7] + 1, rtol=1e-6)
+
+
+@pytest.mark.parametrize("feedback", [0.0, 0.5])
+def test_the_followers_collision_reflex_stays_armed_or_with_force_feedback_holds(channel: str,
+                                                                                  feedback: float) -> None:
+    from akarm import CollisionError
+    from akarm.config import RobotConfig
+
+    def sensitive(config: RobotConfig) -> RobotConfig:  # the follower's elbow judges a collision past 1 N·m
+        joints = list(config.joints)
+        joints[1] = replace(joints[1], collision_threshold=1.0)
+        return replace(config, joints=tuple(joints))
+
+    said: list[str] = []
+    with leader_follower(channel, leader_q0=HOME, follower_q0=HOME, follower_edit=sensitive) as \
+            (leader, lsim, follower, fsim):
+        with Teleop(leader, follower, force_feedback=feedback, say=said.append) as tele:
+            run(tele, 0.4)
+            assert tele.phase == "following"
+            fsim.set_external_torque([0.0, 3.0])          # something pushes the follower's elbow hard
+            if feedback == 0.0:                           # armed as its file says: a stop, of both arms
+                with pytest.raises(CollisionError):
+                    run(tele, 0.5)
+                assert not leader.enabled and not follower.enabled
+                return
+            steps = run(tele, 0.5)
+            assert tele.phase == "holding" and follower.enabled and leader.mode.name == "TEACH"
+            assert any("touched something" in line for line in said)
+            assert np.all(steps[-1].feedback == 0.0)       # resting against it: no push on the hand
+            fsim.set_external_torque(None)                # it goes away; the leader is near the follower
+            steps = run(tele, 1.5)
+        assert "engaging again" in " ".join(said) and steps[-1].phase == "following"
+        assert follower.collision_reaction == "disable"   # as it was before the session

@@ -100,3 +100,32 @@ def test_akarm_replay_of_a_dataset_needs_its_episode(tmp_path: Path, capsys: pyt
     assert "is a folder: which of its episodes?" in capsys.readouterr().err
     assert main(["replay", str(ROBOTS / "planar2.yaml"), str(tmp_path / "x.csv"), "--episode", "1"]) == 1
     assert "--episode is for a dataset folder" in capsys.readouterr().err
+
+
+def test_the_recorder_takes_a_frame_per_fps_tick_and_commits_an_episode_whole(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from akarm.datasets import DatasetWriter, read_dataset
+    from akarm.teleop import Step
+    from akarm.teleop.recording import EpisodeRecorder
+
+    def step(t: float) -> Step:
+        q = np.array([t, -t])
+        return Step(t, "following", q, q, q, 2 * q, 3 * q, q + 1, q, np.zeros(2), 0.002, ())
+
+    rec = EpisodeRecorder(DatasetWriter(tmp_path, ("a", "b"), 50), rate_hz=500.0)
+    with pytest.raises(ArgumentError, match="600 fps is more frames"):
+        EpisodeRecorder(DatasetWriter(tmp_path / "x", ("a", "b"), 600), rate_hz=500.0)
+    rec.begin("wave", 10.0)
+    taken = [rec.add(step(10.0 + k * 0.002)) for k in range(250)]   # 0.5 s of steps at 500 Hz
+    assert sum(taken) == 25 and rec.frames == 25 and rec.seconds == pytest.approx(0.5)
+    assert [k for k, x in enumerate(taken) if x][:3] == [0, 10, 20]  # the step at each 1/50 s
+    rec.discard()                                                    # r: nothing of it written
+    assert not rec.recording and not (tmp_path / "meta/info.json").exists()
+    rec.begin("wave", 20.0)
+    for k in range(100):
+        rec.add(step(20.0 + k * 0.002))
+    assert rec.finish() == 0
+    ep = read_dataset(tmp_path).episode(0)
+    assert len(ep) == 10 and ep.task == "wave"
+    np.testing.assert_allclose(ep.features["action"][:, 0], 20.0 + np.arange(10) * 0.02 + 1, rtol=1e-6)
+    np.testing.assert_allclose(ep.features["observation.effort"][:, 1], -3 * (20.0 + np.arange(10) * 0.02), rtol=1e-6)

@@ -6,6 +6,7 @@
     akarm teleop leader.yaml follower.yaml --force-feedback 0.5  # feel what the follower touches
     akarm teleop leader.yaml follower.yaml --map pairs.yaml --record demos --task "pick the cube" --fps 30
     akarm teleop leader.yaml follower.yaml --log run.mcap        # both arms' telemetry, for Foxglove or akarm plot
+    akarm teleop leader.yaml follower.yaml -i socketcan --leader-channel can0 --follower-channel can1
 
 Both arms are enabled; the leader goes into teach mode (its weight carried, a little damping); the
 follower moves to the leader's pose at ``--engage-speed`` of its limits, then follows it every cycle,
@@ -63,8 +64,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log-seconds", type=float, default=300.0, metavar="S",
                         help="how much of each arm's telemetry --log keeps, the last S seconds (default 300)")
     parser.add_argument("-i", "--interface", help="python-can interface for both arms' buses")
-    parser.add_argument("--leader-channel", metavar="C", help="the leader's channel (or NAME=CHANNEL,...)")
-    parser.add_argument("--follower-channel", metavar="C", help="the follower's channel (or NAME=CHANNEL,...)")
+    parser.add_argument("-c", "--channel", help="both arms' channel (two arms on one bus), or NAME=CHANNEL,...")
+    parser.add_argument("--leader-channel", metavar="C", help="the leader's channel (or NAME=CHANNEL,...), over -c")
+    parser.add_argument("--follower-channel", metavar="C", help="the follower's channel (or NAME=CHANNEL,...), over -c")
+    parser.add_argument("-b", "--bitrate", type=int, help="bit rate of both arms' buses, bit/s")
     add_bus_kwargs(parser)
     add_profile_argument(parser)
 
@@ -96,8 +99,10 @@ def _config(path: str, args: argparse.Namespace, channel: str | None) -> RobotCo
 
     config = load_robot(path)
     kwargs = args.bus_kwargs or None
-    if args.interface or channel or kwargs:
-        config = config.with_bus(interface=args.interface, channel=parse_channel(channel), options=kwargs)
+    channel = channel or args.channel
+    if args.interface or channel or args.bitrate or kwargs:
+        config = config.with_bus(interface=args.interface, channel=parse_channel(channel), bitrate=args.bitrate,
+                                 options=kwargs)
     return get_profile(args.profile).apply(config)
 
 

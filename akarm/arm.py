@@ -385,11 +385,14 @@ class Arm:
         return self._run(self._start(lambda start, now: timed_plan(self.planner, start, now, times, positions,
                                                                    velocities)), wait)
 
-    def stream_to(self, target: Target, speed: float = 1.0) -> Motion:
+    def stream_to(self, target: Target, speed: float = 1.0, *, synchronize: bool = True) -> Motion:
         """Retarget online: from the current commanded state (position, velocity, acceleration) to
-        ``target``, without a jump. Does not block; call it as often as new targets arrive."""
+        ``target``, without a jump. Does not block; call it as often as new targets arrive.
+
+        ``synchronize=False``: each joint heads for its target as fast as its own limits allow instead
+        of all arriving together (tracking a stream, as :mod:`akarm.teleop` does)."""
         q = self.target_positions(target)
-        return self._start(lambda start, now: self.planner.move_from(start, q, now, speed))
+        return self._start(lambda start, now: self.planner.move_from(start, q, now, speed, synchronize))
 
     def stop(self, wait: bool = True) -> Motion:
         """Bring the commanded motion to rest, jerk-limited, and hold there."""
@@ -496,7 +499,8 @@ class Arm:
 
     def set_extra_torque(self, tau: Sequence[float] | None) -> None:
         """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
-        on top of the feed-forward, clamped to each joint's torque limit."""
+        on top of the feed-forward (in teach mode on top of the arm's weight: force feedback to a hand),
+        clamped to each joint's torque limit."""
         self._ctl.set_extra_torque(tau)
 
     # ------------------------------------------------------------------------------------------
@@ -506,8 +510,9 @@ class Arm:
         """Make the arm hand-guidable, its weight carried, until :meth:`end_teach`.
 
         MIT joints: kp = 0, kd = ``damping`` (N·m·s/rad, at most the joint's own kd), gravity
-        feed-forward at the measured pose. Servo joints: current mode with the gravity current
-        (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all but the following error).
+        feed-forward at the measured pose, plus :meth:`set_extra_torque`'s torque. Servo joints:
+        current mode with the gravity current (``g(q) / (kt · gear_ratio)``). The supervisor stays on (all
+        but the following error).
         """
         if not (isinstance(damping, int | float) and math.isfinite(damping) and damping >= 0):
             raise ArgumentError(f"teach damping must be a finite number of N·m·s/rad, at least 0, got {damping!r}",

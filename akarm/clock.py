@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
-__all__ = ["Clock", "RealClock", "SteppedClock"]
+__all__ = ["Clock", "RealClock", "SteppedClock", "SteppedLoop"]
 
 _yield = getattr(os, "sched_yield", lambda: time.sleep(0))  # (Windows has no sched_yield)
 _NAP_SHARE = 0.1  # of the wait between cycles, slept by a busy real-time loop (throttling needs > 5 %)
@@ -85,12 +85,30 @@ class RealClock:
             pass
 
 
+class SteppedLoop(Protocol):
+    """A control loop that runs on a :class:`SteppedClock` beside others (:meth:`SteppedClock.join`)."""
+
+    def due(self) -> float | None:
+        """The time of its next cycle, or ``None`` while it has none to run (or is running one now)."""
+        ...
+
+    def run_due(self, now: float) -> None:
+        """Run its cycle if one is due at ``now`` (the clock's time already is ``now``)."""
+        ...
+
+
 class SteppedClock:
     """Simulated time that advances only when someone sleeps.
 
     ``sleep_until(t)`` first calls every attached stepper with ``t`` (each advances its own state to
     time ``t``: the simulator integrates its plant and answers the frames it has received), then
     sets the time to ``t``.
+
+    Several simulators and several control loops may share one clock (two arms in one process, a
+    leader and a follower): every simulator is a stepper, and every control loop *joins* the clock
+    (:meth:`join`). Whoever sleeps, time then stops at each joined loop's next cycle on the way to
+    ``t``, and that loop runs its cycle there: each loop keeps its own grid, whichever of them (or
+    the test) advances the clock, as loops in threads of their own would on a real clock.
     """
 
     stepped = True
@@ -98,6 +116,7 @@ class SteppedClock:
     def __init__(self, start: float = 0.0) -> None:
         self._t = start
         self._steppers: list[Callable[[float], None]] = []
+        self._loops: list[SteppedLoop] = []
 
     def attach(self, stepper: Callable[[float], None]) -> None:
         """Call ``stepper(t)`` whenever the clock advances to ``t``."""
@@ -108,15 +127,31 @@ class SteppedClock:
         if stepper in self._steppers:
             self._steppers.remove(stepper)
 
+    def join(self, loop: SteppedLoop) -> None:
+        """Run ``loop``'s cycles whenever they come due, whoever advances the clock."""
+        if loop not in self._loops:
+            self._loops.append(loop)
+
+    def leave(self, loop: SteppedLoop) -> None:
+        """Stop running ``loop``'s cycles (it stopped)."""
+        if loop in self._loops:
+            self._loops.remove(loop)
+
     def now(self) -> float:
         return self._t
 
     def sleep_until(self, t: float) -> None:
-        if t <= self._t:
-            return
-        for stepper in list(self._steppers):
-            stepper(t)
-        self._t = t
+        while t > self._t:
+            step = t
+            for loop in self._loops:  # the next cycle of another loop on the way: stop there first
+                due = loop.due()
+                if due is not None and self._t < due < step:
+                    step = due
+            for stepper in list(self._steppers):
+                stepper(step)
+            self._t = step
+            for loop in list(self._loops):
+                loop.run_due(step)
 
     def sleep(self, dt: float) -> None:
         """Advance by ``dt`` seconds."""

@@ -33,6 +33,7 @@ from akarm.errors import AkarmError
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
+    from akarm.clock import SteppedClock
     from akarm.config import RobotConfig
     from akarm.sim import SimulatedRobot
     from akarm.timing import TimingProfile
@@ -158,7 +159,7 @@ def planar2():
 def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = None,
                  config_edit: Callable[[RobotConfig], RobotConfig] | None = None, enable: bool = False,
                  timing: str | TimingProfile | None = None, sim_options: Mapping[str, Any] | None = None,
-                 **arm_options: Any) -> Iterator[tuple[Arm, SimulatedRobot]]:
+                 clock: SteppedClock | None = None, **arm_options: Any) -> Iterator[tuple[Arm, SimulatedRobot]]:
     """The lock-step arm the sim tests share: a :class:`~akarm.sim.SimulatedRobot` in this process on
     the virtual channel ``channel`` and an :class:`~akarm.Arm` on its clock, open (enabled with
     ``enable``); leaving the block closes the arm (damped, disabled), then the simulator.
@@ -167,6 +168,8 @@ def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = Non
     ``channel``, then passed through ``config_edit``. ``q0``: the simulator's start position
     (default all zeros); ``timing``: the profile of both; ``sim_options`` go to the simulator
     (``faults``, ``dt``, ...), ``arm_options`` to the Arm (``feedforward``, ``telemetry_seconds``, ...).
+    ``clock``: a stepped clock shared with other lock-step arms (two arms in one test: one clock drives
+    both simulators and both loops); default: the simulator's own.
     """
     from akarm.arm import Arm
     from akarm.robotfile.load import load_robot
@@ -179,7 +182,7 @@ def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = Non
         config = config_edit(config)
     if timing is not None:
         arm_options.setdefault("timing", timing)
-    with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, **(sim_options or {})) as sim, \
+    with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, clock=clock, **(sim_options or {})) as sim, \
             Arm(config, clock=sim.clock, **arm_options) as arm:
         if enable:
             arm.enable()

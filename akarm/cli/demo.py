@@ -66,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", default="akarm-demo.png", metavar="PNG",
                         help="where to write the plot (default: akarm-demo.png in the current directory)")
     parser.add_argument("--no-plot", action="store_true", help="do not plot")
-    parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv or .npz)")
+    parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv, .npz or .mcap)")
     parser.add_argument("--fast", action="store_true",
                         help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
     add_profile_argument(parser)

@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fraction of the joint limits, 0 < F <= 1 (default 1)")
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0)")
-    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv, .npz or .mcap) for akarm plot")
     add_profile_argument(parser)
 
 

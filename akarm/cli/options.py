@@ -55,7 +55,7 @@ def renamed(parser: argparse.ArgumentParser, old: str, new: str, *more: str) -> 
 
 
 #: the telemetry log types ``--log`` writes (by suffix)
-TELEMETRY_SUFFIXES = (".csv", ".npz")
+TELEMETRY_SUFFIXES = (".csv", ".npz", ".mcap")
 
 
 def check_output(path: str | os.PathLike[str] | None, suffixes: Sequence[str], what: str) -> Path | None:

@@ -4,12 +4,16 @@
 
     akarm replay robots/arm6.yaml pick.yaml              # keyframes: one smooth move through them
     akarm replay robots/arm6.yaml path.csv --speed 0.5   # a path, at half its recorded speed
+    akarm replay follower.yaml demos --episode 2         # a LeRobot dataset's episode: its action column
 
 The whole path is checked (position, velocity, acceleration and jerk of every joint, after the
 speed factor) before the arm is even enabled: a violation names the joint, the time and a speed
 factor that would pass, and nothing moves (exit 1). A soft start first moves the arm to the
 recording's first pose. A progress bar is drawn on stderr when it is a terminal. Ctrl-C brings the
 arm to rest smoothly, then disables it (exit 130).
+
+A LeRobot v3.0 dataset folder (``akarm teleop --record``) replays one episode's commanded positions
+(``action``) at its recorded timing, on any robot with the same joints (in the same order).
 """
 
 from __future__ import annotations
@@ -23,16 +27,19 @@ from akarm.cli.common import add_profile_argument, add_robot_arguments, load_fro
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
+    from akarm.motion.recording import Keyframes, PathRecording
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
     add_robot_arguments(parser)
-    parser.add_argument("file", metavar="FILE", help="a recording from akarm teach: keyframes .yaml or path .csv")
+    parser.add_argument("file", metavar="FILE",
+                        help="a recording from akarm teach (keyframes .yaml or path .csv), or a LeRobot dataset folder")
+    parser.add_argument("--episode", type=int, metavar="K", help="the episode of a dataset folder to replay")
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",
                         help="paths: recorded speed × F (any F > 0); keyframes: fraction of the joint limits, "
                              "at most 1 (default 1)")
-    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv or .npz) for akarm plot")
+    parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv, .npz or .mcap) for akarm plot")
     add_profile_argument(parser)
 
 
@@ -43,7 +50,27 @@ def check_options(args: argparse.Namespace) -> None:
 
     if not args.speed > 0:
         raise ArgumentError(f"--speed {args.speed} must be positive", fix="e.g. --speed 0.5")
+    if os.path.isdir(args.file) and args.episode is None:
+        raise ArgumentError(f"{args.file} is a folder: which of its episodes?", fix="add --episode K")
+    if args.episode is not None and not os.path.isdir(args.file):
+        raise ArgumentError("--episode is for a dataset folder", fix="pass the folder given to akarm teleop --record")
     check_output(args.log, TELEMETRY_SUFFIXES, "telemetry")
+
+
+def load_recording(args: argparse.Namespace, joint_names: tuple[str, ...]) -> Keyframes | PathRecording:
+    """The recording FILE names: keyframes, a path, or a dataset's episode (its commanded positions)."""
+    from akarm.errors import LimitError
+    from akarm.motion.recording import load
+
+    if args.episode is None:
+        return load(args.file, joint_names)
+    from akarm.datasets import read_dataset
+
+    path = read_dataset(args.file).episode(args.episode).path("action")
+    if path.joint_names != tuple(joint_names):
+        raise LimitError(f"episode {args.episode} is for joints {list(path.joint_names)}",
+                         fix=f"replay it on a robot with joints {list(joint_names)}")
+    return path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,14 +83,16 @@ def run(args: argparse.Namespace) -> int:
 
     from akarm.arm import Arm
     from akarm.cli.common import controlled, deferred_signals, interrupted, stop_smoothly
-    from akarm.motion.recording import Keyframes, load
+    from akarm.motion.recording import Keyframes
 
     check_options(args)
     config = load_from_args(args)
-    rec = load(args.file, config.joint_names)
+    rec = load_recording(args, config.joint_names)
     arm = Arm(config, timing=args.profile)
     arm.check_replay(rec, args.speed)  # the whole path, before anything is enabled
     kind = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
+    if args.episode is not None:
+        kind = f"episode {args.episode}, {kind}"
     code = 0
     with controlled(arm):
         t0 = arm.clock.now()
@@ -102,6 +131,12 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
 
     check_options(args)  # before anything moves
     path = os.path.abspath(args.file)
+    if args.episode is not None:  # the server replays files: the episode's commanded positions as a path file
+        import tempfile
+        from pathlib import Path
+
+        folder = tempfile.mkdtemp(prefix="akarm-replay-")
+        path = str(load_recording(args, tuple(arm.names)).save(Path(folder) / f"episode-{args.episode}.csv"))
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:
         arm.call("ready")  # refused while a safety stop is latched; a disabled arm is enabled

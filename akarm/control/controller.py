@@ -661,7 +661,8 @@ class Controller:
         self._record(now, q, [0.0] * self.n, tau)
 
     def _cycle_teach(self, now: float) -> None:
-        """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose)."""
+        """Hand guiding: no stiffness, a little damping, the arm's weight carried (at the measured pose),
+        plus the extra torque (:meth:`set_extra_torque`: a teleoperation leader's force feedback)."""
         stop = self.supervisor.check(now)
         if stop is not None:
             self._begin_stop(stop)
@@ -669,7 +670,7 @@ class Controller:
             return
         self._collision_check(now, False)  # estimated (the hand's torque), never checked
         q = np.array([j.state.position for j in self.joints])
-        g = self.ff.gravity(q)
+        g = self.ff.carried(q)
         gl = g.tolist()
         send = self.bus.send
         for i, j in enumerate(self.joints):

@@ -74,6 +74,12 @@ class FeedForward:
         """Gravity torque at ``q`` (rad), clamped to the torque limits, N·m."""
         return np.clip(self.model.gravity(q), -self._lim_array, self._lim_array)
 
+    def carried(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
+        """Teach mode's torque at the measured ``q``: the arm's weight plus the user's extra torque
+        (force feedback on a teleoperation leader), clamped to the torque limits, N·m."""
+        tau = self.model.gravity(q) + np.asarray(self.extra)
+        return np.clip(tau, -self._lim_array, self._lim_array)
+
     def torques(self, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, q_meas: Sequence[float], holding: bool,
                 dt: float) -> list[float]:
         """Feed-forward torque per joint (N·m) for the desired state and the measured positions.

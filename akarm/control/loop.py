@@ -4,7 +4,9 @@ One cycle function is called once per period. With a real clock it runs in its o
 to absolute deadlines and spinning the last stretch (:class:`~akarm.clock.RealClock`); a cycle that
 starts late skips the slots it missed instead of bursting frames, and counts them. With a stepped
 clock there is no thread: the caller runs cycles with :meth:`ControlLoop.step`, each of which
-advances simulated time to the next deadline (the simulator runs up to that instant) first.
+advances simulated time to the next deadline (the simulator runs up to that instant) first. A
+started loop joins its stepped clock (:meth:`~akarm.clock.SteppedClock.join`), so that several
+loops on one clock (two arms in one process) each run their cycles whoever advances it.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from akarm.clock import Clock
+from akarm.clock import Clock, SteppedClock
 
 __all__ = ["ControlLoop", "LoopStats", "StatsSummary", "pin_thread", "request_realtime"]
 
@@ -232,6 +234,7 @@ class ControlLoop:
         self.on_crash = on_crash
         self.crashed: BaseException | None = None
         self._next: float | None = None
+        self._in_cycle = False  # (stepped) this loop's own cycle is under way: the clock must not start another
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
         self.cycled = threading.Condition()
@@ -251,17 +254,31 @@ class ControlLoop:
         if self._next is None:
             self._next = self.clock.now() + self.period
         deadline = self._next
-        self.clock.sleep_until(deadline)
-        now = self.clock.now()
-        late = now - deadline
-        if late >= self.period:  # skip the slots we missed rather than burst
-            skipped = int(late // self.period)
-            self.stats.missed += skipped
-            deadline += skipped * self.period
+        self._in_cycle = True
+        try:
+            self.clock.sleep_until(deadline)
+            now = self.clock.now()
             late = now - deadline
-        slot = self.stats.begin(now, late)
-        self.cycle(now, slot)
-        self._next = deadline + self.period
+            if late >= self.period:  # skip the slots we missed rather than burst
+                skipped = int(late // self.period)
+                self.stats.missed += skipped
+                deadline += skipped * self.period
+                late = now - deadline
+            slot = self.stats.begin(now, late)
+            self.cycle(now, slot)
+            self._next = deadline + self.period
+        finally:
+            self._in_cycle = False
+
+    # -- on a stepped clock shared with other loops (akarm.clock.SteppedLoop) -----------------
+    def due(self) -> float | None:
+        """The time of the next cycle, while started on a stepped clock and not in a cycle now."""
+        return None if self._in_cycle else self._next
+
+    def run_due(self, now: float) -> None:
+        """Run the cycle due at ``now``, if one is (another loop or a test advanced the shared clock)."""
+        if not self._in_cycle and self._next is not None and self._next <= now + 1e-12:
+            self._one()
 
     def step(self, cycles: int = 1) -> None:
         """Run ``cycles`` cycles now (stepped clocks; also usable before :meth:`start`)."""
@@ -278,6 +295,9 @@ class ControlLoop:
         self.crashed = None
         self.realtime_report = "not requested"
         if self.stepped:
+            if isinstance(self.clock, SteppedClock):  # its cycles run whoever advances the clock
+                self._next = self.clock.now() + self.period
+                self.clock.join(self)
             return
         self._running.set()
         self._thread = threading.Thread(target=self._run, name="akarm-loop", daemon=True)
@@ -319,7 +339,9 @@ class ControlLoop:
         return self._thread
 
     def stop(self, timeout: float = 2.0) -> None:
-        """Stop the loop thread (after its current cycle)."""
+        """Stop the loop thread (after its current cycle); a stepped loop leaves its clock."""
+        if isinstance(self.clock, SteppedClock):
+            self.clock.leave(self)
         self._running.clear()
         t = self._thread
         if t is not None and t is not threading.current_thread():

@@ -301,9 +301,11 @@ class Planner:
                     fix="move more slowly (speed=), or through an intermediate point away from the limit")
 
     def move(self, start: State, target: Vector, t0: float, speed: float = 1.0,
-             target_velocity: Vector | None = None, min_duration: float = 0.0) -> Segment:
+             target_velocity: Vector | None = None, min_duration: float = 0.0, synchronize: bool = True) -> Segment:
         """A time-synchronised move from ``start`` = (q, dq, ddq) to rest (or ``target_velocity``) at ``target``,
         taking at least ``min_duration`` s (ruckig's ``minimum_duration``; longer where the limits need it).
+        ``synchronize=False``: each joint reaches its target as soon as its own limits allow (tracking a
+        stream of targets: a joint that moves little is not slowed to the pace of the one that moves most).
 
         Raises:
             LimitError: the target, or a position the path passes through, is outside a joint's range.
@@ -313,6 +315,8 @@ class Planner:
         bounds = self.bounds_from(start[0])
         limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
         inp = self._input(limits, *start)
+        if not synchronize:
+            inp.synchronization = ruckig.Synchronization.No
         inp.target_position = [float(x) for x in target]
         inp.target_velocity = [0.0] * self.dofs if target_velocity is None else [float(x) for x in target_velocity]
         inp.target_acceleration = [0.0] * self.dofs
@@ -356,9 +360,11 @@ class Planner:
         self.check_extrema(seg, self.bounds_from(start[0]))
         return seg
 
-    def move_from(self, start: State, target: Vector, t0: float, speed: float = 1.0) -> Plan:
+    def move_from(self, start: State, target: Vector, t0: float, speed: float = 1.0,
+                  synchronize: bool = True) -> Plan:
         """:meth:`move` from any commanded state: first :meth:`settle` if the start moves faster than
-        ``speed`` allows (a retarget to a slower speed), then the move at ``speed``.
+        ``speed`` allows (a retarget to a slower speed), then the move at ``speed`` (``synchronize``:
+        as :meth:`move`).
 
         Raises:
             LimitError, TrajectoryError: as :meth:`move`; nothing is planned in part.
@@ -366,8 +372,8 @@ class Planner:
         self.limits.check_position(target)
         first = self.settle(start, t0, speed)
         if first is None:
-            return Plan([self.move(start, target, t0, speed)])
-        return Plan([first, self.move(first.end, target, t0 + first.duration, speed)])
+            return Plan([self.move(start, target, t0, speed, synchronize=synchronize)])
+        return Plan([first, self.move(first.end, target, t0 + first.duration, speed, synchronize=synchronize)])
 
     def stop(self, start: State, t0: float) -> Segment:
         """The jerk-limited stop to rest from ``start`` (velocity interface: no position target).

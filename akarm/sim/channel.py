@@ -22,7 +22,7 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
   (the ``--fault`` form);
 - ``{"cmd": "clear"}`` or ``{"cmd": "clear", "joint": "elbow"}``;
 - ``{"cmd": "push", "tau": [0, 0, 0.5]}`` (N·m per joint, config order) or ``{"cmd": "push", "tau": null}``:
-  :meth:`~akarm.sim.SimulatedRobot.set_external_torque`;
+  push the arm from outside, as a hand would, until changed (:meth:`~akarm.sim.SimulatedRobot.set_external_torque`);
 - ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,

@@ -98,6 +98,9 @@ class SimulatedRobot:
         serial: per joint name, the serial port its driver answers on instead of CAN: ``"pty"`` (a
             pseudo-terminal pair) or a device's path (see the module's docstring).
         baudrate: bit/s of those ports (921 600, the AK drivers').
+        clock: lock step only: a :class:`~akarm.clock.SteppedClock` to run on, shared with other
+            simulators (two arms in one process: one clock drives both, and both arms' loops); the
+            simulator starts at its time. Default: a clock of its own, from 0.
 
     Attributes:
         config: the configuration in force (with the bus override).
@@ -130,6 +133,7 @@ class SimulatedRobot:
         log_frames: bool = False,
         serial: Mapping[str, str] | None = None,
         baudrate: int = DEFAULT_BAUDRATE,
+        clock: SteppedClock | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
@@ -153,8 +157,11 @@ class SimulatedRobot:
         self.plant = Plant(config, plist, dt)
         self.model = self.plant.model
         self.dt = self.plant.dt
-        self._k = 0                  # steps taken: simulated time is k·dt
-        self._t = 0.0
+        if clock is not None and realtime:
+            raise StateError("a simulator in real time runs on the wall clock, not on a given clock",
+                             fix="pass clock= with realtime=False (lock step)")
+        self._k = 0 if clock is None else math.floor(clock.now() / self.dt + 1e-6)  # steps: simulated time is k·dt
+        self._t = self._k * self.dt
         q_init: np.ndarray = np.zeros(self.plant.n) if q0 is None else np.asarray(q0, dtype=float)
         self.set_state(np.clip(q_init, self.model.lower, self.model.upper) if q0 is None else q_init)
         inertia = self.plant.joint_inertia()
@@ -221,7 +228,7 @@ class SimulatedRobot:
         if realtime:
             self.clock = RealClock()
         else:
-            self.clock = SteppedClock(0.0)
+            self.clock = clock if clock is not None else SteppedClock(0.0)
             self.clock.attach(self.advance_to)
 
     # ------------------------------------------------------------------ life cycle
@@ -266,7 +273,9 @@ class SimulatedRobot:
         return self
 
     def close(self) -> None:
-        """Stop the threads and shut every bus down. Safe to call twice."""
+        """Stop the threads and shut every bus down (in lock step, leave the clock). Safe to call twice."""
+        if isinstance(self.clock, SteppedClock):
+            self.clock.detach(self.advance_to)
         self._stop.set()
         for th in self._threads:
             th.join(timeout=2.0)

@@ -3,8 +3,9 @@
 Each control cycle records its time, the desired q/dq (the trajectory), the measured q/dq/τ (the
 joints' latest feedback), the feed-forward torque and the collision reflex's estimate of the
 external torque (:mod:`akarm.control.collision`), all joint side in SI. Save to CSV (a header
-naming joints and units) or NumPy ``.npz``; the file is written to a temporary name and renamed, so
-a crash never leaves half a file. :func:`load` reads either back.
+naming joints and units), NumPy ``.npz`` or MCAP (``.mcap``: ROS 2 JointState messages that Foxglove
+and ``ros2 bag`` open, :mod:`akarm.telemetry.mcap`); the file is written to a temporary name and
+renamed, so a crash never leaves half a file. :func:`load` reads each back.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from akarm.files import FileProblem, atomic_write, number, over, read_csv_table
 
 Values = Sequence[float] | np.ndarray
 
-__all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog", "load"]
+__all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog", "load", "load_mcap"]
 
 #: Bytes of a telemetry file: a CSV's, or an NPZ's arrays uncompressed.
 MAX_TELEMETRY_BYTES = 512 << 20
@@ -71,13 +72,17 @@ class TelemetryLog:
         return np.sqrt(np.nanmean(e * e, axis=0)) if len(e) else np.zeros(len(self.joint_names))
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Save as ``.csv`` or ``.npz`` (by suffix), atomically."""
+        """Save as ``.csv``, ``.npz`` or ``.mcap`` (by suffix), atomically."""
         p = Path(path)
+        if p.suffix == ".mcap":
+            from akarm.telemetry.mcap import save_mcap
+
+            return save_mcap(p, self)
         if p.suffix == ".npz":
             arrays = {k: getattr(self, k) for k in ("t", *(f for f, _ in FIELDS))}
             return atomic_write(p, lambda f: np.savez(f, joint_names=np.array(self.joint_names), **arrays))
         if p.suffix != ".csv":
-            raise RecordingError(f"cannot save telemetry as {p.suffix!r}", fix="use a .csv or .npz file name")
+            raise RecordingError(f"cannot save telemetry as {p.suffix!r}", fix="use a .csv, .npz or .mcap file name")
 
         def write(f: io.BufferedWriter) -> None:
             text = io.TextIOWrapper(f, encoding="utf-8", newline="")
@@ -96,10 +101,18 @@ def load(path: str | os.PathLike[str]) -> TelemetryLog:
     """Read a telemetry file written by :meth:`TelemetryLog.save`, within :data:`MAX_TELEMETRY_BYTES`
     and :data:`MAX_TELEMETRY_VALUES` (refused before its arrays are allocated).
 
+    An ``.mcap`` file must hold one arm (:func:`load_mcap` reads several).
+
     Raises:
         RecordingError: the file is missing, past a limit (named), truncated or not a telemetry log.
     """
     p = Path(path)
+    if p.suffix == ".mcap":
+        arms = load_mcap(p)
+        if len(arms) != 1:
+            raise RecordingError(f"{p} holds the telemetry of {len(arms)} arms ({', '.join(arms)})",
+                                 fix="read it with akarm.telemetry.log.load_mcap (akarm plot draws each)")
+        return next(iter(arms.values()))
     try:
         if p.suffix == ".npz":
             return _load_npz(p)
@@ -167,6 +180,15 @@ def _npy_size(z: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[int, int]:
         raise FileProblem(f"its array {info.filename!r} is not what its header says",
                           "pass a .npz written by akarm")
     return count * dtype.itemsize, count
+
+
+def load_mcap(path: str | os.PathLike[str]) -> dict[str, TelemetryLog]:
+    """Every arm's telemetry in an MCAP file (:mod:`akarm.telemetry.mcap`): ``{arm name: log}``, ``""``
+    for a file of one unnamed arm (what ``Arm.telemetry().save("run.mcap")`` writes)."""
+    from akarm.telemetry.mcap import read_mcap
+
+    return {arm: TelemetryLog(a.joint_names, a.t, *(a.fields[f] for f, _ in FIELDS))
+            for arm, a in read_mcap(path).items()}
 
 
 class Telemetry:

@@ -72,3 +72,22 @@ def test_a_busy_real_time_loop_naps_a_tenth_of_each_wait(monkeypatch):
     monkeypatch.setattr(clock_mod, "_realtime_thread", lambda: False)
     c.sleep_until(fake.t + 0.010)
     assert len(fake.naps) == 1  # not a real-time thread: no nap, it only yields
+
+
+def test_loops_sharing_a_stepped_clock_each_keep_their_own_grid_whoever_advances_it():
+    clock = SteppedClock()
+    seen: dict[str, list[float]] = {"a": [], "b": []}
+    a = ControlLoop(500.0, clock, lambda now, slot: seen["a"].append(now))
+    b = ControlLoop(400.0, clock, lambda now, slot: seen["b"].append(now))
+    a.start()
+    b.start()
+    a.step(5)                # only a is stepped: b runs its own cycles on the way, at 2.5 ms, 5 ms, 7.5 ms
+    assert seen["a"] == pytest.approx([0.002, 0.004, 0.006, 0.008, 0.010])
+    assert seen["b"] == pytest.approx([0.0025, 0.005, 0.0075, 0.010])
+    clock.sleep_until(0.015)  # someone else (a test, a simulator) advances it: both loops keep cycling
+    assert seen["a"][5:] == pytest.approx([0.012, 0.014])
+    assert seen["b"][4:] == pytest.approx([0.0125, 0.015])
+    assert a.stats.missed == b.stats.missed == 0
+    b.stop()                 # a stopped loop leaves the clock
+    a.step(2)
+    assert len(seen["b"]) == 6 and seen["a"][-1] == pytest.approx(0.018)

@@ -1,0 +1,311 @@
+"""``akarm teleop LEADER.yaml FOLLOWER.yaml``: a hand guides the leader arm, the follower copies it.
+
+::
+
+    akarm teleop leader.yaml follower.yaml                       # follow until q, Ctrl-C or SIGTERM
+    akarm teleop leader.yaml follower.yaml --force-feedback 0.5  # feel what the follower touches
+    akarm teleop leader.yaml follower.yaml --map pairs.yaml --record demos --task "pick the cube" --fps 30
+    akarm teleop leader.yaml follower.yaml --log run.mcap        # both arms' telemetry, for Foxglove or akarm plot
+    akarm teleop leader.yaml follower.yaml -i socketcan --leader-channel can0 --follower-channel can1
+
+Both arms are enabled; the leader goes into teach mode (its weight carried, a little damping); the
+follower moves to the leader's pose at ``--engage-speed`` of its limits, then follows it every cycle,
+jerk-limited within its own limits and range (:mod:`akarm.teleop`). A safety stop of either arm stops
+both (exit 1).
+
+Keys (as ``lerobot record`` has them; stdin, so a script can send them as lines): **Enter** ends the
+episode being recorded (it is saved, and the next begins), **r** records it again (it is dropped),
+**q** quits (the episode is saved first). A progress line shows the episode, its time and frames.
+Ctrl-C, SIGTERM or SIGHUP end the session: the follower comes to rest, both arms are damped and
+disabled, and the episode being recorded is dropped, never written in part (the ones before it are
+in the dataset). ``--log`` keeps each arm's last ``--log-seconds``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import queue
+import sys
+import threading
+from typing import TYPE_CHECKING, TextIO
+
+from akarm.cli.common import add_profile_argument, interrupted
+
+if TYPE_CHECKING:
+    from akarm.arm import Arm
+    from akarm.config import RobotConfig
+    from akarm.teleop import Step, Teleop
+    from akarm.teleop.recording import EpisodeRecorder
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The verb's arguments."""
+    from akarm.cli.options import add_bus_kwargs
+
+    parser.add_argument("leader", metavar="LEADER.yaml", help="the leader's robot file (the arm a hand guides)")
+    parser.add_argument("follower", metavar="FOLLOWER.yaml", help="the follower's robot file (the arm that copies)")
+    parser.add_argument("--map", metavar="FILE", help="which joints pair, with scale and offset (default: in order)")
+    parser.add_argument("--force-feedback", type=float, default=0.0, metavar="GAIN",
+                        help="apply the follower's external torque × GAIN to the leader (default 0: none)")
+    parser.add_argument("--force-limit", type=float, metavar="NM",
+                        help="the largest feedback torque, N·m (default: a fifth of each leader joint's limit)")
+    parser.add_argument("--engage-speed", type=float, default=0.25, metavar="F",
+                        help="the fraction of the follower's limits it moves to the leader at (default 0.25)")
+    parser.add_argument("--damping", type=float, default=0.1, metavar="D",
+                        help="the leader's damping in teach mode, N·m·s/rad (default 0.1)")
+    parser.add_argument("--record", metavar="DIR", help="record episodes into this LeRobot v3.0 dataset folder")
+    parser.add_argument("--task", metavar="TEXT", help="what the episodes demonstrate (needed with --record)")
+    parser.add_argument("--fps", type=int, default=30, metavar="N", help="frames per second recorded (default 30)")
+    parser.add_argument("--episodes", type=int, metavar="N", help="quit after N episodes")
+    parser.add_argument("--episode-time", type=float, metavar="S", help="end each episode after S seconds")
+    parser.add_argument("--seconds", type=float, metavar="S", help="end the session after S seconds")
+    parser.add_argument("--log", metavar="FILE.mcap", help="save both arms' telemetry as MCAP (for akarm plot)")
+    parser.add_argument("--log-seconds", type=float, default=300.0, metavar="S",
+                        help="how much of each arm's telemetry --log keeps, the last S seconds (default 300)")
+    parser.add_argument("-i", "--interface", help="python-can interface for both arms' buses")
+    parser.add_argument("-c", "--channel", help="both arms' channel (two arms on one bus), or NAME=CHANNEL,...")
+    parser.add_argument("--leader-channel", metavar="C", help="the leader's channel (or NAME=CHANNEL,...), over -c")
+    parser.add_argument("--follower-channel", metavar="C", help="the follower's channel (or NAME=CHANNEL,...), over -c")
+    parser.add_argument("-b", "--bitrate", type=int, help="bit rate of both arms' buses, bit/s")
+    add_bus_kwargs(parser)
+    add_profile_argument(parser)
+
+
+def _check(args: argparse.Namespace) -> None:
+    """What is checked before anything moves."""
+    from akarm.cli.options import check_output
+    from akarm.errors import ArgumentError
+
+    if args.record is not None and not (args.task and args.task.strip()):
+        raise ArgumentError("--record needs --task: what the episodes demonstrate", fix='e.g. --task "pick the cube"')
+    if args.task is not None and args.record is None:
+        raise ArgumentError("--task is for --record", fix="add --record DIR")
+    for name in ("episode_time", "seconds", "log_seconds"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise ArgumentError(f"--{name.replace('_', '-')} must be positive, not {value}")
+    if args.episodes is not None and args.episodes < 1:
+        raise ArgumentError(f"--episodes must be at least 1, not {args.episodes}")
+    if args.fps < 1:
+        raise ArgumentError(f"--fps must be at least 1, not {args.fps}")
+    check_output(args.log, (".mcap",), "the session's telemetry (both arms)")
+
+
+def _config(path: str, args: argparse.Namespace, channel: str | None) -> RobotConfig:
+    from akarm.config import parse_channel
+    from akarm.robotfile.load import load_robot
+    from akarm.timing import get_profile
+
+    config = load_robot(path)
+    kwargs = args.bus_kwargs or None
+    channel = channel or args.channel
+    if args.interface or channel or args.bitrate or kwargs:
+        config = config.with_bus(interface=args.interface, channel=parse_channel(channel), bitrate=args.bitrate,
+                                 options=kwargs)
+    return get_profile(args.profile).apply(config)
+
+
+def _keys(stream: TextIO) -> queue.Queue[str]:
+    """Keys on a queue, read by a daemon thread: each character at once from a terminal (cbreak mode,
+    restored at exit), else whole lines (a script's ``\\n``, ``r\\n``, ``q\\n``); Enter is ``"\\n"``."""
+    keys: queue.Queue[str] = queue.Queue()
+    fd = stream.fileno() if hasattr(stream, "fileno") else -1
+    if fd >= 0 and os.isatty(fd):
+        import atexit
+        import termios
+        import tty
+
+        saved = termios.tcgetattr(fd)
+        tty.setcbreak(fd)
+        atexit.register(termios.tcsetattr, fd, termios.TCSADRAIN, saved)
+
+        def read_chars() -> None:
+            while True:
+                try:
+                    c = os.read(fd, 1).decode(errors="ignore")
+                except OSError:
+                    return
+                if not c:
+                    return
+                keys.put("\n" if c == "\r" else c)
+
+        threading.Thread(target=read_chars, name="akarm-teleop-keys", daemon=True).start()
+        return keys
+
+    def read_lines() -> None:
+        try:
+            for line in iter(stream.readline, ""):
+                keys.put(line.strip()[:1] or "\n")
+        except (OSError, ValueError):
+            pass
+
+    threading.Thread(target=read_lines, name="akarm-teleop-keys", daemon=True).start()
+    return keys
+
+
+class _Session:
+    """The verb's loop: steps, keys, episodes, the progress line."""
+
+    def __init__(self, tele: Teleop, recorder: EpisodeRecorder | None, args: argparse.Namespace) -> None:
+        self.tele, self.recorder, self.args = tele, recorder, args
+        self.saved = 0
+        self.progress = sys.stderr.isatty()
+        self.keys = _keys(sys.stdin)
+        self.t_start = tele.follower.clock.now()
+
+    def say(self, line: str) -> None:
+        print(("\r\033[K" if self.progress else "") + line, file=sys.stderr, flush=True)
+
+    def run(self) -> None:
+        """Until q, --seconds or --episodes (a safety stop or Ctrl-C raises)."""
+        shown = 0.0
+        while True:
+            step = self.tele.step()
+            if self._record(step) or self._keyed():
+                return
+            if self.args.seconds is not None and step.t - self.t_start >= self.args.seconds:
+                self._save()
+                return
+            if self.progress and step.t - shown >= 0.1:
+                shown = step.t
+                self._progress(step.phase, step.latency)
+
+    def _record(self, step: Step) -> bool:
+        """Begin an episode once following, take the step's frame, end the episode at --episode-time;
+        True when that was the last episode wanted."""
+        rec, args = self.recorder, self.args
+        if rec is None:
+            return False
+        if step.phase == "following" and not rec.recording:
+            rec.begin(args.task, step.t)
+            self.say(f"recording episode {rec.writer.total_episodes}: Enter ends it, r records it again, q quits")
+        if rec.recording:
+            rec.add(step)
+            if (args.episode_time is not None and rec.seconds >= args.episode_time) or rec.full:
+                return self._save()
+        return False
+
+    def _keyed(self) -> bool:
+        """Act on a key; True to quit."""
+        rec = self.recorder
+        key = self._key()
+        if key == "q":
+            self._save()
+            return True
+        if rec is None or not rec.recording:
+            return False
+        if key == "\n":
+            return self._save()
+        if key == "r":
+            rec.discard()
+            self.say(f"episode {rec.writer.total_episodes} dropped: recording it again")
+        return False
+
+    def _key(self) -> str | None:
+        try:
+            return self.keys.get_nowait()
+        except queue.Empty:
+            return None
+
+    def _save(self) -> bool:
+        """Commit the episode being recorded, if any (Ctrl-C held back meanwhile); True when that was the
+        last one wanted."""
+        from akarm.cli.common import deferred_signals
+
+        rec = self.recorder
+        if rec is None or not rec.recording:
+            return False
+        self.tele.pause()
+        frames, seconds = rec.frames, rec.seconds
+        with deferred_signals("saving the episode; please wait"):
+            k = rec.finish()
+        if k is not None:
+            self.saved += 1
+            self.say(f"episode {k} saved: {frames} frames, {seconds:.1f} s")
+        return self.args.episodes is not None and self.saved >= self.args.episodes
+
+    def _progress(self, phase: str, latency: float) -> None:
+        rec = self.recorder
+        if rec is not None and rec.recording:
+            text = f"episode {rec.writer.total_episodes}  {rec.seconds:6.1f} s  {rec.frames:6d} frames"
+        else:
+            text = f"{self.tele.follower.clock.now() - self.t_start:6.1f} s"
+        print(f"\r\033[K{text}  {phase}  latency {latency * 1e3:.1f} ms", end="", file=sys.stderr, flush=True)
+
+    def discard(self) -> None:
+        rec = self.recorder
+        if rec is not None and rec.recording:
+            k = rec.writer.total_episodes
+            rec.discard()
+            self.say(f"episode {k} dropped (interrupted): nothing of it written")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Enable both arms, teleoperate until q, Ctrl-C, a stop or --seconds; save; disable."""
+    from akarm.arm import Arm
+    from akarm.cli.common import controlled, deferred_signals
+    from akarm.errors import SafetyStop
+    from akarm.teleop import Pairing, Teleop
+
+    _check(args)
+    leader_config = _config(args.leader, args, args.leader_channel)
+    follower_config = _config(args.follower, args, args.follower_channel)
+    pairing = Pairing.load(args.map, leader_config.joint_names, follower_config.joint_names) if args.map else \
+        Pairing.in_order(leader_config.joint_names, follower_config.joint_names)
+    recorder = _recorder(args, follower_config)
+    seconds = args.log_seconds if args.log else 60.0
+    leader = Arm(leader_config, timing=args.profile, telemetry_seconds=seconds)
+    follower = Arm(follower_config, timing=args.profile, telemetry_seconds=seconds)
+    code = 0
+    with controlled(leader), controlled(follower):
+        t0 = follower.clock.now()
+        tele = Teleop(leader, follower, pairing, force_feedback=args.force_feedback, force_limit=args.force_limit,
+                      engage_speed=args.engage_speed, damping=args.damping)
+        session = _Session(tele, recorder, args)
+        tele.say = session.say
+        try:
+            leader.enable()
+            follower.enable()
+            with tele:
+                session.run()
+        except KeyboardInterrupt as e:
+            session.discard()
+            session.say("interrupted: the follower comes to rest; both arms are damped and disabled")
+            code = interrupted(e)
+        except SafetyStop:
+            session.discard()
+            raise
+        finally:
+            if args.log:
+                _save_log(args.log, leader, follower, t0)
+            print(f"\n{tele.summary()}" if session.progress else str(tele.summary()), flush=True)
+        with deferred_signals():
+            leader.disable()
+            follower.disable()
+    if recorder is not None:
+        print(f"{session.saved} episode{'s' if session.saved != 1 else ''} saved in {args.record} "
+              f"({recorder.writer.total_episodes} in all)")
+    return code
+
+
+def _recorder(args: argparse.Namespace, follower: RobotConfig) -> EpisodeRecorder | None:
+    """The dataset writer and its recorder (the folder checked before anything is enabled), or None."""
+    if args.record is None:
+        return None
+    from akarm.datasets import DatasetWriter
+    from akarm.teleop.recording import EpisodeRecorder
+
+    writer = DatasetWriter(args.record, follower.joint_names, args.fps, robot_type=follower.name)
+    return EpisodeRecorder(writer, follower.rate_hz)
+
+
+def _save_log(path: str, leader: Arm, follower: Arm, since: float) -> None:
+    from akarm.errors import AkarmError
+    from akarm.telemetry.mcap import save_mcap
+
+    try:
+        out = save_mcap(path, {"leader": leader.telemetry(since=since), "follower": follower.telemetry(since=since)})
+        print(f"telemetry of both arms saved to {out}", flush=True)
+    except AkarmError as e:  # the session's own outcome is what the exit status says
+        print(f"akarm teleop: telemetry not saved: {e}", file=sys.stderr)

@@ -1,0 +1,151 @@
+"""Which leader joint drives which follower joint, and how: ``follower = scale · leader + offset``.
+
+Joints pair in order by default (the two arms need as many joints). A mapping file (YAML) names the
+pairs, each with an optional scale and offset, and leaves joints out: a follower joint no pair
+names holds where it was when following began; a leader joint no pair names moves freely::
+
+    # leader joint → follower joint; follower position = scale · leader position + offset (rad)
+    pairs:
+      - {leader: shoulder, follower: left_shoulder}
+      - {leader: elbow, follower: left_elbow, scale: -1.0, offset: 0.1}
+
+Torques go back the other way by the same scale (the work done is the same on both sides):
+``leader torque = scale · follower torque``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
+
+__all__ = ["MAX_MAP_BYTES", "Pair", "Pairing"]
+
+#: A mapping file larger than this is refused unread.
+MAX_MAP_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Pair:
+    """Leader joint ``leader`` (its index) drives follower joint ``follower``: ``scale · q + offset``."""
+
+    leader: int
+    follower: int
+    scale: float = 1.0
+    offset: float = 0.0
+
+
+class Pairing:
+    """The pairs between a leader's and a follower's joints (see the module's docstring).
+
+    Raises:
+        ArgumentError: a joint paired twice, a scale that is zero or not finite, an offset that is not finite.
+    """
+
+    def __init__(self, leader_names: Sequence[str], follower_names: Sequence[str], pairs: Sequence[Pair]) -> None:
+        self.leader_names = tuple(leader_names)
+        self.follower_names = tuple(follower_names)
+        if not pairs:
+            raise ArgumentError("a pairing needs at least one pair of joints", fix="name a leader and a follower joint")
+        for attr, names in (("leader", self.leader_names), ("follower", self.follower_names)):
+            used = [getattr(p, attr) for p in pairs]
+            for i in used:
+                if not 0 <= i < len(names):
+                    raise ArgumentError(f"{attr} joint index {i} is out of range", fix=f"{attr} joints: {list(names)}")
+            twice = sorted({names[i] for i in used if used.count(i) > 1})
+            if twice:
+                raise ArgumentError(f"{attr} joint {twice[0]!r} is paired twice", joint=twice[0],
+                                    fix="pair each joint once")
+        for p in pairs:
+            if not (math.isfinite(p.scale) and p.scale != 0.0 and math.isfinite(p.offset)):
+                raise ArgumentError(f"scale {p.scale!r} and offset {p.offset!r} must be finite, the scale not 0",
+                                    joint=self.follower_names[p.follower], fix="e.g. scale: -1.0, offset: 0.1")
+        self.pairs = tuple(pairs)
+        self.leader_index = np.array([p.leader for p in self.pairs], dtype=int)
+        self.follower_index = np.array([p.follower for p in self.pairs], dtype=int)
+        self.scale = np.array([p.scale for p in self.pairs], dtype=float)
+        self.offset = np.array([p.offset for p in self.pairs], dtype=float)
+
+    @classmethod
+    def in_order(cls, leader_names: Sequence[str], follower_names: Sequence[str]) -> Pairing:
+        """The first leader joint drives the first follower joint, and so on (scale 1, offset 0).
+
+        Raises:
+            ArgumentError: the arms have different numbers of joints (a mapping file says which pair).
+        """
+        if len(leader_names) != len(follower_names):
+            raise ArgumentError(f"the leader has {len(leader_names)} joints, the follower {len(follower_names)}: "
+                                "they cannot pair in order",
+                                fix="give a mapping file (--map) that names the pairs; see akarm.teleop.pairing")
+        return cls(leader_names, follower_names, [Pair(i, i) for i in range(len(leader_names))])
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], leader_names: Sequence[str], follower_names: Sequence[str]) -> Pairing:
+        """Read a mapping file (see the module's docstring).
+
+        Raises:
+            ConfigError: the file cannot be read, is too large, or names an unknown joint, a pair twice,
+                a bad scale or offset; the problem says which pair and what to do.
+        """
+        p = Path(path)
+
+        def problem(what: str, fix: str) -> ConfigError:
+            return ConfigError([ConfigProblem(str(p), None, what, fix)])
+
+        try:
+            if p.stat().st_size > MAX_MAP_BYTES:
+                raise problem(f"the mapping file is over {MAX_MAP_BYTES} bytes", "a mapping file names joint pairs")
+            doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+            raise problem(f"cannot read the mapping file: {e}", "give a YAML file with `pairs:`") from None
+        items = doc.get("pairs") if isinstance(doc, dict) else None
+        if not isinstance(items, list) or not items:
+            raise problem("no `pairs:` list", "pairs: [{leader: JOINT, follower: JOINT, scale: 1.0, offset: 0.0}]")
+        pairs = []
+        for k, item in enumerate(items):
+            if not isinstance(item, dict) or not {"leader", "follower"} <= set(item) or \
+                    set(item) - {"leader", "follower", "scale", "offset"}:
+                raise problem(f"pair {k + 1} is {item!r}",
+                              "each pair is {leader: JOINT, follower: JOINT} with optional scale and offset")
+            index = []
+            for side, names in (("leader", leader_names), ("follower", follower_names)):
+                name = str(item[side])
+                if name not in names:
+                    raise problem(f"pair {k + 1}: the {side} has no joint {name!r}{did_you_mean(name, names)}",
+                                  f"{side} joints: {', '.join(names)}")
+                index.append(list(names).index(name))
+            try:
+                scale, offset = float(item.get("scale", 1.0)), float(item.get("offset", 0.0))
+            except (TypeError, ValueError):
+                raise problem(f"pair {k + 1}: scale and offset must be numbers",
+                              "e.g. scale: -1.0, offset: 0.1") from None
+            pairs.append(Pair(index[0], index[1], scale, offset))
+        try:
+            return cls(leader_names, follower_names, pairs)
+        except ArgumentError as e:
+            raise problem(str(e.what), e.fix) from None
+
+    def follower_positions(self, leader_q: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """The follower's positions for the leader's ``leader_q`` (rad); unpaired joints at ``held``."""
+        out = np.array(held, dtype=float)
+        out[self.follower_index] = self.scale * np.asarray(leader_q, dtype=float)[self.leader_index] + self.offset
+        return out
+
+    def follower_velocities(self, leader_dq: np.ndarray) -> np.ndarray:
+        """The follower's velocities for the leader's ``leader_dq`` (rad/s); unpaired joints 0."""
+        out = np.zeros(len(self.follower_names))
+        out[self.follower_index] = self.scale * np.asarray(leader_dq, dtype=float)[self.leader_index]
+        return out
+
+    def leader_torques(self, follower_tau: np.ndarray) -> np.ndarray:
+        """The leader's torques for the follower's ``follower_tau`` (N·m); unpaired joints 0."""
+        out = np.zeros(len(self.leader_names))
+        out[self.leader_index] = self.scale * np.asarray(follower_tau, dtype=float)[self.follower_index]
+        return out

@@ -1,0 +1,91 @@
+"""Episodes of a teleoperation session, sampled at a dataset's fps and committed as LeRobotDataset
+v3.0 (:mod:`akarm.datasets`): per frame the follower's measured positions, velocities and torques
+(``observation.state``, ``.velocity``, ``.effort``) and the command it was given (``action``: the
+leader's pose in the follower's joints, within its range)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from akarm.datasets import DatasetWriter, EpisodeFrames
+from akarm.errors import ArgumentError, StateError
+from akarm.motion.bounds import MAX_PATH_SAMPLES
+from akarm.teleop.session import Step
+
+__all__ = ["EpisodeRecorder"]
+
+
+class EpisodeRecorder:
+    """Takes a frame from the first :class:`~akarm.teleop.session.Step` at or after each ``k / fps`` s of
+    an episode (the session steps at the follower's loop rate, at least the fps), and commits or
+    discards the episode whole.
+
+    Args:
+        writer: the dataset the episodes go into (its fps is the recorder's).
+        rate_hz: the rate the steps come at (the follower's loop rate): the fps may not exceed it.
+    """
+
+    def __init__(self, writer: DatasetWriter, rate_hz: float) -> None:
+        if writer.fps > rate_hz:
+            raise ArgumentError(f"{writer.fps} fps is more frames than the {rate_hz:g} cycles a second the "
+                                "follower's loop runs", fix=f"record at most {math.floor(rate_hz)} fps")
+        self.writer = writer
+        self.fps = writer.fps
+        self.task: str | None = None
+        self._t0 = 0.0
+        self._rows: list[tuple[np.ndarray, ...]] = []
+
+    @property
+    def recording(self) -> bool:
+        """True between :meth:`begin` and :meth:`finish` or :meth:`discard`."""
+        return self.task is not None
+
+    @property
+    def frames(self) -> int:
+        """Frames of the episode so far."""
+        return len(self._rows)
+
+    @property
+    def seconds(self) -> float:
+        """The episode's length so far, s (its frames over the fps)."""
+        return len(self._rows) / self.fps
+
+    def begin(self, task: str, t0: float) -> None:
+        """Start an episode doing ``task`` at clock time ``t0`` (s)."""
+        if not isinstance(task, str) or not task.strip():
+            raise ArgumentError("an episode needs a task: what is demonstrated", fix='e.g. --task "pick the cube"')
+        self.task, self._t0, self._rows = task, t0, []
+
+    def add(self, step: Step) -> bool:
+        """Take ``step`` as the next frame if its time has come; True if it did."""
+        if self.task is None:
+            return False
+        if step.t + 1e-9 < self._t0 + len(self._rows) / self.fps:
+            return False
+        if len(self._rows) >= MAX_PATH_SAMPLES:
+            return False  # the episode is as long as one may be: the caller ends it (full)
+        self._rows.append((step.follower_q, step.follower_dq, step.follower_tau, step.command))
+        return True
+
+    @property
+    def full(self) -> bool:
+        """True when the episode has as many frames as one may (:data:`~akarm.motion.bounds.MAX_PATH_SAMPLES`)."""
+        return len(self._rows) >= MAX_PATH_SAMPLES
+
+    def finish(self) -> int | None:
+        """Commit the episode (all of it, or nothing: :meth:`DatasetWriter.save_episode`); its index, or
+        ``None`` if it has no frame."""
+        if self.task is None:
+            raise StateError("no episode is being recorded", fix="call begin() first")
+        task, rows = self.task, self._rows
+        self.task, self._rows = None, []
+        if not rows:
+            return None
+        cols = [np.array([r[k] for r in rows]) for k in range(4)]
+        return self.writer.save_episode(task, EpisodeFrames(*cols))
+
+    def discard(self) -> None:
+        """Drop the episode being recorded (nothing of it is written)."""
+        self.task, self._rows = None, []

@@ -1,0 +1,164 @@
+"""LeRobotDataset v3.0: what the writer puts on disk (LeRobot's layout, read back with pyarrow alone),
+its commits (an episode is in or out, never half), and the reader's checks and bounds."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pa = pytest.importorskip("pyarrow")
+pq = pytest.importorskip("pyarrow.parquet")
+
+from akarm.datasets import DatasetWriter, EpisodeFrames, read_dataset  # noqa: E402
+from akarm.datasets import lerobot as lr  # noqa: E402
+from akarm.errors import ArgumentError, RecordingError  # noqa: E402
+
+JOINTS = ("shoulder", "elbow")
+
+
+def frames(n: int, seed: int = 0) -> EpisodeFrames:
+    x = np.random.default_rng(seed).normal(size=(n, len(JOINTS)))
+    return EpisodeFrames(x, 2 * x, 3 * x, x + 0.5)
+
+
+def three_episodes(root: Path, fps: int = 30) -> list[EpisodeFrames]:
+    w = DatasetWriter(root, JOINTS, fps, robot_type="planar2")
+    eps = [frames(40, 1), frames(55, 2), frames(31, 3)]
+    for k, (ep, task) in enumerate(zip(eps, ["pick", "place", "pick"], strict=True)):
+        assert w.save_episode(task, ep) == k
+    return eps
+
+
+def test_three_episodes_read_back_with_pyarrow_alone_in_lerobots_layout(tmp_path: Path) -> None:
+    eps = three_episodes(tmp_path)
+    files = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file())
+    assert files == ["data/chunk-000/file-000.parquet", "meta/episodes/chunk-000/file-000.parquet",
+                     "meta/info.json", "meta/stats.json", "meta/tasks.parquet"]
+    info = json.loads((tmp_path / "meta/info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["fps"] == 30 and info["robot_type"] == "planar2"
+    assert (info["total_episodes"], info["total_frames"], info["total_tasks"]) == (3, 126, 2)
+    assert info["features"]["action"] == {"dtype": "float32", "shape": [2], "names": list(JOINTS)}
+    assert info["features"]["timestamp"] == {"dtype": "float32", "shape": [1], "names": None}
+
+    data = pq.read_table(tmp_path / "data/chunk-000/file-000.parquet")
+    assert set(data.column_names) == {"timestamp", "frame_index", "episode_index", "index", "task_index",
+                                      "observation.state", "observation.velocity", "observation.effort", "action"}
+    assert data.schema.field("action").type == pa.list_(pa.float32(), 2)
+    ep_index = data.column("episode_index").to_numpy()
+    assert ep_index.tolist() == [0] * 40 + [1] * 55 + [2] * 31
+    assert data.column("index").to_numpy().tolist() == list(range(126))
+    assert data.column("task_index").to_numpy().tolist() == [0] * 40 + [1] * 55 + [0] * 31
+    t = data.column("timestamp").to_numpy()
+    np.testing.assert_array_equal(t[ep_index == 1], (np.arange(55) / 30).astype(np.float32))  # fps matches
+    np.testing.assert_array_equal(data.column("frame_index").to_numpy()[ep_index == 2], np.arange(31))
+    action = np.array(data.column("action").to_pylist(), dtype=np.float32)
+    np.testing.assert_array_equal(action[ep_index == 1], eps[1].action.astype(np.float32))
+    state = np.array(data.column("observation.state").to_pylist(), dtype=np.float32)
+    np.testing.assert_array_equal(state[:40], eps[0].state.astype(np.float32))
+    assert pq.ParquetFile(tmp_path / "data/chunk-000/file-000.parquet").metadata.num_row_groups == 3
+
+    episodes = pq.read_table(tmp_path / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    assert [(e["episode_index"], e["length"], e["tasks"], e["dataset_from_index"], e["dataset_to_index"])
+            for e in episodes] == [(0, 40, ["pick"], 0, 40), (1, 55, ["place"], 40, 95), (2, 31, ["pick"], 95, 126)]
+    tasks = pq.read_table(tmp_path / "meta/tasks.parquet")
+    assert tasks.column("task").to_pylist() == ["pick", "place"] and tasks.column("task_index").to_pylist() == [0, 1]
+    assert json.loads(tasks.schema.metadata[b"pandas"])["index_columns"] == ["task"]  # pandas (LeRobot) sees the index
+    stats = json.loads((tmp_path / "meta/stats.json").read_text())
+    everything = np.concatenate([e.action for e in eps]).astype(np.float32).astype(float)
+    np.testing.assert_allclose(stats["action"]["mean"], everything.mean(axis=0), rtol=1e-6)
+    np.testing.assert_allclose(stats["action"]["std"], everything.std(axis=0), rtol=1e-6)
+    np.testing.assert_allclose(stats["action"]["min"], everything.min(axis=0))
+    assert stats["action"]["count"] == [126] and set(stats) >= {"timestamp", "index", "observation.effort"}
+
+
+def test_the_reader_gives_an_episode_and_its_path_to_replay(tmp_path: Path) -> None:
+    eps = three_episodes(tmp_path, fps=50)
+    ds = read_dataset(tmp_path)
+    assert (ds.total_episodes, ds.fps, ds.joint_names, ds.tasks) == (3, 50, JOINTS, ["pick", "place"])
+    e = ds.episode(1)
+    assert (e.index, e.task, len(e)) == (1, "place", 55)
+    np.testing.assert_array_equal(e.features["observation.velocity"], eps[1].velocity.astype(np.float32))
+    path = e.path()
+    assert path.joint_names == JOINTS and path.duration == pytest.approx(54 / 50, abs=1e-6)
+    np.testing.assert_array_equal(path.q, eps[1].action.astype(np.float32).astype(float))
+    with pytest.raises(RecordingError, match="no episode 3: it has 3"):
+        ds.episode(3)
+
+
+def test_appending_later_continues_the_indices_and_refuses_other_joints_or_fps(tmp_path: Path) -> None:
+    three_episodes(tmp_path)
+    w = DatasetWriter(tmp_path, JOINTS, 30)
+    assert w.save_episode("wave", frames(10)) == 3
+    ds = read_dataset(tmp_path)
+    assert ds.total_frames == 136 and ds.tasks == ["pick", "place", "wave"] and ds.episode(3).global_index[0] == 126
+    with pytest.raises(RecordingError, match="other joints or fps"):
+        DatasetWriter(tmp_path, JOINTS, 50)
+    with pytest.raises(RecordingError, match="other joints or fps"):
+        DatasetWriter(tmp_path, ("a", "b"), 30)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "x.txt").write_text("x")
+    with pytest.raises(RecordingError, match="not empty and holds no LeRobot dataset"):
+        DatasetWriter(tmp_path / "other", JOINTS, 30)
+
+
+def test_an_episode_cut_short_before_its_commit_is_not_in_the_dataset_and_is_dropped_on_reopening(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    three_episodes(tmp_path)
+    before = (tmp_path / "meta/info.json").read_bytes()
+    real = lr._write_json
+
+    def crash_at_the_commit(path: Path, doc: object) -> Path:
+        if path.name == "info.json":
+            raise KeyboardInterrupt  # the process dies between the data files and the commit
+        return real(path, doc)
+
+    monkeypatch.setattr(lr, "_write_json", crash_at_the_commit)
+    with pytest.raises(KeyboardInterrupt):
+        DatasetWriter(tmp_path, JOINTS, 30).save_episode("pick", frames(20))
+    monkeypatch.undo()
+    assert (tmp_path / "meta/info.json").read_bytes() == before
+    assert pq.read_metadata(tmp_path / "data/chunk-000/file-000.parquet").num_rows == 146  # its rows are there ...
+    ds = read_dataset(tmp_path)
+    assert (ds.total_episodes, ds.total_frames) == (3, 126)                                  # ... but not in it
+    assert len(ds.episode(2)) == 31
+    DatasetWriter(tmp_path, JOINTS, 30)                                   # reopening drops them
+    assert pq.read_metadata(tmp_path / "data/chunk-000/file-000.parquet").num_rows == 126
+    assert pq.read_metadata(tmp_path / "meta/episodes/chunk-000/file-000.parquet").num_rows == 3
+    assert not list(tmp_path.rglob("*.tmp"))                               # and no temporary file was left
+
+
+def test_bad_episodes_and_bad_datasets_are_refused_by_name(tmp_path: Path) -> None:
+    w = DatasetWriter(tmp_path / "ds", JOINTS, 30)
+    with pytest.raises(ArgumentError, match="at least one frame"):
+        w.save_episode("pick", frames(0))
+    bad = frames(5)
+    bad.action[2, 1] = np.nan
+    with pytest.raises(ArgumentError, match="finite"):
+        w.save_episode("pick", bad)
+    with pytest.raises(ArgumentError, match="a task"):
+        w.save_episode(" ", frames(5))
+    with pytest.raises(ArgumentError, match="fps"):
+        DatasetWriter(tmp_path / "x", JOINTS, 29.97)  # type: ignore[arg-type]
+    with pytest.raises(RecordingError, match="not a LeRobot dataset"):
+        read_dataset(tmp_path / "nothing")
+    three_episodes(tmp_path / "old")
+    info = json.loads((tmp_path / "old/meta/info.json").read_text())
+    (tmp_path / "old/meta/info.json").write_text(json.dumps(info | {"codebase_version": "v2.1"}))
+    with pytest.raises(RecordingError, match=r"version 'v2\.1', not v3\.0"):
+        read_dataset(tmp_path / "old")
+    (tmp_path / "old/meta/info.json").write_text(json.dumps(info | {"total_episodes": 10**9}))
+    with pytest.raises(RecordingError, match="at most 100000 episodes"):
+        read_dataset(tmp_path / "old")
+    (tmp_path / "old/meta/info.json").write_text(json.dumps(info))
+    assert read_dataset(tmp_path / "old").episode(0).task == "pick"
+
+
+def test_a_data_file_past_its_size_starts_the_next(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(lr, "DATA_FILE_MB", 1e-6)  # every episode fills a file
+    three_episodes(tmp_path)
+    ds = read_dataset(tmp_path)
+    assert [r["data/file_index"] for r in ds.episodes] == [0, 1, 2]
+    assert len(ds.episode(2)) == 31 and ds.episode(1).global_index[0] == 40

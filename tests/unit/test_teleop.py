@@ -1,0 +1,131 @@
+"""Teleoperation's pure parts: which joints pair and how, and the brake point a follower streams to."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ruckig
+
+from akarm.errors import ArgumentError, ConfigError
+from akarm.motion.trajectory import JointLimits
+from akarm.teleop import Pair, Pairing, stopping_distance
+
+LEADER = ("shoulder", "elbow", "wrist")
+FOLLOWER = ("left_shoulder", "left_elbow", "left_wrist", "left_roll")
+
+
+def test_joints_pair_in_order_or_as_a_mapping_file_says(tmp_path: Path) -> None:
+    same = Pairing.in_order(LEADER, ("a", "b", "c"))
+    np.testing.assert_array_equal(same.follower_positions(np.array([0.1, 0.2, 0.3]), np.zeros(3)), [0.1, 0.2, 0.3])
+    with pytest.raises(ArgumentError, match="the leader has 3 joints, the follower 4"):
+        Pairing.in_order(LEADER, FOLLOWER)
+    path = tmp_path / "map.yaml"
+    path.write_text("pairs:\n  - {leader: shoulder, follower: left_shoulder}\n"
+                    "  - {leader: elbow, follower: left_elbow, scale: -2.0, offset: 0.1}\n")
+    p = Pairing.load(path, LEADER, FOLLOWER)
+    held = np.array([9.0, 9.0, 0.7, -0.4])
+    # unpaired follower joints hold where they were; the wrist of the leader drives nothing
+    np.testing.assert_allclose(p.follower_positions(np.array([0.5, 0.25, 3.0]), held), [0.5, -0.4, 0.7, -0.4])
+    np.testing.assert_allclose(p.follower_velocities(np.array([1.0, 1.0, 1.0])), [1.0, -2.0, 0.0, 0.0])
+    # torques go back by the same scale: equal work on both sides
+    np.testing.assert_allclose(p.leader_torques(np.array([0.3, 0.5, 7.0, 7.0])), [0.3, -1.0, 0.0])
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("pairs:\n  - {leader: shoulder, follower: left_sholder}\n",
+     r"no joint 'left_sholder' \(did you mean 'left_shoulder'"),
+    ("pairs:\n  - {leader: shoulder, follower: left_elbow}\n  - {leader: elbow, follower: left_elbow}\n",
+     "follower joint 'left_elbow' is paired twice"),
+    ("pairs:\n  - {leader: shoulder, follower: left_elbow, scale: 0}\n", "the scale not 0"),
+    ("pairs:\n  - {leader: shoulder, follower: left_elbow, scale: x}\n", "must be numbers"),
+    ("pairs:\n  - {leader: shoulder}\n", "each pair is"),
+    ("pairs: []\n", "no `pairs:` list"),
+    ("pairs: [\n", "cannot read the mapping file"),
+])
+def test_a_bad_mapping_file_is_refused_naming_the_pair(tmp_path: Path, text: str, match: str) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        Pairing.load(path, LEADER, FOLLOWER)
+
+
+def test_a_pairing_checks_its_pairs() -> None:
+    with pytest.raises(ArgumentError, match="leader joint 'shoulder' is paired twice"):
+        Pairing(LEADER, FOLLOWER, [Pair(0, 0), Pair(0, 1)])
+    with pytest.raises(ArgumentError, match="at least one pair"):
+        Pairing(LEADER, FOLLOWER, [])
+
+
+@pytest.mark.parametrize("v", [0.05, 0.5, 1.0, 2.0, 3.9, -1.5])
+def test_the_stopping_distance_is_where_ruckig_brings_a_joint_to_rest(v: float) -> None:
+    limits = JointLimits(("j",), np.array([-10.0]), np.array([10.0]), np.array([4.0]), np.array([20.0]),
+                         np.array([200.0]))
+    r, inp, traj = ruckig.Ruckig(1), ruckig.InputParameter(1), ruckig.Trajectory(1)
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [v], [0.0]
+    inp.control_interface = ruckig.ControlInterface.Velocity
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [4.0], [20.0], [200.0]
+    r.calculate(inp, traj)
+    rest = traj.at_time(traj.duration)[0][0]
+    assert stopping_distance(np.array([v]), limits)[0] == pytest.approx(rest, rel=1e-6, abs=1e-12)
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--record", "DIR"], "--record needs --task"),
+    (["--task", "wave"], "--task is for --record"),
+    (["--log", "run.csv"], "must end in .mcap"),
+    (["--seconds", "0"], "--seconds must be positive"),
+    (["--record", "DIR", "--task", "wave", "--fps", "0"], "--fps must be at least 1"),
+])
+def test_akarm_teleop_checks_its_options_before_anything_is_opened(args: list[str], said: str, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from akarm.cli import main
+
+    from .conftest import ROBOTS
+
+    robot = str(ROBOTS / "planar2.yaml")
+    argv = ["teleop", robot, robot, *[str(tmp_path / a) if a in ("DIR", "run.csv") else a for a in args]]
+    assert main(argv) == 1
+    assert said in capsys.readouterr().err
+
+
+def test_akarm_replay_of_a_dataset_needs_its_episode(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from akarm.cli import main
+
+    from .conftest import ROBOTS
+
+    assert main(["replay", str(ROBOTS / "planar2.yaml"), str(tmp_path)]) == 1
+    assert "is a folder: which of its episodes?" in capsys.readouterr().err
+    assert main(["replay", str(ROBOTS / "planar2.yaml"), str(tmp_path / "x.csv"), "--episode", "1"]) == 1
+    assert "--episode is for a dataset folder" in capsys.readouterr().err
+
+
+def test_the_recorder_takes_a_frame_per_fps_tick_and_commits_an_episode_whole(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from akarm.datasets import DatasetWriter, read_dataset
+    from akarm.teleop import Step
+    from akarm.teleop.recording import EpisodeRecorder
+
+    def step(t: float) -> Step:
+        q = np.array([t, -t])
+        return Step(t, "following", q, q, q, 2 * q, 3 * q, q + 1, q, np.zeros(2), 0.002, ())
+
+    rec = EpisodeRecorder(DatasetWriter(tmp_path, ("a", "b"), 50), rate_hz=500.0)
+    with pytest.raises(ArgumentError, match="600 fps is more frames"):
+        EpisodeRecorder(DatasetWriter(tmp_path / "x", ("a", "b"), 600), rate_hz=500.0)
+    rec.begin("wave", 10.0)
+    taken = [rec.add(step(10.0 + k * 0.002)) for k in range(250)]   # 0.5 s of steps at 500 Hz
+    assert sum(taken) == 25 and rec.frames == 25 and rec.seconds == pytest.approx(0.5)
+    assert [k for k, x in enumerate(taken) if x][:3] == [0, 10, 20]  # the step at each 1/50 s
+    rec.discard()                                                    # r: nothing of it written
+    assert not rec.recording and not (tmp_path / "meta/info.json").exists()
+    rec.begin("wave", 20.0)
+    for k in range(100):
+        rec.add(step(20.0 + k * 0.002))
+    assert rec.finish() == 0
+    ep = read_dataset(tmp_path).episode(0)
+    assert len(ep) == 10 and ep.task == "wave"
+    np.testing.assert_allclose(ep.features["action"][:, 0], 20.0 + np.arange(10) * 0.02 + 1, rtol=1e-6)
+    np.testing.assert_allclose(ep.features["observation.effort"][:, 1], -3 * (20.0 + np.arange(10) * 0.02), rtol=1e-6)

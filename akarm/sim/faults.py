@@ -24,6 +24,7 @@ from akarm.errors import AkarmError
 __all__ = [
     "KINDS",
     "Blocked",
+    "Brownout",
     "DelayReplies",
     "DropReplies",
     "ErrorCode",
@@ -176,6 +177,24 @@ class RogueExit(Fault):
 
 
 @dataclass(frozen=True)
+class Brownout(Fault):
+    """The driver's supply dips and it resets: for ``seconds`` it is off (output limp, no frames in or
+    out), then it starts as after power-up, out of motor mode (MIT: disabled, stored command zero; servo:
+    released), and answers again. Nothing of this is seen on the bus but the silence.
+
+    Attributes:
+        seconds: s the driver is off, > 0.
+    """
+
+    seconds: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.seconds, int | float) and 0.0 < self.seconds < math.inf):
+            raise AkarmError(f"Brownout time {self.seconds!r} s is not a positive number",
+                             fix="give how long the driver is off, e.g. Brownout(0.01)")
+
+
+@dataclass(frozen=True)
 class Blocked(Fault):
     """The joint is mechanically blocked where it is (an obstacle, a jammed gear): it stops at once and
     moves no more, whatever torque its motor applies, until the fault is cleared."""
@@ -192,6 +211,7 @@ KINDS: dict[str, str] = {
     "forged": "forged:POS[,COUNT[,INTERVAL]]   another node sends COUNT replies at motor position POS rad",
     "rogue-exit": "rogue-exit[:silent]    another program disables the joint (':silent': not seen on the bus)",
     "blocked": "blocked                the joint is mechanically blocked where it is",
+    "brownout": "brownout:SECONDS       the driver resets: off that long, then back out of motor mode",
 }
 
 
@@ -206,7 +226,8 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
 
     Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
     ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``,
-    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``.
+    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``,
+    ``elbow:brownout:0.01``.
 
     Raises:
         AkarmError: the text is not a fault; the message lists the kinds.
@@ -255,6 +276,10 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if args:
                 raise _bad(spec, "blocked takes no argument")
             return joint, Blocked()
+        if kind == "brownout":
+            if len(args) != 1:
+                raise _bad(spec, "brownout needs a time in seconds")
+            return joint, Brownout(float(args[0]))
     except ValueError as e:
         raise _bad(spec, str(e)) from None
     raise _bad(spec, f"unknown kind {kind!r}")

@@ -209,6 +209,7 @@ class Motions:
         queue = self._queue
         while queue and t >= queue[0].at:
             nxt = queue.pop(0)
+            self._end(superseded=True)  # (a plan that took over before it, and waited for by its caller)
             self.plan, self._outcome = nxt.plan, nxt.outcome
         plan = self.plan
         if plan is None:

@@ -600,6 +600,11 @@ class Controller:
     # ------------------------------------------------------------------------------------------
     # the cycle (loop thread, or inline with a stepped clock)
     # ------------------------------------------------------------------------------------------
+    @property
+    def plan_lag(self) -> float:
+        """s the plan time trails the clock (:meth:`plan_now`)."""
+        return self._lag
+
     def plan_now(self) -> float:
         """The plan time now, s: the clock less the slots the loop missed (what plans are timed in)."""
         return self.clock.now() - self._lag

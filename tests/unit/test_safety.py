@@ -23,7 +23,6 @@ from akarm import (
 )
 from akarm.config import RobotConfig
 from akarm.control.joints import MitJoint, make_joint
-from akarm.protocol import servo
 from akarm.control.modes import Mode, ModeMachine
 from akarm.control.safety import (
     FOLLOWING_CYCLES,
@@ -35,6 +34,7 @@ from akarm.control.safety import (
     default_following_error,
     default_stuck_travel,
 )
+from akarm.protocol import servo
 
 DT = 0.002  # a 500 Hz loop
 

@@ -191,7 +191,7 @@ class Supervisor:
         self._last_value = [math.nan] * n
         self._des_at_value = [0.0] * n
         self._window_end = math.inf
-        self._window_start: list[tuple[int, int]] = []
+        self._window_start: list[tuple[int, int, int]] = []
         self._rejected_start = [0] * n
         self._refresh()
 
@@ -216,11 +216,9 @@ class Supervisor:
         self._over = [0] * n
         self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
-        self._window_end = now + REPLY_WINDOW
-        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
-        self._rejected_start = [j.rejected for j in self.joints]
         self._received = [j.frames_received for j in self.joints]
         self._sent_then = [j.frames_sent for j in self.joints]
+        self._start_window(now)
         self._ran = 0.0
         self._ran_then = [0.0] * n
         self._last_check = now
@@ -452,14 +450,22 @@ class Supervisor:
                         "distinct IDs")
         for k, i in enumerate(self._answering):
             j = self.joints[i]
-            r0, s0 = self._window_start[k]
+            r0, s0, owed = self._window_start[k]
             replies, sent = j.frames_received - r0, j.frames_sent - s0
-            if replies > sent + max(3, sent // 20):
-                return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s")
-        self._window_end = now + REPLY_WINDOW
-        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
-        self._rejected_start = [j.rejected for j in self.joints]
+            if replies > sent + owed + max(3, sent // 20):
+                return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s"
+                                         + (f" and {owed} unanswered before" if owed else ""))
+        self._start_window(now)
         return None
+
+    def _start_window(self, now: float) -> None:
+        """The counts a REPLY_WINDOW starts from: per answering joint, the replies and commands so far and the
+        commands still unanswered (their replies may come in this window: a driver or simulator that paused,
+        then answers what it was sent meanwhile)."""
+        self._window_end = now + REPLY_WINDOW
+        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent, self.unanswered(i))
+                              for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
 
     @staticmethod
     def foreign_stop(j: Joint, kind: str, detail: str = "") -> ForeignTraffic:

@@ -363,6 +363,38 @@ def test_more_replies_than_frames_sent_is_a_second_motor_on_the_id(rig) -> None:
     assert t == pytest.approx(REPLY_WINDOW, abs=DT)
 
 
+def test_replies_owed_from_before_a_window_are_not_a_second_motor(planar2: RobotConfig) -> None:
+    """A driver (or a simulator) that pauses across the window's end, then answers every command it
+    was sent meanwhile: more replies than commands in the new window, none more than it was sent."""
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.2, 80.0, 0.2, 0.03)] * 2, period=DT)  # 100 commands unanswered at most
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    owed = 0
+    k = 1
+    while k * DT < 2.5 * REPLY_WINDOW:
+        t = k * DT
+        paused = abs(t - REPLY_WINDOW) < 40 * DT  # 80 commands unanswered, 40 of them before the window's end
+        if paused:
+            owed += 1
+        else:
+            for _ in range(owed):
+                reply(js[1], 0.0, t)
+            owed = 0
+        sup_stop = cycle(js, sup, t, [True, not paused])
+        assert sup_stop is None, (t, sup_stop)
+        k += 1
+    # more replies than it was ever sent are still a twin's
+    for _ in range(40):
+        reply(js[1], 0.0, t)
+    k += 1
+    e = None
+    while e is None and k * DT < 4 * REPLY_WINDOW:
+        e = cycle(js, sup, k * DT, [True, True])
+        k += 1
+    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+
+
 def test_default_following_errors(planar2: RobotConfig) -> None:
     sh, el = planar2.joints
     assert default_following_error(sh, 40.0) == pytest.approx(sh.limits.torque / 40.0)  # PD alone saturates

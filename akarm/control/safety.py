@@ -32,7 +32,9 @@ Checks, per joint, in order (the first that fires is the stop):
    :class:`~akarm.DriverReset`.
 6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
-   minus the measured position over the joint's limit for three cycles in a row; or a command
+   minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
+   replies in a row; one that stopped answering is the watchdog's, whose stop names the silence, not
+   the tracking its old reading would show); or a command
    saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
    ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
    reading that repeats while the command has moved on by more than ``stuck_travel``, is more than
@@ -380,6 +382,7 @@ class Supervisor:
                          saturated: Sequence[bool] | None) -> SafetyStop | None:
         over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
+        mit = self._mit
         for i, j in enumerate(self.joints):
             qd = q_des[i]
             if not tracking[i]:
@@ -389,12 +392,16 @@ class Supervisor:
                 continue
             s = j.state
             q = s.position
+            new = s.stamp != last_stamp[i] or not mit[i]  # (MIT: a reply to the last command)
             if not tracked[i]:  # tracking starts (again): the reading's history starts here
                 tracked[i] = True
+                new = True
                 last_stamp[i], last_value[i], des_at[i] = s.stamp, q, qd
             e = qd - q
             limit = self._following[i]
             if e > limit or e < -limit:
+                if not new:  # no reply to the last command: the watchdog's to judge
+                    continue
                 over[i] += 1
                 if over[i] >= FOLLOWING_CYCLES:
                     return TrackingError(

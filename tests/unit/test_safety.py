@@ -281,6 +281,24 @@ def test_following_error_over_the_limit_for_three_cycles(rig) -> None:
             return
 
 
+def test_a_silent_joint_s_old_reading_is_the_watchdog_s_not_a_tracking_error(rig) -> None:
+    """The elbow stops answering while its command is 0.5 rad from its last reading: its stop is the
+    silence (after its 10 commands), not the following error of a reading it no longer sends."""
+    js, sup = rig
+    e = None
+    for k in range(1, 30):
+        t = k * DT
+        reply(js[0], 0.0, t)
+        if k == 1:
+            reply(js[1], 0.0, t)
+        e = sup.check(t, [0.0, 0.5], [True, True])
+        for j in js:
+            j.frames_sent += 1
+        if e is not None:
+            break
+    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow", e
+
+
 def test_a_joint_that_does_not_track_is_not_checked(rig) -> None:
     js, sup = rig
     for k in range(1, 10):

@@ -12,34 +12,10 @@ import numpy as np
 import pytest
 
 from akarm import DriverReset, FeedbackTimeout, LoopStall
-from akarm.config import RobotConfig
 from akarm.control.modes import Mode
-from akarm.protocol import mit
 from akarm.sim import faults
-from akarm.sim.records import Frame
 
-
-def command_steps(frames: list[Frame], config: RobotConfig) -> dict[str, float]:
-    """Per MIT joint, the largest step between consecutive commands with kp > 0 it took in, as a share of
-    what its velocity limit allows in one period (1.0: exactly that; position quantisation aside)."""
-    joints = {j.name: j for j in config.joints if j.mode == "mit"}
-    last: dict[str, float] = {}
-    worst = dict.fromkeys(joints, 0.0)
-    period = 1.0 / config.rate_hz
-    for f in frames:
-        j = joints.get(f.joint or "")
-        if j is None or not f.to_motor or mit.special_frame(f.data) is not None:
-            continue
-        cmd = mit.codec(j.motor).decode_command(f.data, firmware=j.firmware)
-        if cmd.kp <= 0.0:
-            last.pop(j.name, None)  # damping or a neutral command: the next held position starts afresh
-            continue
-        lsb = 2.0 * j.motor.p_max / 65535.0
-        if j.name in last and abs(cmd.position - last[j.name]) < j.motor.p_max:  # (not across the field's wrap)
-            step = max(0.0, abs(cmd.position - last[j.name]) - 2.0 * lsb)
-            worst[j.name] = max(worst[j.name], step / (j.limits.velocity * period))
-        last[j.name] = cmd.position
-    return worst
+from ..conftest import command_steps
 
 
 def stall(arm, seconds: float) -> None:

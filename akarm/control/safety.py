@@ -378,7 +378,7 @@ class Supervisor:
             fix="check the motor's power supply and connector (its voltage under load); enable the arm again once "
                 "it is sound (a driver that was reset may have lost its turn count: check the joint's position)")
 
-    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],
+    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],  # noqa: C901
                          saturated: Sequence[bool] | None) -> SafetyStop | None:
         over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value

@@ -46,17 +46,30 @@ from akarm.errors import (
     ConfigError,
     ConfigProblem,
     LimitError,
+    RecordingError,
     SafetyStop,
     StateError,
     did_you_mean,
 )
 from akarm.motion import recording as rec_mod
+from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
 from akarm.motion.cartesian import plan_linear
 from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner, Timed
 from akarm.telemetry.log import TelemetryLog
 from akarm.timing import TimingProfile, get_profile
 
 __all__ = ["Arm", "ArmState", "JointReport", "Motion"]
+
+
+def _bounded(items: object, limit: int, what: str, context: str, fix: str) -> None:
+    """Raise :class:`~akarm.ArgumentError` if ``items`` (anything with a length) has more than ``limit``
+    elements: checked before anything looks at them."""
+    try:
+        n = len(items)  # type: ignore[arg-type]
+    except TypeError:
+        return  # not a sequence: the code that reads it says what is wrong
+    if n > limit:
+        raise ArgumentError(f"{n} {what}: {context} at most {limit} (akarm.motion.bounds)", fix=fix)
 
 FeedForward = FeedForwardKind
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
@@ -127,10 +140,16 @@ class Arm:
         friction_feedforward: add each joint's friction (its ``friction:`` in the YAML, else the
             catalogue's typical values) at the *desired* velocity: ``c·tanh(v/0.02) + b·v``. Off
             with ``feedforward="none"``.
-        feedback_timeout: s; the supervisor stops the arm when a joint's feedback is older, and
-            refuses an enable whose first reply comes later (default: the timing profile's, 20 ms
-            normally; servo joints at least 3 status periods; a joint's own setting wins; none below
-            the profile's ``min_feedback_timeout``).
+        feedback_timeout: s; the supervisor stops the arm when a joint is silent this long, counted
+            on what it was sent (a MIT joint: that many loop periods of commands unanswered; a servo
+            joint: no status frame in that much time the loop ran), and refuses an enable whose first
+            reply comes later (default: the timing profile's, 20 ms normally; servo joints at least 3
+            status periods; a joint's own setting wins; none below the profile's ``min_feedback_timeout``).
+        stall_limit: s the control loop itself may fail to run (this process stopped or starved: a
+            loaded machine, a long garbage collection, SIGSTOP) and resume without a stop: the plan
+            waits for the motors (no command steps ahead), the watchdog counts no time. Longer stops
+            the arm with :class:`~akarm.LoopStall` (default: the timing profile's, 0.2 s normally, 1 s
+            with ``slow``; one for the loop, so not a robot-file key).
         timing: a timing profile (:mod:`akarm.timing`): ``"normal"`` (default) or ``"slow"`` for
             slow or shared machines, or a :class:`~akarm.timing.TimingProfile`. It caps the loop rate
             (:attr:`config` then says the rate in force) and gives the watchdog's and
@@ -175,7 +194,7 @@ class Arm:
     """
 
     def __init__(self, config: RobotConfig, *, clock: Clock | None = None, feedforward: FeedForward = "full",
-                 feedback_timeout: float | None = None, enable_ramp: float = 0.3,
+                 feedback_timeout: float | None = None, stall_limit: float | None = None, enable_ramp: float = 0.3,
                  stop_damping_time: float = 0.3, telemetry_seconds: float = 60.0,
                  can_log: str | PathLike[str] | None = None, realtime_priority: bool = False,
                  hold_integral: float = 3.0, friction_feedforward: bool = True, busy_wait: bool = False,
@@ -186,7 +205,8 @@ class Arm:
         self.timing = get_profile(timing)
         options = ControllerOptions(
             timing=self.timing, feedforward=feedforward, friction_feedforward=friction_feedforward,
-            hold_integral=hold_integral, feedback_timeout=feedback_timeout, enable_ramp=enable_ramp,
+            hold_integral=hold_integral, feedback_timeout=feedback_timeout, stall_limit=stall_limit,
+            enable_ramp=enable_ramp,
             stop_damping_time=stop_damping_time, settle_speed=settle_speed, settle_timeout=settle_timeout,
             implausible_limit=implausible_limit, telemetry_seconds=telemetry_seconds, can_log=can_log,
             realtime_priority=realtime_priority, loop_cpu=loop_cpu,
@@ -366,8 +386,10 @@ class Arm:
         Each intermediate point is passed exactly (the path is continuous in position, velocity and
         acceleration). ``points`` are joint vectors, pose names or mappings; ``speed`` as in
         :meth:`move_to`. Raises :class:`~akarm.LimitError` before moving if any point or any
-        position on the path is outside a joint's range.
+        position on the path is outside a joint's range, and :class:`~akarm.ArgumentError` for more
+        than :data:`~akarm.motion.bounds.MAX_KEYFRAMES` points (before looking at them).
         """
+        _bounded(points, MAX_KEYFRAMES, "points", "move_through takes", "split the path into several moves")
         qs = [self.target_positions(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
 
@@ -378,9 +400,21 @@ class Arm:
 
         Jerk-limited through every point (:func:`akarm.motion.timed.timed_plan`); replaces a running motion
         smoothly. Raises :class:`~akarm.LimitError` before anything moves if a point or the path
-        leaves a joint's range.
+        leaves a joint's range, and :class:`~akarm.ArgumentError` before anything is planned for more
+        than :data:`~akarm.motion.bounds.MAX_TRAJECTORY_POINTS` points or a last time past
+        :data:`~akarm.motion.bounds.MAX_DURATION`.
         """
         from akarm.motion.timed import timed_plan
+
+        _bounded(times, MAX_TRAJECTORY_POINTS, "points", "a trajectory has", "send it in parts")
+        _bounded(positions, MAX_TRAJECTORY_POINTS, "points", "a trajectory has", "send it in parts")
+        try:
+            last = float(times[-1]) if len(times) else 0.0
+        except (TypeError, ValueError, IndexError):
+            last = 0.0  # not times at all: timed_plan says what is wrong
+        if last > MAX_DURATION:
+            raise ArgumentError(f"the trajectory's last point is at {last:g} s, past the {MAX_DURATION:g} s a motion "
+                                "may last (akarm.motion.bounds.MAX_DURATION)", fix="send it in parts")
 
         return self._run(self._start(lambda start, now: timed_plan(self.planner, start, now, times, positions,
                                                                    velocities)), wait)
@@ -571,25 +605,50 @@ class Arm:
         exactly as :meth:`replay` would before moving. Keyframes are checked for position and
         planned (from rest at the first keyframe) so a path past a limit is found too.
         """
+        rec = self._recording(recording, speed)
+        if isinstance(rec, rec_mod.Keyframes):
+            qs = self._keyframe_positions(rec)
+            self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, min(speed, 1.0))
+        else:
+            rec_mod.check_path(rec_mod.PathPlan(rec, 0.0, speed), self.limits)
+        return rec
+
+    def _recording(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
+                   speed: float) -> rec_mod.Keyframes | rec_mod.PathRecording:
+        """The recording (read if a file), for this arm's joints and within the sizes of
+        :mod:`akarm.motion.bounds` (:class:`~akarm.RecordingError` naming the bound, before anything else)."""
         rec = recording if isinstance(recording, rec_mod.Keyframes | rec_mod.PathRecording) else \
             rec_mod.load(recording, self.names)
         if tuple(rec.joint_names) != tuple(self.names):
             raise LimitError(f"the recording is for joints {list(rec.joint_names)}",
                              fix=f"replay it on an arm with joints {list(self.names)}")
         if isinstance(rec, rec_mod.Keyframes):
-            lim = self.limits
-            for k, frame in enumerate(rec.frames):
-                for i, q in enumerate(frame.q):
-                    if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
-                        label = f" {frame.name!r}" if frame.name else ""
-                        raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
-                                         f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=self.names[i],
-                                         fix="edit that keyframe or the joint limits")
-            qs = [np.array(f.q) for f in rec.frames]
-            self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, min(speed, 1.0))
+            if len(rec.frames) > MAX_KEYFRAMES:
+                raise RecordingError(f"the recording has {len(rec.frames)} keyframes, more than the {MAX_KEYFRAMES} a "
+                                     "replay takes (akarm.motion.bounds.MAX_KEYFRAMES)", fix="split it into several")
         else:
-            rec_mod.check_path(rec_mod.PathPlan(rec, 0.0, speed), self.limits)
+            if len(rec.t) > MAX_PATH_SAMPLES:
+                raise RecordingError(f"the path has {len(rec.t)} samples, more than the {MAX_PATH_SAMPLES} a replay "
+                                     "takes (akarm.motion.bounds.MAX_PATH_SAMPLES)", fix="split it into several")
+            if not (isinstance(speed, int | float) and speed > 0):
+                raise ArgumentError(f"speed must be a positive number, got {speed!r}", fix="e.g. speed=0.5")
+            if not rec.duration / speed <= MAX_DURATION:
+                raise RecordingError(f"the path would take {rec.duration / speed:.0f} s at speed {speed:g}, more than "
+                                     f"the {MAX_DURATION:g} s a motion may last (akarm.motion.bounds.MAX_DURATION)",
+                                     fix="replay it faster, or split it into several")
         return rec
+
+    def _keyframe_positions(self, rec: rec_mod.Keyframes) -> list[np.ndarray]:
+        """The keyframes' positions, each checked against the joint ranges (:class:`~akarm.LimitError`)."""
+        lim = self.limits
+        for k, frame in enumerate(rec.frames):
+            for i, q in enumerate(frame.q):
+                if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
+                    label = f" {frame.name!r}" if frame.name else ""
+                    raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
+                                     f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=self.names[i],
+                                     fix="edit that keyframe or the joint limits")
+        return [np.array(f.q) for f in rec.frames]
 
     def replay(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
                speed: float = 1.0, wait: bool = True) -> Motion:
@@ -599,19 +658,24 @@ class Arm:
         Keyframes are then passed through as one smooth move (``speed`` as in :meth:`move_to`);
         a path is followed at its recorded timing divided by ``speed`` (any positive factor).
 
+        The plan is made in this thread while the arm goes on holding (or moving) under the control
+        loop, and takes over when it is ready (a 5000-keyframe or one-hour recording takes seconds).
+
         Raises:
-            RecordingError: an unreadable, truncated or mismatched file.
+            RecordingError: an unreadable, truncated or mismatched file, or one past the sizes of
+                :mod:`akarm.motion.bounds` (names the bound).
             LimitError: the path breaks a limit after scaling; names the joint and the time, and
                 suggests the speed factor that would pass.
         """
-        rec = self.check_replay(recording, speed)
-        if isinstance(rec, rec_mod.Keyframes):
-            return self.move_through([np.array(f.q) for f in rec.frames], speed=min(speed, 1.0), wait=wait)
-        check = rec_mod.PathPlan(rec, 0.0, speed)
+        rec = self._recording(recording, speed)
+        if isinstance(rec, rec_mod.Keyframes):  # planned once, from where the arm is, through every keyframe
+            return self.move_through(self._keyframe_positions(rec), speed=min(speed, 1.0), wait=wait)
+        path = rec_mod.PathPlan(rec, 0.0, speed)  # made and checked once: taking over only shifts it in time
+        rec_mod.check_path(path, self.limits)
 
         def make(start: State, now: float) -> Timed:
-            soft = self.planner.move_from(start, check.q[0], now, min(speed, 1.0))
-            return Chain([soft, rec_mod.PathPlan(rec, soft.t_end, speed)])
+            soft = self.planner.move_from(start, path.q[0], now, min(speed, 1.0))
+            return Chain([soft, path.shifted(soft.t_end)])
 
         return self._run(self._start(make), wait)
 

@@ -36,6 +36,8 @@ raises on purpose; anything else escaping akarm is a bug.
         ├── ForeignTraffic     another program commands, disables or answers for our motors
         ├── NotSettled         the arm kept moving while enable() waited for it to come to rest
         ├── CollisionError     the collision reflex: a joint's external torque estimate passed its threshold
+        ├── LoopStall          the control loop itself did not run for longer than its stall_limit
+        ├── DriverReset        a driver answers, but not in motor mode: it was reset (a brown-out)
         └── BusLost            a bus died under the arm (also a BusError)
 """
 
@@ -54,11 +56,13 @@ __all__ = [
     "ConfigError",
     "ConfigProblem",
     "ConfigWarning",
+    "DriverReset",
     "FeedbackTimeout",
     "ForeignTraffic",
     "FrameError",
     "ImplausibleFeedback",
     "LimitError",
+    "LoopStall",
     "ModelError",
     "MotorFault",
     "NotSettled",
@@ -448,6 +452,38 @@ class CollisionError(SafetyStop):
         self.torque = torque
         self.threshold = threshold
         self.reaction = reaction
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class LoopStall(SafetyStop):
+    """The control loop itself did not run for longer than its ``stall_limit``: this process was
+    stopped or starved (a loaded machine, a long garbage collection, SIGSTOP, swapping), not a motor.
+    The motors kept their last command meanwhile, unsupervised.
+
+    Attributes:
+        stalled: s the loop did not run (beyond its one period). limit: the stall limit, s.
+    """
+
+    def __init__(self, what: str, *, stalled: float, limit: float, joint: str | None = None, fix: str = "") -> None:
+        self.stalled = stalled
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class DriverReset(SafetyStop):
+    """A MIT driver answers, but reports no torque where the law it was sent asks for some: it is out
+    of motor mode, reset by a brown-out (a dip in its supply) or told to leave by something that did
+    not use the bus.
+
+    Attributes:
+        expected: the torque the commanded law asks for at the reported state, N·m.
+        reported: the torque the driver reports, N·m.
+    """
+
+    def __init__(self, what: str, *, expected: float, reported: float, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.expected = expected
+        self.reported = reported
         super().__init__(what, joint=joint, fix=fix)
 
 

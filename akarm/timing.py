@@ -1,7 +1,7 @@
 """Timing profiles: the loop rate, watchdog and simulator rate a machine can keep, as one named choice.
 
-A control loop at 500 Hz with a 20 ms feedback watchdog, against a simulator integrating at 2 kHz,
-is what a normal machine does (and what the hardware needs). A slow or shared machine (an emulated
+A control loop at 500 Hz with a 20 ms feedback watchdog and a 0.2 s stall limit, against a simulator
+integrating at 2 kHz, is what a normal machine does (and what the hardware needs). A slow or shared machine (an emulated
 virtual machine, a busy CI runner) cannot keep that: the simulator falls behind, replies come late
 and the watchdog stops the arm. A profile names a set of numbers that such a machine can keep::
 
@@ -46,6 +46,9 @@ class TimingProfile:
         lag: s a joint's reading may trail the commands on such a machine (a simulator that falls
             behind answers late, then several frames with one state): the supervisor's following-error
             and stuck-travel limits grow by the joint's velocity limit times this.
+        stall_limit: s the control loop itself may fail to run (this process stopped or starved: load,
+            a long garbage collection, SIGSTOP) and resume without a stop; longer stops the arm with
+            :class:`~akarm.LoopStall` (see the README's Timing section for why 0.2 s).
     """
 
     name: str
@@ -56,6 +59,7 @@ class TimingProfile:
     enable_timeout: float
     sim_rate_hz: float
     lag: float = 0.0
+    stall_limit: float = 0.2
 
     def loop_rate(self, rate_hz: float) -> float:
         """The loop rate for a robot file's ``rate_hz``, Hz."""
@@ -84,15 +88,18 @@ class TimingProfile:
 #: needs 74-93 % of a CPU and falls behind when the host is busy (feedback up to 758 ms old, the
 #: plant 2 s behind in 30 s); with a 25 Hz loop 44-54 %, feedback at most 177 ms old, the plant
 #: 0.07 s behind at most. The watchdog of 1 s is more than five times the worst gap seen at 25 Hz;
-#: a reading may trail by 0.25 s (more than the worst gap): the tracking checks allow for that.
+#: a reading may trail by 0.25 s (more than the worst gap): the tracking checks allow for that. Such a
+#: machine also stalls the controller itself for longer: its loop may miss up to 1 s (the watchdog's
+#: time) before a LoopStall, where a normal one gets 0.2 s.
 PROFILES: dict[str, TimingProfile] = {
-    "normal": TimingProfile("normal", "the robot file's rate_hz, 20 ms watchdog, simulator at 2 kHz (default)",
+    "normal": TimingProfile("normal", "the robot file's rate_hz, 20 ms watchdog, 0.2 s stall limit, simulator at "
+                                      "2 kHz (default)",
                             max_rate_hz=None, feedback_timeout=0.020, min_feedback_timeout=0.0, enable_timeout=0.5,
-                            sim_rate_hz=2000.0),
+                            sim_rate_hz=2000.0, stall_limit=0.2),
     "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 1 s "
-                                  "watchdog, simulator at 250 Hz",
+                                  "watchdog and stall limit, simulator at 250 Hz",
                           max_rate_hz=25.0, feedback_timeout=1.0, min_feedback_timeout=1.0, enable_timeout=5.0,
-                          sim_rate_hz=250.0, lag=0.25),
+                          sim_rate_hz=250.0, lag=0.25, stall_limit=1.0),
 }
 
 

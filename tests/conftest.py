@@ -30,12 +30,14 @@ import pytest
 
 from akarm.buses.bus import drain as _drain
 from akarm.errors import AkarmError
+from akarm.protocol import mit
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.clock import SteppedClock
     from akarm.config import RobotConfig
     from akarm.sim import SimulatedRobot
+    from akarm.sim.records import Frame
     from akarm.timing import TimingProfile
 
 # DDS (akarm serve, ROS 2 tests) stays on the loopback interface: no multicast onto the network, and
@@ -47,7 +49,7 @@ try:
 except AkarmError:  # no ros extra (akarm.ros says so): the ROS tests skip
     pass
 
-__all__ = ["ROBOTS", "ROOT", "URDFS", "drain", "has_can_sockets", "has_vcan", "lockstep_arm",
+__all__ = ["ROBOTS", "ROOT", "URDFS", "command_steps", "drain", "has_can_sockets", "has_vcan", "lockstep_arm",
            "missing_socketcan_fix", "relaxed_robot", "send", "wait_until"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -215,3 +217,26 @@ def relaxed_robot(robot: Path, directory: Path) -> Path:
     path = directory / f"{robot.stem}-relaxed.yaml"
     path.write_text(yaml.safe_dump(doc))
     return path
+
+
+def command_steps(frames: list[Frame], config: RobotConfig) -> dict[str, float]:
+    """Per MIT joint, the largest step between consecutive commands with kp > 0 it took in, as a share of
+    what its velocity limit allows in one period (1.0: exactly that; position quantisation aside)."""
+    joints = {j.name: j for j in config.joints if j.mode == "mit"}
+    last: dict[str, float] = {}
+    worst = dict.fromkeys(joints, 0.0)
+    period = 1.0 / config.rate_hz
+    for f in frames:
+        j = joints.get(f.joint or "")
+        if j is None or not f.to_motor or mit.special_frame(f.data) is not None:
+            continue
+        cmd = mit.codec(j.motor).decode_command(f.data, firmware=j.firmware)
+        if cmd.kp <= 0.0:
+            last.pop(j.name, None)  # damping or a neutral command: the next held position starts afresh
+            continue
+        lsb = 2.0 * j.motor.p_max / 65535.0
+        if j.name in last and abs(cmd.position - last[j.name]) < j.motor.p_max:  # (not across the field's wrap)
+            step = max(0.0, abs(cmd.position - last[j.name]) - 2.0 * lsb)
+            worst[j.name] = max(worst[j.name], step / (j.limits.velocity * period))
+        last[j.name] = cmd.position
+    return worst

@@ -46,6 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--feedback-timeout", type=float, metavar="S",
                         help="watchdog: stop the arm when a joint's feedback is older (default: the profile's, 0.02 "
                              "normally; a joint's own feedback_timeout in the YAML wins)")
+    parser.add_argument("--stall-limit", type=float, metavar="S",
+                        help="s the control loop itself may fail to run (this process stopped or starved) and resume "
+                             "without a stop; longer stops with LoopStall (default: the profile's, 0.2 s normally)")
     add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
@@ -70,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from akarm.serving import ArmServer
 
     config = load_from_args(args)
-    arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)
+    arm = Arm(config, feedback_timeout=args.feedback_timeout, stall_limit=args.stall_limit, timing=args.profile)
     if args.no_ros and args.ros_network:
         from akarm.errors import ArgumentError
 

@@ -54,7 +54,7 @@ from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
 from akarm.dynamics.model import RobotModel
-from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, SafetyStop, StateError
+from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, LoopStall, SafetyStop, StateError
 from akarm.motion.trajectory import Plan, Planner
 from akarm.telemetry.log import Telemetry, TelemetryLog
 
@@ -63,9 +63,12 @@ if TYPE_CHECKING:
 
     from akarm.motion.trajectory import Timed
 
-__all__ = ["STAGES", "Controller"]
+__all__ = ["PLAN_ATTEMPTS", "STAGES", "Controller"]
 
 STAGES = ("receive", "trajectory", "safety", "feedforward", "send", "telemetry")
+#: Plans made for one motion at most before it is refused: each one that comes too late to take over
+#: from a moving arm is made again to start twice as far ahead (the first starts where the arm is now).
+PLAN_ATTEMPTS = 6
 
 
 def _feedback_timeout(j: JointConfig, default: float) -> float:
@@ -123,7 +126,9 @@ class Controller:
         self._timeouts = [_feedback_timeout(j.config, options.watchdog) for j in joints]
         for j in joints:  # a reply the motor cannot have reached since the last one is rejected
             j.set_gate(1.5 * j.motor.v_max, self.period)
-        self.supervisor = Supervisor(joints, self._guards(), implausible_limit=options.implausible_limit)
+        self.supervisor = Supervisor(joints, self._guards(), period=self.period,
+                                     implausible_limit=options.implausible_limit)
+        self.stall_limit = options.loop_stall_limit
         self._gains_changed()
 
         self.bus = BusSet(config, joints, options.can_log, self._bus_lost, clock.now)
@@ -149,6 +154,9 @@ class Controller:
         self._t_last = 0.0
         self._t_stop = 0.0
         self._stop_from = np.zeros(n)
+        # plan time: the clock less the slots the loop missed (a stalled loop resumes where its plan was)
+        self._lag = 0.0
+        self._t_plan = 0.0  # the plan time of the cycle running (or last run)
 
     def _make_reflex(self) -> CollisionReflex:
         config, model, options = self.config, self.model, self.options
@@ -354,7 +362,7 @@ class Controller:
         if mode is Mode.STOPPING or not mode.powered or mode is Mode.FAULT:
             return
         self.modes.go(Mode.STOPPING)
-        self._t_stop = self.clock.now()
+        self._t_stop = min(self.plan_now(), self._t_plan)
         self._stop_from = np.asarray(self.tau_ff, dtype=float).copy()
         self.enabler.abandon()
         self.motions.cancel()
@@ -369,16 +377,39 @@ class Controller:
 
     # -- motion ----------------------------------------------------------------------------------
     def start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
-        """Plan from the commanded state now (``make_plan(start, now)``) and follow it."""
+        """Plan from the commanded state (``make_plan(start, t)``: from state ``start`` at plan time ``t``)
+        and follow it. The plan is made in the caller's thread without the lock, so the loop goes on
+        streaming and supervising the motion in force meanwhile; the new one takes over exactly where
+        it was planned from (:class:`~akarm.control.motions.Motions`). A plan that could not take over
+        in time (the arm moved on while it was made) is made again, from further ahead.
+
+        Raises:
+            StateError: the arm is not enabled, or the motion could not take over after
+                :data:`PLAN_ATTEMPTS` plans. Whatever ``make_plan`` raises (nothing is changed).
+        """
         self.require_enabled()
-        with self.lock:
-            self._require_active()
-            return self.motions.start(make_plan, self.clock.now())
+        ahead = 0.0  # plan time between now and where the new plan starts
+        for _ in range(PLAN_ATTEMPTS):
+            with self.lock:
+                self._require_active()
+                ticket = self.motions.ticket(self.plan_now() + ahead)
+            began = time.perf_counter()
+            plan = make_plan(ticket.state, ticket.t)
+            took = time.perf_counter() - began
+            with self.lock:
+                self._require_active()
+                motion = self.motions.take(ticket, plan)
+            if motion is not None:
+                return motion
+            ahead = max(2.0 * ahead, 2.0 * took + 2.0 * self.period)
+        raise StateError(f"the motion could not take over from the one in force after {PLAN_ATTEMPTS} plans (the "
+                         f"last took {took:.3f} s to make)",
+                         fix="wait for the motion in force to end (motion.wait()) before starting a long one")
 
     def desired_now(self) -> State:
-        """The commanded (q, dq, ddq) at the current clock time."""
+        """The commanded (q, dq, ddq) at the current plan time."""
         with self.lock:
-            return self.motions.desired(self.clock.now())
+            return self.motions.desired(self.plan_now())
 
     @property
     def moving(self) -> bool:
@@ -388,7 +419,7 @@ class Controller:
     def running(self) -> bool:
         """True while a plan is followed and not yet at its end."""
         with self.lock:
-            return self.motions.running_at(self.clock.now())
+            return self.motions.running_at(self.plan_now())
 
     # -- gains and torque ------------------------------------------------------------------------
     @property
@@ -520,7 +551,7 @@ class Controller:
             if self.modes.mode is not Mode.TEACH:
                 return
             self.recorder = None
-            self._hold_here(self.clock.now())
+            self._hold_here()
             self.modes.go(Mode.ACTIVE)
         self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
 
@@ -539,13 +570,14 @@ class Controller:
         rec = self.recorder
         return rec is not None and rec.finished
 
-    def _hold_here(self, now: float) -> None:
+    def _hold_here(self) -> None:
         """Take the measured pose as the commanded one, kp ramping up from zero (caller holds the lock)."""
         q = np.array([j.state.position for j in self.joints])
         self.motions.hold_at(q)
         self.des = (q.copy(), np.zeros(self.n), np.zeros(self.n))
-        self._t_last = now
-        self.ramp.start(now)
+        t = min(self.plan_now(), self._t_plan)
+        self._t_last = t
+        self.ramp.start(t)
         self.ff.reset_integral()
 
     # -- what the loop measured ----------------------------------------------------------------------
@@ -568,18 +600,34 @@ class Controller:
     # ------------------------------------------------------------------------------------------
     # the cycle (loop thread, or inline with a stepped clock)
     # ------------------------------------------------------------------------------------------
+    @property
+    def plan_lag(self) -> float:
+        """s the plan time trails the clock (:meth:`plan_now`)."""
+        return self._lag
+
+    def plan_now(self) -> float:
+        """The plan time now, s: the clock less the slots the loop missed (what plans are timed in)."""
+        return self.clock.now() - self._lag
+
     def cycle(self, now: float, slot: int) -> None:
         pc = time.perf_counter
-        stage = self.loop.stats.stage[slot]
+        loop = self.loop
+        stage = loop.stats.stage[slot]
         t0 = pc()
         self.bus.receive(now)
         t1 = pc()
         stage[0] = t1 - t0
+        if loop.skipped:  # the plan waits for the motors: it goes on from where it was, not where it would be
+            self._lag += loop.skipped * self.period
+        self._t_plan = loop.deadline - self._lag
         mode = self.modes.mode
         if not mode.powered or mode is Mode.FAULT:
             return
         with self.lock:
             mode = self.modes.mode
+            if loop.gap - self.period > self.stall_limit and mode is not Mode.STOPPING:
+                self._stalled(now, loop.gap - self.period)
+                return
             if mode is Mode.ACTIVE:
                 self._cycle_active(now, stage, t1)
             elif mode is Mode.TEACH:
@@ -589,11 +637,30 @@ class Controller:
             elif mode is Mode.STOPPING:
                 self._cycle_stopping(now)
 
+    def _stalled(self, now: float, stalled: float) -> None:
+        """The loop did not run for ``stalled`` s, more than its stall limit: stop (or refuse the enable)."""
+        stop = LoopStall(
+            f"the control loop did not run for {stalled * 1e3:.0f} ms (limit {self.stall_limit * 1e3:.0f} ms): this "
+            "process was stopped or starved of CPU (a loaded machine, a long garbage collection, swapping, "
+            "SIGSTOP), not a motor; the motors held their last command, unsupervised, meanwhile; the arm was damped "
+            "and disabled", stalled=stalled, limit=self.stall_limit,
+            fix="lower the machine's load, or use the timing profile for slow or shared machines (--profile slow); "
+                "give the loop real-time priority (realtime_priority=True, --realtime-priority) and a core of its own "
+                "(busy_wait=True, loop_cpu=N); raise stall_limit only if such stalls are known and safe for this arm")
+        stop.at = now
+        if self.modes.mode is Mode.ENABLING:
+            self.enabler.abandon()
+            self._enable_failed(Refusal(stop))
+            return
+        self._begin_stop(stop)
+        self._cycle_stopping(now)
+
     def _cycle_active(self, now: float, stage: Any, t1: float) -> None:
         pc = time.perf_counter
         motions = self.motions
+        t = self._t_plan
+        q_d, dq_d, ddq_d = motions.sample(t)
         plan = motions.plan
-        q_d, dq_d, ddq_d = motions.sample(now)
         self.des = (q_d, dq_d, ddq_d)
         qd = q_d.tolist()
         t2 = pc()
@@ -611,12 +678,12 @@ class Controller:
         q_meas = [j.state.position for j in js]
         ramp = self.ramp
         holding = plan is None and ramp.scale >= 1.0
-        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, now - self._t_last)
-        self._t_last = now
+        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last)
+        self._t_last = t
         self.tau_ff = ff
         t4 = pc()
         stage[3] = t4 - t3
-        g = ramp.update(now)
+        g = ramp.update(t)
         kp, kd, tmax, sat = self._kp_list, self._kd_list, self._t_max, self._saturated
         vd = dq_d.tolist()
         send = self.bus.send
@@ -647,7 +714,7 @@ class Controller:
                           self.des[1] if check else None)
         if err is None or err.reaction == "disable":
             return err
-        self.motions.replace(Plan([self.planner.stop(self.des, now)]), err)
+        self.motions.replace(Plan([self.planner.stop(self.des, self._t_plan)]), err)
         return None
 
     def _record(self, now: float, q_d: Any, dq_d: Any, ff: Any) -> None:
@@ -689,7 +756,7 @@ class Controller:
         if isinstance(step, Refusal):
             self._enable_failed(step)
             return
-        self._hold_here(now)  # at rest
+        self._hold_here()  # at rest
         self.modes.go(Mode.ACTIVE)
 
     def _enable_failed(self, refusal: Refusal) -> None:
@@ -701,9 +768,9 @@ class Controller:
         self.modes.go(Mode.DISABLED)
 
     def _cycle_stopping(self, now: float) -> None:
-        """Damping (kp = 0, feed-forward fading out) for stop_damping_time, then exit."""
+        """Damping (kp = 0, feed-forward fading out) for stop_damping_time (of plan time), then exit."""
         T = self.options.stop_damping_time
-        s = (now - self._t_stop) / T if T > 0 else 1.0
+        s = (self._t_plan - self._t_stop) / T if T > 0 else 1.0
         if s < 1.0:
             fade = 1.0 - s
             tau = (self._stop_from * fade).tolist()

@@ -84,6 +84,8 @@ class Joint(abc.ABC):
         last_rejected: the position the last rejected one claimed (rad, joint side).
         foreign, foreign_at: the kind of the last frame another node sent to this joint's command
             IDs (``"exit"``, ``"enter"``, ``"zero"``, ``"command"``), and when (clock time, s).
+        cmd_position, cmd_velocity, cmd_kp, cmd_kd, cmd_torque: MIT joints: the law of the last
+            command sent (rad, rad/s, N·m/rad, N·m·s/rad, N·m; position NaN: none); servo joints: unused.
     """
 
     mode: str = ""
@@ -111,6 +113,13 @@ class Joint(abc.ABC):
         self.last_rejected = math.nan
         self.foreign: str | None = None
         self.foreign_at = -math.inf
+        # MIT: the law of the last command (joint side): the driver applies kp·(position - q) + kd·(velocity
+        # - v) + torque until the next one; the supervisor judges the torque the replies report against it
+        self.cmd_position = math.nan
+        self.cmd_velocity = 0.0
+        self.cmd_kp = 0.0
+        self.cmd_kd = 0.0
+        self.cmd_torque = 0.0
 
     # -- conversions --------------------------------------------------------------------------
     def joint_position(self, motor_position: float) -> float:
@@ -305,8 +314,14 @@ class MitJoint(Joint):
         """The MIT command for joint-side targets (rad, rad/s, N·m/rad, N·m·s/rad, N·m).
 
         A NaN position means "no position target" and is sent as the motor's current position
-        (only meaningful with kp = 0).
+        (only meaningful with kp = 0). The law is kept as :attr:`cmd_position`, :attr:`cmd_velocity`,
+        :attr:`cmd_kp`, :attr:`cmd_kd`, :attr:`cmd_torque` (what the driver applies until the next one).
         """
+        self.cmd_position = position
+        self.cmd_velocity = velocity
+        self.cmd_kp = kp
+        self.cmd_kd = kd
+        self.cmd_torque = torque
         if position != position:  # NaN
             p_motor = self.motor_position(self.state.position) if self.state.position == self.state.position else 0.0
             p_motor -= self._turns * self._span

@@ -214,7 +214,8 @@ class ControlLoop:
     that computes in Python holds the interpreter lock for up to 5 ms when the loop wakes.
 
     ``cycle`` receives the clock time at which it started and the ring index for its stage timings
-    (``loop.stats.stage[slot, k]``, s). It must not raise; if it does, the loop stops and calls
+    (``loop.stats.stage[slot, k]``, s); while it runs, :attr:`deadline`, :attr:`skipped` and
+    :attr:`gap` describe its slot. It must not raise; if it does, the loop stops and calls
     ``on_crash(exception)`` (the Arm uses that to send exit frames).
     """
 
@@ -233,6 +234,13 @@ class ControlLoop:
         self.realtime_report = "not requested"
         self.on_crash = on_crash
         self.crashed: BaseException | None = None
+        #: the slot of the cycle running (or last run): its time on the loop's grid of periods, s
+        self.deadline = 0.0
+        #: slots skipped just before that cycle (it started that many periods late, or more)
+        self.skipped = 0
+        #: s from the start of the cycle before to this one's (0 for the first): one period, give or
+        #: take the jitter, while the loop keeps time; more where it did not run (a stall)
+        self.gap = 0.0
         self._next: float | None = None
         self._in_cycle = False  # (stepped) this loop's own cycle is under way: the clock must not start another
         self._thread: threading.Thread | None = None
@@ -259,11 +267,16 @@ class ControlLoop:
             self.clock.sleep_until(deadline)
             now = self.clock.now()
             late = now - deadline
+            skipped = 0
             if late >= self.period:  # skip the slots we missed rather than burst
                 skipped = int(late // self.period)
                 self.stats.missed += skipped
                 deadline += skipped * self.period
                 late = now - deadline
+            last = self.stats.last_start
+            self.gap = now - last if last is not None else 0.0
+            self.deadline = deadline
+            self.skipped = skipped
             slot = self.stats.begin(now, late)
             self.cycle(now, slot)
             self._next = deadline + self.period

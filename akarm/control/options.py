@@ -28,6 +28,7 @@ class ControllerOptions:
     """The controller's settings (times in s, speeds in rad/s; see :class:`~akarm.Arm`).
 
     ``feedback_timeout`` ``None`` takes the timing profile's; :attr:`watchdog` is the one in force.
+    ``stall_limit`` ``None`` takes the timing profile's; :attr:`loop_stall_limit` is the one in force.
 
     Raises:
         ArgumentError: a value of the wrong kind or out of its range (names it).
@@ -38,6 +39,7 @@ class ControllerOptions:
     friction_feedforward: bool = True
     hold_integral: float = 3.0
     feedback_timeout: float | None = None
+    stall_limit: float | None = None
     enable_ramp: float = 0.3
     stop_damping_time: float = 0.3
     settle_speed: float = 0.1
@@ -59,6 +61,8 @@ class ControllerOptions:
                     ("telemetry_seconds", self.telemetry_seconds), ("collision_gain", self.collision_gain)]
         if self.feedback_timeout is not None:
             positive.insert(0, ("feedback_timeout", self.feedback_timeout))
+        if self.stall_limit is not None:
+            positive.insert(0, ("stall_limit", self.stall_limit))
         for name, value in positive:
             if not (_number(value) and value > 0):
                 raise ArgumentError(f"{name} must be a positive number, got {value!r}")
@@ -77,6 +81,11 @@ class ControllerOptions:
         profile's ``min_feedback_timeout``."""
         given = self.timing.feedback_timeout if self.feedback_timeout is None else self.feedback_timeout
         return max(given, self.timing.min_feedback_timeout)
+
+    @property
+    def loop_stall_limit(self) -> float:
+        """The stall limit in force, s: the given one, else the profile's."""
+        return self.timing.stall_limit if self.stall_limit is None else float(self.stall_limit)
 
     @property
     def friction_compensated(self) -> bool:

@@ -18,10 +18,23 @@ Checks, per joint, in order (the first that fires is the stop):
    arm, and so do :data:`IMPLAUSIBLE_PER_WINDOW` in one :data:`REPLY_WINDOW` between good ones (CAN's
    own CRC makes a corrupt frame rare: these come from another node). →
    :class:`~akarm.ImplausibleFeedback`.
-4. **Feedback age** over the joint's feedback timeout. → :class:`~akarm.FeedbackTimeout`.
-5. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
-6. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
-   minus the measured position over the joint's limit for three cycles in a row; or a command
+4. **A silent joint**, judged on what it was actually sent, never on the clock alone: a MIT joint
+   that answered none of its last ``K`` commands (``K`` = its feedback timeout in loop periods, 10
+   at 500 Hz with the default 20 ms), a servo joint that sent no status frame during its feedback
+   timeout *of loop time* (the time the loop ran, a period per cycle at most). A gap in which the
+   loop itself did not run (this process stopped or starved) sends no command and counts no time:
+   it is the controller's own (:class:`~akarm.LoopStall`, decided by the controller), not the
+   joint's. → :class:`~akarm.FeedbackTimeout`, naming the likelier cause first: the joint (its
+   power, cable, ID) when others on its bus answer, the bus or the motors' supply when none does.
+5. **A driver reset** (a brown-out): a MIT driver that answers, but reports less than a quarter of
+   the torque the law it was sent asks for, where that is at least a tenth of the joint's torque
+   limit, :data:`RESET_REPLIES` replies in a row (a driver out of motor mode reports no torque). →
+   :class:`~akarm.DriverReset`.
+6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
+7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
+   minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
+   replies in a row; one that stopped answering is the watchdog's, whose stop names the silence, not
+   the tracking its old reading would show); or a command
    saturated at the motor's torque range for :data:`SATURATION_TIME` while the joint is more than
    ``stuck_travel`` from it (an undersized motor: it cannot hold the arm, whatever the error); or a
    reading that repeats while the command has moved on by more than ``stuck_travel``, is more than
@@ -46,6 +59,7 @@ from dataclasses import dataclass
 from akarm.config import JointConfig
 from akarm.control.joints import Joint
 from akarm.errors import (
+    DriverReset,
     FeedbackTimeout,
     ForeignTraffic,
     ImplausibleFeedback,
@@ -67,6 +81,16 @@ IMPLAUSIBLE_PER_WINDOW = 10
 #: s a joint's command may stay at the motor's torque range while the joint is off its target (a move
 #: that asks a little too much saturates for part of its acceleration; a motor that cannot hold, for good).
 SATURATION_TIME = 0.5
+#: Replies in a row reporting no torque where the law asks for some that stop the arm (a driver reset).
+RESET_REPLIES = 3
+#: The share of a joint's torque limit the law must ask for before a reply without it counts.
+RESET_ASK = 0.1
+#: A reply "has no torque" when it reports less than this share of the motor's torque range (a driver
+#: out of motor mode reports its current sensor's offset: a few tenths of a percent; the simulator 0)
+#: and less than :data:`RESET_SHARE` of what the law asks for.
+RESET_NONE = 0.005
+#: See :data:`RESET_NONE`.
+RESET_SHARE = 0.25
 
 _FIX_FOREIGN = ("stop the other program (akarm disable or akarm status from another terminal count too), or give "
                 "each motor its own CAN ID; then enable again")
@@ -133,17 +157,35 @@ class Supervisor:
         armed_at: clock time (s) from which foreign frames stop the arm (:meth:`arm`).
     """
 
-    def __init__(self, joints: Sequence[Joint], guards: Sequence[Guard], *, implausible_limit: int = 3) -> None:
+    def __init__(self, joints: Sequence[Joint], guards: Sequence[Guard], *, period: float,
+                 implausible_limit: int = 3) -> None:
         if len(joints) != len(guards):
             raise ValueError("one guard per joint")
         if implausible_limit < 1:
             raise ValueError("implausible_limit must be at least 1")
+        if not period > 0:
+            raise ValueError("period must be positive")
         self.joints = list(joints)
         self.guards = list(guards)
         self.implausible_limit = implausible_limit
+        self.period = period
         n = len(self.joints)
         self.armed_at = math.inf
         self._answering = [i for i, j in enumerate(self.joints) if j.answers_commands]
+        self._mit = [j.answers_commands for j in self.joints]
+        # the watchdog: per joint the frames received when last seen, and then the frames sent (MIT) or
+        # the loop time (servo); the loop time counts a period per check at most (a stall is not a joint's)
+        self._received = [0] * n
+        self._sent_then = [0] * n
+        self._ran = 0.0
+        self._ran_then = [0.0] * n
+        self._last_check = math.inf
+        # the brown-out check: the torque a law must ask for before a reply without it counts, N·m
+        self._ask = [RESET_ASK * j.config.limits.torque for j in self.joints]
+        self._t_max = [j.motor.t_max for j in self.joints]
+        self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
+        self._no_torque = [0] * n
+        self._reset: DriverReset | None = None
         self._over = [0] * n
         self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
@@ -151,13 +193,15 @@ class Supervisor:
         self._last_value = [math.nan] * n
         self._des_at_value = [0.0] * n
         self._window_end = math.inf
-        self._window_start: list[tuple[int, int]] = []
+        self._window_start: list[tuple[int, int, int]] = []
         self._rejected_start = [0] * n
         self._refresh()
 
     def _refresh(self) -> None:
         g = self.guards
         self._timeouts = [x.feedback_timeout for x in g]
+        # MIT: the commands a joint may leave unanswered, its timeout in loop periods (at least 2)
+        self._unanswered = [max(2, round(x.feedback_timeout / self.period)) for x in g]
         self._max_temp = [x.max_temperature for x in g]
         self._following = [x.following_error for x in g]
         self._stuck = [x.stuck_travel for x in g]
@@ -174,9 +218,18 @@ class Supervisor:
         self._over = [0] * n
         self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
-        self._window_end = now + REPLY_WINDOW
-        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
-        self._rejected_start = [j.rejected for j in self.joints]
+        self._received = [j.frames_received for j in self.joints]
+        self._sent_then = [j.frames_sent for j in self.joints]
+        self._start_window(now)
+        self._ran = 0.0
+        self._ran_then = [0.0] * n
+        self._last_check = now
+        self._no_torque = [0] * n
+
+    def unanswered(self, index: int) -> int:
+        """Commands sent to joint ``index`` since the last check at which it had answered (MIT; 0 for servo)."""
+        j = self.joints[index]
+        return j.frames_sent - self._sent_then[index] if j.answers_commands else 0
 
     def disarm(self) -> None:
         """The arm is no longer powered: nothing is checked until :meth:`arm`."""
@@ -206,16 +259,24 @@ class Supervisor:
         stop = self._check_joints(now)
         if stop is None and q_des is not None and tracking is not None:
             stop = self._check_following(now, q_des, tracking, saturated)
+        if stop is None and self._reset is not None:
+            stop = self._reset
         if stop is None and now >= self._window_end:
             stop = self._check_replies(now)
         if stop is not None:
             stop.at = now
         return stop
 
-    def _check_joints(self, now: float) -> SafetyStop | None:
+    def _check_joints(self, now: float) -> SafetyStop | None:  # noqa: C901 (one pass over the joints: the hot path)
         armed = self.armed_at
         limit = self.implausible_limit
-        for j, timeout, max_temp in zip(self.joints, self._timeouts, self._max_temp, strict=True):
+        # the loop time since the last check: a period at most (a longer gap is a stall of the loop)
+        dt = now - self._last_check
+        self._last_check = now
+        ran = self._ran = self._ran + (dt if 0.0 < dt < self.period else self.period if dt > 0.0 else 0.0)
+        received, sent_then, ran_then, no_torque = self._received, self._sent_then, self._ran_then, self._no_torque
+        reset: DriverReset | None = None  # decided last: a joint with a frozen reading is the following checks'
+        for i, j in enumerate(self.joints):
             if j.foreign_at >= armed:
                 return self.foreign_stop(j, j.foreign or "command")
             s = j.state
@@ -234,23 +295,94 @@ class Supervisor:
                     value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
-            age = now - s.stamp
-            if age > timeout:
-                return FeedbackTimeout(
-                    f"no feedback for {age * 1e3:.0f} ms (limit {timeout * 1e3:.0f} ms); the arm was damped and "
-                    "disabled", age=age, limit=timeout, joint=j.name,
-                    fix="check the motor's power and CAN wiring, its CAN ID, the bit rate, and the bus load")
-            if s.temperature is not None and s.temperature > max_temp:
+            r = j.frames_received
+            if r != received[i]:  # it answered since the last check
+                received[i] = r
+                sent_then[i] = j.frames_sent
+                ran_then[i] = ran
+                if self._mit[i]:
+                    # the reply answers the last command: a driver in motor mode reports the torque its law
+                    # asks for at the state it reports; one out of it (reset by a brown-out) reports none
+                    tau = j.cmd_kd * (j.cmd_velocity - s.velocity) + j.cmd_torque
+                    kp = j.cmd_kp
+                    if kp:
+                        tau += kp * (j.cmd_position - s.position)
+                    t_max = self._t_max[i]
+                    tau = t_max if tau > t_max else -t_max if tau < -t_max else tau
+                    mag = tau if tau >= 0.0 else -tau
+                    got = s.torque if s.torque >= 0.0 else -s.torque
+                    if mag >= self._ask[i] and not (got >= RESET_SHARE * mag or got > self._none[i]):
+                        no_torque[i] += 1
+                        if no_torque[i] >= RESET_REPLIES and reset is None:
+                            reset = self._reset_stop(j, tau, s.torque)
+                    else:
+                        no_torque[i] = 0
+            elif self._mit[i]:
+                if j.frames_sent - sent_then[i] >= self._unanswered[i]:
+                    return self._silent_stop(i, now)
+            elif ran - ran_then[i] > self._timeouts[i]:
+                return self._silent_stop(i, now)
+            if s.temperature is not None and s.temperature > self._max_temp[i]:
+                max_temp = self._max_temp[i]
                 return OverTemperature(
                     f"temperature {s.temperature:.0f} °C is above the limit {max_temp:.0f} °C; the arm was damped "
                     "and disabled", temperature=s.temperature, limit=max_temp, joint=j.name,
                     fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML")
+        self._reset = reset
         return None
 
-    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],
+    def _silent_stop(self, i: int, now: float) -> FeedbackTimeout:
+        """The stop for joint ``i``, silent: the likelier cause first (the motor when others on its bus
+        answer, the bus or the motors' supply when none does)."""
+        j = self.joints[i]
+        timeout = self._timeouts[i]
+        age = now - j.state.stamp
+        if self._mit[i]:
+            k = j.frames_sent - self._sent_then[i]
+            what = (f"no reply to its last {k} commands ({k * self.period * 1e3:.0f} ms of loop time; limit "
+                    f"{timeout * 1e3:.0f} ms)")
+        else:
+            what = (f"no status frame for {(self._ran - self._ran_then[i]) * 1e3:.0f} ms of loop time (limit "
+                    f"{timeout * 1e3:.0f} ms)")
+        others = [k for k, o in enumerate(self.joints) if o.bus == j.bus and k != i]
+        answering = [self.joints[k].name for k in others if self._answers(k)]
+        if answering:
+            cause = (f"while {', '.join(answering)} on bus {j.bus!r} answer: the likelier cause is this motor: its "
+                     "power, its CAN cable or connector, its CAN ID")
+            fix = ("check this motor's power and CAN connector and its CAN ID (akarm scan); if it answers again, "
+                   "enable the arm")
+        elif others:
+            cause = (f"and no joint on bus {j.bus!r} answers: the likelier cause is the bus (the adapter, the cable "
+                     "to the chain, its termination) or the motors' power supply")
+            fix = "check the motors' power supply, the CAN adapter (ip link, akarm scan), the cable and termination"
+        else:
+            cause = (f"(the only joint on bus {j.bus!r}): the likelier cause is its power, the CAN adapter or the "
+                     "cable")
+            fix = "check the motor's power, the CAN adapter (ip link, akarm scan), the cable, termination and CAN ID"
+        return FeedbackTimeout(f"{what}, {cause}; the arm was damped and disabled", age=age, limit=timeout,
+                               joint=j.name, fix=fix)
+
+    def _answers(self, k: int) -> bool:
+        """Whether joint ``k`` answers now (at most two commands, or two periods of loop time, unanswered)."""
+        j = self.joints[k]
+        if self._mit[k]:
+            return j.frames_sent - self._sent_then[k] <= 2
+        return self._ran - self._ran_then[k] <= max(2.0 * self.period, self._timeouts[k] / 3.0)
+
+    def _reset_stop(self, j: Joint, expected: float, reported: float) -> DriverReset:
+        return DriverReset(
+            f"its driver answers but reports {reported:+.2f} N·m where the law it was sent asks for {expected:+.2f} "
+            f"N·m, {RESET_REPLIES} replies in a row: it is out of motor mode, the likelier cause a reset (a brown-out: "
+            "a dip in its supply voltage, a loose power connector), else another program that made it leave without a "
+            "frame on this bus; the arm was damped and disabled", expected=expected, reported=reported, joint=j.name,
+            fix="check the motor's power supply and connector (its voltage under load); enable the arm again once "
+                "it is sound (a driver that was reset may have lost its turn count: check the joint's position)")
+
+    def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],  # noqa: C901
                          saturated: Sequence[bool] | None) -> SafetyStop | None:
         over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
+        mit = self._mit
         for i, j in enumerate(self.joints):
             qd = q_des[i]
             if not tracking[i]:
@@ -260,12 +392,16 @@ class Supervisor:
                 continue
             s = j.state
             q = s.position
+            new = s.stamp != last_stamp[i] or not mit[i]  # (MIT: a reply to the last command)
             if not tracked[i]:  # tracking starts (again): the reading's history starts here
                 tracked[i] = True
+                new = True
                 last_stamp[i], last_value[i], des_at[i] = s.stamp, q, qd
             e = qd - q
             limit = self._following[i]
             if e > limit or e < -limit:
+                if not new:  # no reply to the last command: the watchdog's to judge
+                    continue
                 over[i] += 1
                 if over[i] >= FOLLOWING_CYCLES:
                     return TrackingError(
@@ -321,14 +457,22 @@ class Supervisor:
                         "distinct IDs")
         for k, i in enumerate(self._answering):
             j = self.joints[i]
-            r0, s0 = self._window_start[k]
+            r0, s0, owed = self._window_start[k]
             replies, sent = j.frames_received - r0, j.frames_sent - s0
-            if replies > sent + max(3, sent // 20):
-                return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s")
-        self._window_end = now + REPLY_WINDOW
-        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent) for i in self._answering]
-        self._rejected_start = [j.rejected for j in self.joints]
+            if replies > sent + owed + max(3, sent // 20):
+                return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s"
+                                         + (f" and {owed} unanswered before" if owed else ""))
+        self._start_window(now)
         return None
+
+    def _start_window(self, now: float) -> None:
+        """The counts a REPLY_WINDOW starts from: per answering joint, the replies and commands so far and the
+        commands still unanswered (their replies may come in this window: a driver or simulator that paused,
+        then answers what it was sent meanwhile)."""
+        self._window_end = now + REPLY_WINDOW
+        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent, self.unanswered(i))
+                              for i in self._answering]
+        self._rejected_start = [j.rejected for j in self.joints]
 
     @staticmethod
     def foreign_stop(j: Joint, kind: str, detail: str = "") -> ForeignTraffic:

@@ -63,6 +63,17 @@ class ControllerView:
         return self._controller.ramp.scale
 
     @property
+    def plan_lag(self) -> float:
+        """s the plan's time trails the clock: the slots the loop missed (it waits for the motors rather
+        than jump ahead after a stall)."""
+        return self._controller.plan_lag
+
+    @property
+    def stall_limit(self) -> float:
+        """s the loop may fail to run and resume without a stop (longer: :class:`~akarm.LoopStall`)."""
+        return self._controller.stall_limit
+
+    @property
     def guards(self) -> tuple[Guard, ...]:
         """The supervisor's limits per joint: feedback timeout, temperature, following error, stuck travel."""
         return tuple(self._controller.supervisor.guards)

@@ -15,16 +15,20 @@ slower limits at the joints' own (:meth:`Planner.settle`).
 
 from __future__ import annotations
 
+import bisect
+import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import ruckig
 
 from akarm.errors import ArgumentError, LimitError, TrajectoryError
 
-__all__ = ["JointLimits", "Plan", "Planner", "Segment", "State", "Vector", "position_extrema"]
+__all__ = ["Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted", "State", "Timed", "Vector",
+           "position_extrema"]
 
 #: Joint values in config order: a list or an array.
 Vector = Sequence[float] | np.ndarray
@@ -157,35 +161,72 @@ class Timed:
         """Desired (q rad, dq rad/s, ddq rad/s²) at absolute time ``t`` (s), config order."""
         raise NotImplementedError
 
+    def shifted(self, dt: float) -> Timed:
+        """The same motion ``dt`` s later (earlier if negative), made in constant time: the controller
+        starts a plan from a state of rest later than it was planned for, without planning it again."""
+        return self if dt == 0.0 else Shifted(self, dt)
+
+
+class Shifted(Timed):
+    """``plan`` run ``dt`` s later (:meth:`Timed.shifted`): the same states, each ``dt`` s later. Its
+    other attributes are the plan's (those that are not times: a path's samples, its speed)."""
+
+    def __init__(self, plan: Timed, dt: float) -> None:
+        self.plan = plan
+        self.dt = dt
+        self.t0 = plan.t0 + dt
+        self.t_end = plan.t_end + dt
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "plan":  # not set yet (a copy being made): not the plan's
+            raise AttributeError(name)
+        return getattr(self.plan, name)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.plan.sample(t - self.dt)
+
+    def shifted(self, dt: float) -> Timed:
+        return self if dt == 0.0 else Shifted(self.plan, self.dt + dt)
+
 
 class Plan(Timed):
-    """A chain of segments, each starting when the previous one ends; holds the last state after."""
+    """A chain of segments, each starting when the previous one ends; holds the last state after.
+
+    Sampling finds the segment by bisection (a plan of thousands of segments costs the loop no more
+    than one of a few). A plan :meth:`shifted` in time shares its segments, whose own times are then
+    :attr:`offset` s earlier than the plan's.
+    """
 
     def __init__(self, segments: list[Segment], waypoints: int = 0) -> None:
         if not segments:
             raise ValueError("a plan needs at least one segment")
         self.segments = segments
+        self.offset = 0.0
         self.t0 = segments[0].t0
         self.t_end = segments[-1].t0 + segments[-1].duration
         self.waypoints = waypoints
+        self._ends = [s.t0 + s.duration for s in segments]
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Desired (q, dq, ddq) at absolute time ``t`` as arrays."""
         segs = self.segments
-        seg = segs[-1]
-        if len(segs) > 1:
-            for s in segs:
-                if t < s.t0 + s.duration:
-                    seg = s
-                    break
-        p, v, a = seg.at(t)
+        u = t - self.offset
+        k = bisect.bisect_right(self._ends, u) if len(segs) > 1 else 0
+        p, v, a = segs[min(k, len(segs) - 1)].at(u)
         return np.asarray(p), np.asarray(v), np.asarray(a)
+
+    def shifted(self, dt: float) -> Plan:
+        if dt == 0.0:
+            return self
+        out = copy.copy(self)
+        out.offset, out.t0, out.t_end = self.offset + dt, self.t0 + dt, self.t_end + dt
+        return out
 
 
 class Chain(Timed):
     """Plans run one after the other (each must start where and when the previous one ends)."""
 
-    def __init__(self, plans: list) -> None:
+    def __init__(self, plans: list[Timed]) -> None:
         self.plans = plans
         self.t0 = plans[0].t0
         self.t_end = plans[-1].t_end
@@ -197,6 +238,9 @@ class Chain(Timed):
             if t < p.t_end:
                 return p.sample(t)
         return self.plans[-1].sample(t)
+
+    def shifted(self, dt: float) -> Timed:
+        return self if dt == 0.0 else Chain([p.shifted(dt) for p in self.plans])
 
 
 class Planner:

@@ -100,6 +100,7 @@ class SimulatedDriver:
         self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
         self._frozen_control = False
+        self._back_at = _INF  # a Brownout's end: the driver starts again then
         self._next_timer = _INF
 
     # ------------------------------------------------------------------ faults
@@ -138,7 +139,20 @@ class SimulatedDriver:
             p_raw, _ = self._state()
             self._frozen = (self._reported_position(p_raw), p_raw)
             self._frozen_control = fault.affects_control
-        elif isinstance(fault, _f.FaultAfter):
+        elif isinstance(fault, _f.Blocked):
+            self._host.set_blocked(self.name, True)
+        elif isinstance(fault, _f.SERIAL):
+            self._serial_fault(fault)
+        elif not self._start_timed(fault, t):
+            raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
+                             fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
+                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked, Brownout; on a serial "
+                                 "port CorruptBytes, PartialFrame, BadCrc, SilentPort")
+        self._faults.append(fault)
+
+    def _start_timed(self, fault: _f.Fault, t: float) -> bool:
+        """Start a fault that acts at times of its own (from ``t``); False: ``fault`` is not one."""
+        if isinstance(fault, _f.FaultAfter):
             self._fault_after.append((t + fault.after, int(fault.code)))
             self._reschedule(t)
         elif isinstance(fault, _f.ForgedReply):
@@ -148,16 +162,11 @@ class SimulatedDriver:
             self._reschedule(t)
         elif isinstance(fault, _f.RogueExit):
             self._rogue_exit(t, fault.on_bus)
-        elif isinstance(fault, _f.Blocked):
-            self._host.set_blocked(self.name, True)
-        elif isinstance(fault, _f.SERIAL):
-            self._serial_fault(fault)
+        elif isinstance(fault, _f.Brownout):
+            self._brown_out(t, fault.seconds)
         else:
-            raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
-                             fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
-                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked; on a serial port "
-                                 "CorruptBytes, PartialFrame, BadCrc, SilentPort")
-        self._faults.append(fault)
+            return False
+        return True
 
     def _serial_fault(self, fault: _f.Fault) -> None:
         """Start a fault of the serial line (:data:`akarm.sim.faults.SERIAL`): only a driver on a serial
@@ -170,6 +179,7 @@ class SimulatedDriver:
     def clear_faults(self) -> None:
         """End every fault. A motor whose power was lost starts again as after power-up."""
         was_off = not self._powered
+        self._back_at = _INF
         self._faults.clear()
         self._drop = 0.0
         self._delay = 0.0
@@ -227,6 +237,8 @@ class SimulatedDriver:
 
     def _timers(self, t: float) -> None:
         """Run whatever is due at time ``t`` (s); subclasses extend and call this."""
+        if t + 1e-9 >= self._back_at:
+            self._powered_again(t)
         if self._fault_after:
             due = [c for (ta, c) in self._fault_after if ta <= t]
             if due:
@@ -238,7 +250,23 @@ class SimulatedDriver:
             self._host.transmit(self.bus, aid, data, ext, t)  # another node's frame: no drops, no delay
 
     def _timer_deadlines(self) -> list[float]:
-        return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]]
+        return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]] + [self._back_at]
+
+    def _brown_out(self, t: float, seconds: float) -> None:
+        """The supply dips: off (limp, deaf and mute) from ``t`` for ``seconds``, then as after power-up."""
+        self._unplugged = True
+        self._powered = False
+        self._power_off()
+        self._back_at = t + seconds
+        self._reschedule(t)
+
+    def _powered_again(self, t: float) -> None:
+        """A brown-out ends: the driver starts as after power-up (out of motor mode) and answers again."""
+        self._back_at = _INF
+        self._unplugged = False
+        self._powered = True
+        self._faults = [f for f in self._faults if not isinstance(f, _f.Brownout)]
+        self._power_on()
 
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         """A reply (or status frame) in this driver's name at motor ``position`` (rad): (ID, data, extended)."""

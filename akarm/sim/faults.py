@@ -26,6 +26,7 @@ __all__ = [
     "SERIAL",
     "BadCrc",
     "Blocked",
+    "Brownout",
     "CorruptBytes",
     "DelayReplies",
     "DropReplies",
@@ -181,6 +182,24 @@ class RogueExit(Fault):
 
 
 @dataclass(frozen=True)
+class Brownout(Fault):
+    """The driver's supply dips and it resets: for ``seconds`` it is off (output limp, no frames in or
+    out), then it starts as after power-up, out of motor mode (MIT: disabled, stored command zero; servo:
+    released), and answers again. Nothing of this is seen on the bus but the silence.
+
+    Attributes:
+        seconds: s the driver is off, > 0.
+    """
+
+    seconds: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.seconds, int | float) and 0.0 < self.seconds < math.inf):
+            raise AkarmError(f"Brownout time {self.seconds!r} s is not a positive number",
+                             fix="give how long the driver is off, e.g. Brownout(0.01)")
+
+
+@dataclass(frozen=True)
 class Blocked(Fault):
     """The joint is mechanically blocked where it is (an obstacle, a jammed gear): it stops at once and
     moves no more, whatever torque its motor applies, until the fault is cleared."""
@@ -265,6 +284,7 @@ KINDS: dict[str, str] = {
     "partial": "partial[:FRACTION[,SEED]]   serial port: replies are cut short",
     "bad-crc": "bad-crc[:FRACTION[,SEED]]   serial port: replies arrive with a wrong CRC",
     "silent": "silent                 serial port: the motor sends nothing (but hears commands)",
+    "brownout": "brownout:SECONDS       the driver resets: off that long, then back out of motor mode",
 }
 
 
@@ -283,8 +303,9 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
 
     Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
     ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``,
-    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``; on a
-    serial port ``elbow:corrupt``, ``elbow:partial:0.5``, ``elbow:bad-crc:1,3``, ``elbow:silent``.
+    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``,
+    ``elbow:brownout:0.01``; on a serial port ``elbow:corrupt``, ``elbow:partial:0.5``, ``elbow:bad-crc:1,3``,
+    ``elbow:silent``.
 
     Raises:
         AkarmError: the text is not a fault; the message lists the kinds.
@@ -341,6 +362,10 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if args:
                 raise _bad(spec, "silent takes no argument")
             return joint, SilentPort()
+        if kind == "brownout":
+            if len(args) != 1:
+                raise _bad(spec, "brownout needs a time in seconds")
+            return joint, Brownout(float(args[0]))
     except ValueError as e:
         raise _bad(spec, str(e)) from None
     raise _bad(spec, f"unknown kind {kind!r}")

@@ -12,6 +12,7 @@ from dataclasses import replace
 import pytest
 
 from akarm import (
+    DriverReset,
     FeedbackTimeout,
     ForeignTraffic,
     ImplausibleFeedback,
@@ -33,6 +34,7 @@ from akarm.control.safety import (
     default_following_error,
     default_stuck_travel,
 )
+from akarm.protocol import servo
 
 DT = 0.002  # a 500 Hz loop
 
@@ -59,10 +61,23 @@ def fresh(js: list[MitJoint], now: float, positions: list[float] | None = None) 
 def rig(planar2: RobotConfig) -> tuple[list[MitJoint], Supervisor]:
     js = joints_of(planar2)
     guards = [Guard(0.02, 80.0, 0.2, 0.03), Guard(0.02, 80.0, 0.2, 0.03)]
-    sup = Supervisor(js, guards)
+    sup = Supervisor(js, guards, period=DT)
     fresh(js, 0.0)
     sup.arm(0.0)
     return js, sup
+
+
+def cycle(js: list[MitJoint], sup: Supervisor, t: float, answering: list[bool], torque: float = 0.0):
+    """One cycle at ``t`` as the loop runs it: the replies to the last commands (those ``answering``),
+    the supervisor's check, then a command to every joint (the law: hold 0 with kp 40, ``torque``)."""
+    for j, a in zip(js, answering, strict=True):
+        if a:
+            j.handle_reply(j.codec.encode_reply(j.can_id, 0.0, 0.0, torque, 30.0, 0), t)
+    stop = sup.check(t)
+    for j in js:
+        j.command(0.0, 0.0, 40.0, 1.0, torque)
+        j.sent()
+    return stop
 
 
 def test_all_quiet_means_no_stop(rig) -> None:
@@ -73,13 +88,106 @@ def test_all_quiet_means_no_stop(rig) -> None:
         assert sup.check(t, [0.0, 0.0], [True, True], [False, False]) is None
 
 
-def test_feedback_age_over_the_timeout_stops_naming_the_joint_age_and_limit(rig) -> None:
+def test_a_joint_that_answers_none_of_its_last_commands_stops_naming_the_motor_first(rig) -> None:
     js, sup = rig
-    reply(js[0], 0.0, 0.010)
-    assert sup.check(0.020) is None                            # the elbow's is 20 ms old: at the limit
-    e = sup.check(0.0201)
-    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow" and e.limit == 0.02
-    assert e.age == pytest.approx(0.0201) and e.at == 0.0201
+    assert cycle(js, sup, DT, [True, True]) is None
+    # the elbow answers none of the commands from here on: 20 ms at 500 Hz is 10 of them
+    for k in range(2, 11):
+        assert cycle(js, sup, k * DT, [True, False]) is None, k   # k - 1 unanswered
+    e = cycle(js, sup, 11 * DT, [True, False])
+    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow" and e.limit == 0.02 and e.at == 11 * DT
+    assert "no reply to its last 10 commands" in str(e)
+    assert str(e).index("this motor") < str(e).index("damped")  # the shoulder answers: the motor is the cause
+
+
+def test_a_bus_on_which_nobody_answers_names_the_bus_first(rig) -> None:
+    js, sup = rig
+    for k in range(1, 11):
+        assert cycle(js, sup, k * DT, [False, False]) is None
+    e = cycle(js, sup, 11 * DT, [False, False])
+    assert isinstance(e, FeedbackTimeout) and "no joint on bus 'arm' answers" in str(e)
+    assert "the bus (the adapter" in str(e) and "power supply" in e.fix
+
+
+def test_a_gap_in_which_the_loop_did_not_run_is_not_a_joint_s_silence(rig) -> None:
+    js, sup = rig
+    assert cycle(js, sup, DT, [True, True]) is None
+    # the loop stalls for 150 ms (no cycle, so no command): the replies to the last ones wait in the queue
+    t = DT + 0.150
+    assert cycle(js, sup, t, [True, True]) is None
+    assert js[1].state.age(t) == 0.0
+    # and a joint that is silent from then on is still stopped after its 10 commands, not sooner
+    for k in range(1, 10):
+        assert cycle(js, sup, t + k * DT, [True, False]) is None
+    assert isinstance(cycle(js, sup, t + 10 * DT, [True, False]), FeedbackTimeout)
+
+
+def test_a_servo_joint_is_silent_for_its_timeout_of_loop_time(planar2: RobotConfig) -> None:
+    cfg = replace(planar2, joints=tuple(replace(j, mode="servo", status_rate_hz=50.0) for j in planar2.joints))
+    js = [make_joint(i, j) for i, j in enumerate(cfg.joints)]
+    sup = Supervisor(js, [Guard(0.06, 80.0), Guard(0.06, 80.0)], period=DT)
+
+    def status(j, t: float) -> None:
+        aid, data = servo.encode_status(j.can_id, 0.0, 0.0, 0.0, 30, 0)
+        j.take(aid, data, t)
+
+    for j in js:
+        status(j, 0.0)
+    sup.arm(0.0)
+    t = 0.0
+    for k in range(1, 21):  # 40 ms of loop time, a status frame of each every 20 ms
+        t = k * DT
+        if k % 10 == 0:
+            status(js[0], t)
+            status(js[1], t)
+        assert sup.check(t) is None
+    t += 0.5  # the loop stalls for half a second: a period of loop time, no more
+    assert sup.check(t) is None
+    for k in range(1, 40):  # the shoulder goes on; the elbow sends nothing more
+        t += DT
+        if k % 10 == 0:
+            status(js[0], t)
+        e = sup.check(t)
+        if e is not None:
+            break
+    # its last frame came just before the stall: 60 ms of loop time are the stall's one period and 29 more
+    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow" and k in (29, 30), k
+    assert e.age > 0.5 and "no status frame for 60 ms of loop time" in str(e)
+
+
+def test_a_driver_that_reports_no_torque_where_its_law_asks_for_some_was_reset(rig) -> None:
+    js, sup = rig
+    limit = js[1].config.limits.torque
+    ask = 0.1 * limit
+    t = DT
+    assert cycle(js, sup, t, [True, True], torque=ask * 0.9) is None
+    for _ in range(10):  # the law asks for less than a tenth of the limit: a missing torque is not judged
+        t += DT
+        for j in js:
+            j.handle_reply(j.codec.encode_reply(j.can_id, 0.0, 0.0, 0.0, 30.0, 0), t)
+        assert sup.check(t) is None
+        for j in js:
+            j.command(0.0, 0.0, 40.0, 1.0, ask * 0.9)
+            j.sent()
+    for j in js:  # now a tenth of the limit, which comes: fine
+        j.command(0.0, 0.0, 40.0, 1.0, ask * 1.1)
+    for _ in range(5):
+        t += DT
+        assert cycle(js, sup, t, [True, True], torque=ask * 1.1) is None
+    # the elbow's driver reports none of it, three replies in a row
+    for k in range(3):
+        t += DT
+        js[0].handle_reply(js[0].codec.encode_reply(js[0].can_id, 0.0, 0.0, ask * 1.1, 30.0, 0), t)
+        js[1].handle_reply(js[1].codec.encode_reply(js[1].can_id, 0.0, 0.0, 0.0, 30.0, 0), t)
+        e = sup.check(t)
+        for j in js:
+            j.command(0.0, 0.0, 40.0, 1.0, ask * 1.1)
+            j.sent()
+        if k < 2:
+            assert e is None
+    assert isinstance(e, DriverReset) and e.joint == "elbow"
+    assert e.expected == pytest.approx(ask * 1.1, abs=0.05) and abs(e.reported) < 0.02  # (kd · a velocity step)
+    assert "brown-out" in str(e) and str(e).index("out of motor mode") < str(e).index("another program")
 
 
 def test_a_motor_error_code_and_a_temperature_stop(rig) -> None:
@@ -173,6 +281,24 @@ def test_following_error_over_the_limit_for_three_cycles(rig) -> None:
             return
 
 
+def test_a_silent_joint_s_old_reading_is_the_watchdog_s_not_a_tracking_error(rig) -> None:
+    """The elbow stops answering while its command is 0.5 rad from its last reading: its stop is the
+    silence (after its 10 commands), not the following error of a reading it no longer sends."""
+    js, sup = rig
+    e = None
+    for k in range(1, 30):
+        t = k * DT
+        reply(js[0], 0.0, t)
+        if k == 1:
+            reply(js[1], 0.0, t)
+        e = sup.check(t, [0.0, 0.5], [True, True])
+        for j in js:
+            j.frames_sent += 1
+        if e is not None:
+            break
+    assert isinstance(e, FeedbackTimeout) and e.joint == "elbow", e
+
+
 def test_a_joint_that_does_not_track_is_not_checked(rig) -> None:
     js, sup = rig
     for k in range(1, 10):
@@ -253,6 +379,38 @@ def test_more_replies_than_frames_sent_is_a_second_motor_on_the_id(rig) -> None:
             break
     assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
     assert t == pytest.approx(REPLY_WINDOW, abs=DT)
+
+
+def test_replies_owed_from_before_a_window_are_not_a_second_motor(planar2: RobotConfig) -> None:
+    """A driver (or a simulator) that pauses across the window's end, then answers every command it
+    was sent meanwhile: more replies than commands in the new window, none more than it was sent."""
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.2, 80.0, 0.2, 0.03)] * 2, period=DT)  # 100 commands unanswered at most
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    owed = 0
+    k = 1
+    while k * DT < 2.5 * REPLY_WINDOW:
+        t = k * DT
+        paused = abs(t - REPLY_WINDOW) < 40 * DT  # 80 commands unanswered, 40 of them before the window's end
+        if paused:
+            owed += 1
+        else:
+            for _ in range(owed):
+                reply(js[1], 0.0, t)
+            owed = 0
+        sup_stop = cycle(js, sup, t, [True, not paused])
+        assert sup_stop is None, (t, sup_stop)
+        k += 1
+    # more replies than it was ever sent are still a twin's
+    for _ in range(40):
+        reply(js[1], 0.0, t)
+    k += 1
+    e = None
+    while e is None and k * DT < 4 * REPLY_WINDOW:
+        e = cycle(js, sup, k * DT, [True, True])
+        k += 1
+    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
 
 
 def test_default_following_errors(planar2: RobotConfig) -> None:

@@ -156,3 +156,12 @@ class SteppedClock:
     def sleep(self, dt: float) -> None:
         """Advance by ``dt`` seconds."""
         self.sleep_until(self._t + dt)
+
+    def stall(self, dt: float) -> None:
+        """Advance by ``dt`` seconds with no joined loop running a cycle on the way (the simulators
+        step): the controlling process stopped, as a long GC, SIGSTOP or a loaded machine stops it.
+        The loops resume at the next advance, late, as they would on a real clock."""
+        t = self._t + dt
+        for stepper in list(self._steppers):
+            stepper(t)
+        self._t = t

@@ -20,7 +20,7 @@ from ..conftest import command_steps
 
 def stall(arm, seconds: float) -> None:
     """The controlling process stops for ``seconds``: the simulated arm goes on, no cycle runs."""
-    arm.clock.sleep(seconds)
+    arm.clock.stall(seconds)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -213,10 +213,10 @@ def test_a_brownout_is_silent_then_the_driver_answers_out_of_motor_mode(lockstep
         d = sim.joint("elbow")
         sent = d.frames_sent
         d.inject(faults.Brownout(0.05))
-        arm.clock.sleep(0.04)
+        arm.clock.stall(0.04)
         assert d.frames_sent == sent and not d.enabled and not d.powered
         assert d.faults == (faults.Brownout(0.05),)
-        arm.clock.sleep(0.02)
+        arm.clock.stall(0.02)
         assert d.powered and not d.enabled and d.faults == () and d.stored_command.kp == 0.0
 
 

@@ -17,11 +17,11 @@ def test_every_example_is_tested() -> None:
 
 
 def test_readme_quick_start_is_what_ci_runs() -> None:
-    assert 'python3 -m venv .venv && .venv/bin/pip install -e ".[test,plot]" && .venv/bin/akarm demo' in README
+    assert 'python3 -m venv .venv && .venv/bin/pip install -e ".[test,plot,data]" && .venv/bin/akarm demo' in README
     assert "\n.venv/bin/python -m pytest\n" in README
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     assert "\n.venv/bin/python -m pytest || exit 1" in ci
-    assert '-e ".[test,plot]"' in ci
+    assert '-e ".[test,plot,data]"' in ci
     # the second command, the system tier, is documented and CI runs it too
     assert "\n.venv/bin/python -m pytest tests/system" in README
     assert "\n.venv/bin/python -m pytest tests/system " in ci

@@ -33,6 +33,7 @@ from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
 from akarm.control.modes import Mode
 from akarm.errors import AkarmError, ArgumentError, StateError
+from akarm.server.snapshot import Snapshot, take
 from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
@@ -339,6 +340,16 @@ class ArmServerCore:
 
     def _op_state(self) -> dict[str, Any]:
         return self._state_doc()
+
+    def snapshot(self) -> Snapshot:
+        """The arm now, for a live view (:mod:`akarm.server.snapshot`): read only, any thread."""
+        return take(self.arm, mode=self.mode)
+
+    def _op_snapshot(self, **args: Any) -> dict[str, Any]:
+        if args:
+            raise ArgumentError(f"the snapshot operation takes no arguments, not {sorted(args)}",
+                                fix="call it as {\"op\": \"snapshot\"}")
+        return self.snapshot().to_doc()
 
     def _op_enable(self) -> dict[str, Any]:
         self.enable()

@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
+    from akarm.cli.view import add_view_options
+
+    add_view_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -47,11 +50,21 @@ def run(args: argparse.Namespace) -> int:
     arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
                        joint_states_hz=args.joint_states_hz)
+    view = None
+    if args.view:  # made first: a missing view extra is said before anything is enabled
+        from akarm.cli.view import make_view
+        from akarm.view.sources import ServerSource
+
+        view = make_view(args, config, ServerSource(server))
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
                                                                                            signal.SIGTERM)}
     try:
         server.start()
+        if view is not None:
+            from akarm.cli.view import show_view
+
+            show_view(view)
         ros = "ROS 2 off (--no-ros)" if args.no_ros else \
             f"ROS 2 domain {server.domain}, namespace '/{server.namespace}'"
         print(f"serving {config.name}: holding at {format_q(server.arm.state().q)}; {ros}; "
@@ -59,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
         server.wait(signals=False)
         print("stopping: damping, then disabling", file=sys.stderr, flush=True)
     finally:
+        if view is not None:  # first: nobody presses a button of a server that is stopping
+            view.stop()
         server.stop()
         for s, handler in previous.items():
             signal.signal(s, handler)

@@ -38,6 +38,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
     "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
+    "view": ("akarm.cli.view", "see the arm in the browser: live 3D, plots, state and controls (view extra)"),
 }
 
 

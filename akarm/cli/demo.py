@@ -14,6 +14,9 @@ recording (``akarm/data/demo_path.csv``, a figure eight), disable. Then it print
 error per joint (mrad) and the control loop's timing, and plots the telemetry
 (:func:`akarm.telemetry.plot.plot_log`).
 
+With ``--view`` the page of :mod:`akarm.cli.view` watches the session live (http://localhost:8080),
+then plays it back with a time slider until Ctrl-C.
+
 With ``--fast`` the arm and the simulator run in lock step (``realtime=False``: the loop's clock
 *is* the simulator's), so the motion and the tracking are the same but time is simulated: loop
 rate, missed slots and lateness are then exact by construction and say nothing about this machine.
@@ -22,6 +25,7 @@ rate, missed slots and lateness are then exact by construction and say nothing a
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import itertools
 import os
@@ -34,7 +38,9 @@ from akarm.errors import AkarmError, RecordingError
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
+    from akarm.config import RobotConfig
     from akarm.telemetry.log import TelemetryLog
+    from akarm.view.page import ViewServer
 
 #: the bundled recording the demo replays (joints of arm6, rad, 100 Hz)
 DEMO_PATH = Path(__file__).resolve().parent.parent / "data" / "demo_path.csv"
@@ -70,6 +76,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fast", action="store_true",
                         help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
     add_profile_argument(parser)
+    from akarm.cli.view import add_view_options
+
+    add_view_options(parser)
 
 
 def _arm6_yaml() -> Path:
@@ -176,7 +185,13 @@ def run(args: argparse.Namespace) -> int:
             watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none
             print(f"  (watchdog: {watchdog * 1e3:.0f} ms and collision thresholds doubled, as the simulator shares "
                   "this process; on hardware the default is 20 ms and the file's thresholds)", flush=True)
-        with arm:
+        view = _live_view(args, config, arm)
+        with arm, contextlib.ExitStack() as stack:
+            if view is not None:  # shown while the arm is open, stopped before it closes
+                from akarm.cli.view import show_view
+
+                stack.callback(view.stop)
+                show_view(view)
             t_session = arm.clock.now()
             events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
             for k, (label, short, action) in enumerate(session_steps(arm), start=1):
@@ -217,4 +232,35 @@ def run(args: argparse.Namespace) -> int:
         print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6', events=events)}")
     print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then the README's "
           "'From simulator to hardware'.")
+    if view is not None:
+        return _play_back(args, config, log, view.port)
     return 0
+
+
+def _live_view(args: argparse.Namespace, config: RobotConfig, arm: Arm) -> ViewServer | None:
+    """With ``--view``: the page watching the session's arm (made, not started)."""
+    if not args.view:
+        return None
+    from akarm.cli.view import make_view
+    from akarm.view.sources import ArmSource
+
+    return make_view(args, config, ArmSource(arm, title="live: the demo session"))
+
+
+def _play_back(args: argparse.Namespace, config: RobotConfig, log: TelemetryLog, port: int) -> int:
+    """The session played back on the same page (the browser reconnects) until Ctrl-C; 0."""
+    import time
+
+    from akarm.cli.view import make_view, show_view
+    from akarm.view.recorded import RecordedSource
+
+    view = show_view(make_view(args, config, RecordedSource(log, config.joint_names, title="the demo session, played "
+                                                                                            "back"), port=port))
+    print("akarm demo: the page plays the session back now (its time slider, Play); Ctrl-C ends", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        view.stop()

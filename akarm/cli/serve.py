@@ -57,6 +57,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "discovery range; default: this machine only, unless ROS_AUTOMATIC_DISCOVERY_RANGE, "
                              "ROS_STATIC_PEERS or CYCLONEDDS_URI say otherwise)")
 
+    from akarm.cli.view import add_view_options
+
+    add_view_options(parser)
+
 
 def action(server: ArmServer) -> str:
     """The FollowJointTrajectory action's full name and layout, as the start line says it."""
@@ -81,11 +85,21 @@ def run(args: argparse.Namespace) -> int:
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
                        joint_states_hz=args.joint_states_hz, ros_network=args.ros_network,
                        controller=args.controller, ros_distro=args.ros_distro)
+    view = None
+    if args.view:  # made first: a missing view extra is said before anything is enabled
+        from akarm.cli.view import make_view
+        from akarm.view.sources import ServerSource
+
+        view = make_view(args, config, ServerSource(server))
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
                                                                                            signal.SIGTERM)}
     try:
         server.start()
+        if view is not None:
+            from akarm.cli.view import show_view
+
+            show_view(view)
         ros = "ROS 2 off (--no-ros)" if args.no_ros else \
             f"ROS 2 domain {server.domain}, namespace '/{server.namespace}', action {action(server)}"
         print(f"serving {config.name}: holding at {format_q(server.arm.state().q)}; {ros}; "
@@ -93,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
         server.wait(signals=False)
         print("stopping: damping, then disabling", file=sys.stderr, flush=True)
     finally:
+        if view is not None:  # first: nobody presses a button of a server that is stopping
+            view.stop()
         server.stop()
         for s, handler in previous.items():
             signal.signal(s, handler)

@@ -16,7 +16,8 @@ prints the path a controller opens (``serial JOINT: /dev/pts/N``); a device's pa
 ``--profile slow`` integrates at a rate a slow or shared machine keeps up with (see
 :mod:`akarm.timing`). ``--control PATH`` serves a control channel on that Unix-domain socket, through
 which another program injects and clears faults, reads the drivers and disables them while the
-simulator runs (:class:`akarm.sim.channel.SimulatorControl`).
+simulator runs (:class:`akarm.sim.channel.SimulatorControl`). ``--view`` serves the live view of the
+simulated truth: the plant's positions and torques, the drivers' temperatures (:mod:`akarm.cli.view`).
 
 Runs in real time until SIGINT or SIGTERM (exit status 0), or for ``--seconds``, with a live status
 line (per joint position, torque, temperature, state): updated in place a few times a second on a
@@ -67,6 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--status-hz", type=float, default=4.0, metavar="HZ",
                         help="status line updates per second on a terminal (default 4; 1 when not a terminal)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no status line")
+    from akarm.cli.view import add_view_options
+
+    add_view_options(parser)
 
 
 def _describe(config: RobotConfig, serial: dict[str, str]) -> str:
@@ -137,6 +141,12 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate if args.plant_rate else None, q0=q0,
                          zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile,
                          log_frames=bool(args.control), serial=serial, baudrate=args.baudrate)
+    view = None
+    if args.view:  # made first: a missing view extra is said before the simulator starts
+        from akarm.cli.view import make_view
+        from akarm.view.sources import SimSource
+
+        view = make_view(args, sim.config, SimSource(sim))
 
     stop = threading.Event()
     previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
@@ -161,6 +171,11 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
             if args.control:
                 stack.enter_context(ChannelServer(sim, args.control))
                 print(f"  control channel: {args.control}", flush=True)
+            if view is not None:
+                from akarm.cli.view import show_view
+
+                stack.callback(view.stop)
+                show_view(view)
             print("running; Ctrl-C to stop", flush=True)
             start = time.monotonic()
             end = start + args.seconds if args.seconds is not None else None

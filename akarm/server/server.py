@@ -48,6 +48,7 @@ from akarm.control.modes import Mode
 from akarm.errors import AkarmError, ArgumentError, SafetyStop, StateError, StopLatched
 from akarm.server import socket as _socket
 from akarm.server.ops import Operation
+from akarm.server.snapshot import Snapshot, take
 from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
@@ -542,6 +543,13 @@ class ArmServerCore:
 
     def _op_status(self) -> dict[str, Any]:
         return {**self.status(), "stop": stop.as_dict() if (stop := self.latched) else None}
+
+    def snapshot(self) -> Snapshot:
+        """The arm now, for a live view (:mod:`akarm.server.snapshot`): read only, any thread."""
+        return take(self.arm, mode=self.mode)
+
+    def _op_snapshot(self) -> dict[str, Any]:
+        return self.snapshot().to_doc()
 
     def _op_enable(self) -> dict[str, Any]:
         self.enable()

@@ -18,7 +18,7 @@ from akarm.server.server import ArmServerCore
 from akarm.server.socket import SocketClient, SocketServer
 from akarm.sim import SimulatedRobot
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, relaxed_robot, wait_until
 
 
 def config_on(channel: str, interface: str = "akarm_local"):
@@ -233,3 +233,26 @@ def test_an_unknown_ros_distro_or_a_bad_controller_name_fails_the_start_before_a
             with pytest.raises(AkarmError, match=text):
                 server.start()
             assert not arm.enabled
+
+
+def test_the_snapshot_operation_reads_the_arm_and_takes_no_arguments(channel, tmp_path):
+    from akarm.server.snapshot import Snapshot
+
+    # (the relaxed supervisor: an in-process simulator on 2 loaded cores may answer late)
+    config = akarm.load_robot(relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)).with_bus(interface="virtual",
+                                                                                         channel=channel)
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm, ArmServerCore(arm) as server:
+        assert wait_until(lambda: arm.observe.loop.stats.cycles > 50, 10)
+        truth = [s.position for s in sim.driver_states()]
+        with SocketClient(server.socket_path, timeout=10) as c:
+            snap = Snapshot.from_doc(c.call("snapshot"))
+            assert snap.names == tuple(config.joint_names) and snap.mode == "holding" and snap.enabled
+            assert snap.stop == "" and snap.rate_hz == config.rate_hz and snap.cycles > 50
+            assert snap.missed_slots >= 0 and snap.loop_rate_hz > 0
+            assert all(abs(m - t) < 1e-2 for m, t in zip(snap.q, truth, strict=True))
+            assert all(0 <= a < 1.0 for a in snap.age)
+            assert snap.error == pytest.approx([d - m for d, m in zip(snap.q_des, snap.q, strict=True)])
+            with pytest.raises(ArgumentError, match="has no argument 'joint'"):
+                c.call("snapshot", joint="elbow")
+        server.dispatch("disable", {})
+        assert server.snapshot().mode == "disabled" and not server.snapshot().enabled

@@ -328,14 +328,16 @@ def test_joint_not_in_urdf_fixed_and_unconfigured(tmp_path: Path) -> None:
     assert p.line == line_of(text, "elbw") and "did you mean 'elbow'" in p.message
     assert "shoulder, elbow" in p.fix
     p = one(found, "'tool0_joint' is fixed")
-    assert p.line == line_of(text, "tool0_joint") and "URDF line 71" in p.message
+    urdf_line = line_of(URDF.read_text(encoding="utf-8"), '<joint name="tool0_joint"')
+    assert p.line == line_of(text, "tool0_joint") and f"URDF line {urdf_line})" in p.message
     # URDF joints without a motor are not problems (they are held still, with a warning)
     assert len(found) == 2
 
 
 def test_urdf_joint_without_a_motor_is_held_at_zero_with_a_warning(tmp_path: Path) -> None:
     text = BASE.replace("  - name: elbow\n    can_id: 2\n    motor: AK60-6\n", "")
-    with pytest.warns(ConfigWarning, match="'elbow' .revolute, URDF line 55. has no motor in joints"):
+    urdf_line = line_of(URDF.read_text(encoding="utf-8"), '<joint name="elbow"')
+    with pytest.warns(ConfigWarning, match=f"'elbow' .revolute, URDF line {urdf_line}. has no motor in joints"):
         config = load_robot(write(tmp_path, text))
     assert config.joint_names == ("shoulder",) and config.locked == {"elbow": 0.0}
     (w,) = config.warnings

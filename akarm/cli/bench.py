@@ -28,7 +28,7 @@ import os
 import threading
 import time
 
-from akarm.cli.common import add_profile_argument
+from akarm.cli.common import add_profile_argument, loop_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -118,7 +118,8 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
             sim = stack.enter_context(SimulatorProcess(args.robot, interface=interface, channel=channel, pose=first,
                                                        args=more, timing=args.profile))
         arm = stack.enter_context(controlled(Arm(config, feedback_timeout=0.5, busy_wait=args.busy_wait,
-                                                 realtime_priority=args.realtime_priority, timing=args.profile)))
+                                                 realtime_priority=args.realtime_priority,
+                                                 **loop_options(args))))
         arm.enable()
         cpu0, wall0, th0 = time.process_time(), time.monotonic(), _thread_cpu()
         sim0 = sim.cpu_seconds() if isinstance(sim, SimulatorProcess) else 0.0

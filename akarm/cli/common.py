@@ -29,12 +29,24 @@ def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = 
     add_bus_kwargs(parser)
 
 
-def add_profile_argument(parser: argparse.ArgumentParser) -> None:
-    """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a simulator."""
+def add_profile_argument(parser: argparse.ArgumentParser, loop: bool = True) -> None:
+    """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a
+    simulator; and, where the verb runs a control loop (``loop``), ``--stall-limit S``
+    (:func:`loop_options` gives both to the :class:`~akarm.Arm`)."""
     from akarm.timing import PROFILES
 
     parser.add_argument("--profile", default="normal", choices=list(PROFILES), metavar="NAME",
                         help="timing profile: " + "; ".join(f"{p.name}: {p.description}" for p in PROFILES.values()))
+    if loop:
+        parser.add_argument("--stall-limit", type=float, metavar="S",
+                            help="s the control loop itself may fail to run (this process stopped or starved) and "
+                                 "resume without a stop; longer stops the arm with LoopStall (default: the "
+                                 "profile's, 0.2 s normally)")
+
+
+def loop_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The :class:`~akarm.Arm` options of :func:`add_profile_argument`'s arguments."""
+    return {"timing": args.profile, "stall_limit": args.stall_limit}
 
 
 def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> RobotConfig:

@@ -29,6 +29,7 @@ from akarm.cli.common import (
     format_q,
     interrupted,
     load_from_args,
+    loop_options,
     stop_smoothly,
 )
 
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None and not 0 <= args.seconds < float("inf"):
         raise ArgumentError(f"--seconds {args.seconds} must be a number of seconds, not negative")
     config = load_from_args(args)
-    with controlled(config, timing=args.profile) as arm:
+    with controlled(config, **loop_options(args)) as arm:
         try:
             arm.enable()
             until = f"for {args.seconds:g} s" if args.seconds is not None else "until Ctrl-C"

@@ -27,7 +27,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args, loop_options
 
 if TYPE_CHECKING:
     import numpy as np
@@ -253,7 +253,7 @@ def _session(args: argparse.Namespace, config: RobotConfig, start: Callable[[Arm
     from akarm.cli.common import controlled, deferred_signals, interrupted, stop_smoothly
 
     code = 0
-    with controlled(config, timing=args.profile) as arm:
+    with controlled(config, **loop_options(args)) as arm:
         t0 = arm.clock.now()
         try:
             arm.enable()

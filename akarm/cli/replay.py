@@ -23,7 +23,7 @@ import os
 import sys
 from typing import TYPE_CHECKING
 
-from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args, loop_options
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     check_options(args)
     config = load_from_args(args)
     rec = load_recording(args, config.joint_names)
-    arm = Arm(config, timing=args.profile)
+    arm = Arm(config, **loop_options(args))
     arm.check_replay(rec, args.speed)  # the whole path, before anything is enabled
     kind = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
     if args.episode is not None:

@@ -24,7 +24,7 @@ import signal
 import sys
 from typing import TYPE_CHECKING
 
-from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args, loop_options
 
 if TYPE_CHECKING:
     from akarm.serving import ArmServer
@@ -46,9 +46,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--feedback-timeout", type=float, metavar="S",
                         help="watchdog: stop the arm when a joint's feedback is older (default: the profile's, 0.02 "
                              "normally; a joint's own feedback_timeout in the YAML wins)")
-    parser.add_argument("--stall-limit", type=float, metavar="S",
-                        help="s the control loop itself may fail to run (this process stopped or starved) and resume "
-                             "without a stop; longer stops with LoopStall (default: the profile's, 0.2 s normally)")
     add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
@@ -77,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from akarm.serving import ArmServer
 
     config = load_from_args(args)
-    arm = Arm(config, feedback_timeout=args.feedback_timeout, stall_limit=args.stall_limit, timing=args.profile)
+    arm = Arm(config, feedback_timeout=args.feedback_timeout, **loop_options(args))
     if args.no_ros and args.ros_network:
         from akarm.errors import ArgumentError
 

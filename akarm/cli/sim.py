@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plant integration rate, Hz (default: the timing profile's; 2000 normally)")
     renamed(parser, "--duration", "--seconds")
     renamed(parser, "--rate", "--plant-rate")
-    add_profile_argument(parser)
+    add_profile_argument(parser, loop=False)
     parser.add_argument("--control", metavar="PATH",
                         help="serve a control channel on this Unix-domain socket: inject and clear faults, read "
                              "and disable the drivers from another program (akarm.sim.channel)")

@@ -24,7 +24,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, TextIO
 
-from akarm.cli.common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
+from akarm.cli.common import add_profile_argument, add_robot_arguments, interrupted, load_from_args, loop_options
 from akarm.errors import AkarmError
 
 if TYPE_CHECKING:
@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         raise AkarmError(f"--sample-rate {args.sample_rate:g} Hz is above the loop rate {config.rate_hz:g} Hz",
                          fix=f"use at most --sample-rate {config.rate_hz:g}")
     lines = _reader(sys.stdin)
-    with controlled(config, timing=args.profile) as arm:
+    with controlled(config, **loop_options(args)) as arm:
         arm.enable()
         arm.teach(args.damping)
         if out.suffix == ".csv":

@@ -30,7 +30,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING, TextIO
 
-from akarm.cli.common import add_profile_argument, interrupted
+from akarm.cli.common import add_profile_argument, interrupted, loop_options
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
@@ -255,8 +255,8 @@ def run(args: argparse.Namespace) -> int:
         Pairing.in_order(leader_config.joint_names, follower_config.joint_names)
     recorder = _recorder(args, follower_config)
     seconds = args.log_seconds if args.log else 60.0
-    leader = Arm(leader_config, timing=args.profile, telemetry_seconds=seconds)
-    follower = Arm(follower_config, timing=args.profile, telemetry_seconds=seconds)
+    leader = Arm(leader_config, telemetry_seconds=seconds, **loop_options(args))
+    follower = Arm(follower_config, telemetry_seconds=seconds, **loop_options(args))
     code = 0
     with controlled(leader), controlled(follower):
         t0 = follower.clock.now()

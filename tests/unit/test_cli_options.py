@@ -70,9 +70,22 @@ def test_one_word_per_meaning_across_verbs() -> None:
     for verb in ("sim", "enable", "teach", "bench"):
         assert "--seconds" in options[verb]
     assert "--loop-rate" in options["check"] and "--loop-rate" in options["bench"]
+    # every verb that runs a control loop takes the watchdog's stall limit; the simulator runs none
+    for verb in ("move", "enable", "teach", "replay", "serve", "teleop", "demo", "bench"):
+        assert "--stall-limit" in options[verb], verb
+    assert "--stall-limit" not in options["sim"]
     assert "--sample-rate" in options["teach"] and "--plant-rate" in options["sim"]
     # every verb that takes a robot file takes the bus overrides, bench included
     for verb in VERBS:
         if verb in ("demo", "plot", "init"):
             continue
         assert {"-i", "-c", "-b", "--bus-kwargs"} <= options[verb], verb
+
+
+def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
+    from akarm.cli.common import loop_options
+
+    args = build_parser().parse_args(["move", "robots/arm6.yaml", "ready", "--stall-limit", "0.5", "--profile", "slow"])
+    assert loop_options(args) == {"timing": "slow", "stall_limit": 0.5}
+    args = build_parser().parse_args(["replay", "robots/arm6.yaml", "x.yaml"])
+    assert loop_options(args) == {"timing": "normal", "stall_limit": None}  # None: the profile's

@@ -96,6 +96,7 @@ class SimulatedDriver:
         self._unplugged = False
         self._powered = True
         self._error = 0
+        self._cycle: tuple[float, float] | None = None  # a PowerCycle under way: (time back on, reading's shift, rad)
         self._fault_after: list[tuple[float, int]] = []
         self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
@@ -132,6 +133,8 @@ class SimulatedDriver:
             if fault.power_lost:
                 self._powered = False
                 self._power_off()
+        elif isinstance(fault, _f.PowerCycle):
+            self._power_cycle(t, fault)
         elif isinstance(fault, _f.ErrorCode):
             self._error = int(fault.code)
         elif isinstance(fault, _f.FrozenEncoder):
@@ -167,6 +170,7 @@ class SimulatedDriver:
         self._error = 0
         self._fault_after.clear()
         self._forged.clear()
+        self._cycle = None
         self._frozen = None
         self._frozen_control = False
         self._host.set_blocked(self.name, False)
@@ -225,6 +229,8 @@ class SimulatedDriver:
             _, position = self._forged.pop(0)
             aid, data, ext = self._forged_frame(position)
             self._host.transmit(self.bus, aid, data, ext, t)  # another node's frame: no drops, no delay
+        if self._cycle is not None and t + 1e-9 >= self._cycle[0]:
+            self._power_back(self._cycle[1])
 
     def _timer_deadlines(self) -> list[float]:
         return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]]
@@ -241,6 +247,8 @@ class SimulatedDriver:
 
     def _reschedule(self, t: float) -> None:
         self._next_timer = min(self._timer_deadlines(), default=_INF)
+        if self._cycle is not None:
+            self._next_timer = min(self._next_timer, self._cycle[0])
 
     def tick(self, t: float) -> None:
         """Run the driver's timers due at time ``t`` (s): status frames, timeouts, delayed faults."""
@@ -258,6 +266,27 @@ class SimulatedDriver:
 
     def _power_on(self) -> None:
         """Power back: the driver's state as after power-up."""
+
+    def _power_cycle(self, t: float, fault: _f.PowerCycle) -> None:
+        """Off (limp, deaf and mute) from ``t`` for ``fault.seconds``; then :meth:`_power_back`."""
+        self._unplugged = True
+        self._powered = False
+        self._power_off()
+        self._cycle = (t + fault.seconds, fault.turns * 2.0 * math.pi / self.motor.gear_ratio)
+        self._reschedule(t)
+
+    def _power_back(self, shift: float) -> None:
+        """A power cycle ends: the driver starts as after power-up, its reading ``shift`` rad off."""
+        self._cycle = None
+        self._unplugged = False
+        self._powered = True
+        self._faults = [f for f in self._faults if not isinstance(f, _f.PowerCycle)]
+        self._power_on()
+        self._lose_turns(shift)
+
+    def _lose_turns(self, shift: float) -> None:
+        """From now on report the position ``shift`` rad (motor side) higher: the multi-turn count is lost."""
+        raise NotImplementedError
 
     def _handle(self, arbitration_id: int, is_extended: bool, data: bytes, t: float) -> None:
         raise NotImplementedError
@@ -471,6 +500,9 @@ class MitDriver(SimulatedDriver):
         self._cmd = mit.MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
         self._silent_until = -_INF
         self._last_rx = self._host.now()
+
+    def _lose_turns(self, shift: float) -> None:
+        self._zero -= shift
 
 
 class TrapezoidProfile:
@@ -766,6 +798,9 @@ class ServoDriver(SimulatedDriver):
         self.origin = self.permanent_origin  # a temporary origin does not survive power loss
         self._status_epoch, self._status_n = self._host.now(), 1
         self._next_status = self._status_epoch + self.status_period
+
+    def _lose_turns(self, shift: float) -> None:
+        self.origin -= shift
 
 
 def make_driver(joint: JointConfig, params: MotorSimParams, host: DriverHost, state: StateGetter, dt: float, *,

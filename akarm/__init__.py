@@ -43,6 +43,7 @@ from akarm.errors import (
     StateError,
     TrackingError,
     TrajectoryError,
+    TurnCountLost,
     UnknownMotorError,
     UnreachableError,
 )
@@ -87,6 +88,7 @@ __all__ = [
     "StateError",
     "TrackingError",
     "TrajectoryError",
+    "TurnCountLost",
     "UnknownMotorError",
     "UnreachableError",
     "__version__",

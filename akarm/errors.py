@@ -28,6 +28,7 @@ raises on purpose; anything else escaping akarm is a bug.
         ├── TrackingError      a joint is too far from where it is commanded, or does not move
         ├── ImplausibleFeedback  replies no physical joint could send (several in a row)
         ├── ForeignTraffic     another program commands, disables or answers for our motors
+        ├── TurnCountLost      a joint reads whole rotor turns from where it stopped (its driver was power-cycled)
         ├── NotSettled         the arm kept moving while enable() waited for it to come to rest
         ├── CollisionError     the collision reflex: a joint's external torque estimate passed its threshold
         └── BusLost            a bus died under the arm (also a BusError)
@@ -65,6 +66,7 @@ __all__ = [
     "StateError",
     "TrackingError",
     "TrajectoryError",
+    "TurnCountLost",
     "UnknownMotorError",
     "UnreachableError",
     "did_you_mean",
@@ -340,6 +342,23 @@ class ForeignTraffic(SafetyStop):
 
     def __init__(self, what: str, *, kind: str, joint: str | None = None, fix: str = "") -> None:
         self.kind = kind
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class TurnCountLost(SafetyStop):
+    """At enable, a joint reads a whole number of rotor turns (``k · 2π / gear ratio``) from the position
+    akarm remembered when the arm last stopped: its driver lost its multi-turn count (a power cycle).
+    Nothing was enabled.
+
+    Attributes:
+        reading: rad now. remembered: rad when the arm stopped. turns: ``k`` (reading minus remembered).
+    """
+
+    def __init__(self, what: str, *, reading: float, remembered: float, turns: int, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.reading = reading
+        self.remembered = remembered
+        self.turns = turns
         super().__init__(what, joint=joint, fix=fix)
 
 

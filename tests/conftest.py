@@ -88,6 +88,15 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
             monkeypatch.delenv(name)
     monkeypatch.setattr(can.util, "CONFIG_FILES", [])
     monkeypatch.setattr(can, "rc", {})
+
+
+@pytest.fixture(autouse=True)
+def _state_in_tmp(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The joints' remembered positions (akarm.control.turns) go to a state directory of each test's
+    own: nothing of the developer's, and no test sees what another one remembered."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.mktemp("state")))
+
+
 ROBOTS = ROOT / "robots"
 URDFS = ROOT / "tests" / "urdfs"  # the exporter-style URDF corpus (tests/unit/test_urdf.py)
 _counter = itertools.count()

@@ -73,6 +73,8 @@ class Enabler:
             with ``tau`` feed-forward), for telemetry and a stop's fade.
         damping: N·m·s/rad per joint while settling. timeouts: s per joint, its feedback timeout.
         period: s, the loop's. settle_speed: rad/s. settle_timeout: s.
+        at_contact: ``at_contact(now)`` once every joint answered, before anything with gains or
+            torque is sent: the error refusing the enable, or ``None`` (the turn check).
     """
 
     def __init__(self, joints: Sequence[Joint], buses: Mapping[str, BusConfig],
@@ -80,7 +82,7 @@ class Enabler:
                  gravity: Callable[[Sequence[float]], np.ndarray],
                  commanded: Callable[[float, Sequence[float], list[float]], None], *,
                  damping: Sequence[float], timeouts: Sequence[float], period: float, settle_speed: float,
-                 settle_timeout: float) -> None:
+                 settle_timeout: float, at_contact: Callable[[float], AkarmError | None] | None = None) -> None:
         self.joints = list(joints)
         self.n = len(self.joints)
         self._buses = buses
@@ -94,6 +96,7 @@ class Enabler:
         self.settle_speed = settle_speed
         self.settle_timeout = settle_timeout
         self._attempt: _Attempt | None = None
+        self._at_contact = at_contact
 
     @property
     def under_way(self) -> bool:
@@ -186,6 +189,9 @@ class Enabler:
         if late:
             return self._silent(en, late, now)
         if ready:
+            wrong = self._at_contact(now) if self._at_contact is not None else None
+            if wrong is not None:  # only zero-gain, zero-torque commands were sent: nothing moved
+                return Refusal(wrong)
             en.settling_since = now
         return None
 

@@ -28,6 +28,8 @@ class ControllerOptions:
     """The controller's settings (times in s, speeds in rad/s; see :class:`~akarm.Arm`).
 
     ``feedback_timeout`` ``None`` takes the timing profile's; :attr:`watchdog` is the one in force.
+    ``position_file``: the state file where the joints' positions are remembered when the arm stops
+    and compared at the next enable (:mod:`akarm.control.turns`); ``None``: nothing is remembered.
 
     Raises:
         ArgumentError: a value of the wrong kind or out of its range (names it).
@@ -49,6 +51,7 @@ class ControllerOptions:
     loop_cpu: int | None = None
     collision_reaction: Reaction = "disable"
     collision_gain: float = DEFAULT_GAIN
+    position_file: str | PathLike[str] | None = None
 
     def __post_init__(self) -> None:
         if self.feedforward not in ("full", "gravity", "none"):

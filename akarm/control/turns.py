@@ -170,6 +170,21 @@ class PositionMemory:
         data = (json.dumps(doc, indent=1) + "\n").encode()
         atomic_write(self.path, lambda f: f.write(data))
 
+    def update(self, joint: str, position: float) -> None:
+        """Remember ``position`` (rad) for ``joint`` (zeroed: it reads anew), if a position is remembered
+        for it; an unreadable file is left for the next enable to name.
+
+        Raises:
+            RecordingError: the file cannot be written.
+        """
+        try:
+            remembered = self.load()
+        except AkarmError:
+            return
+        if joint in remembered:
+            remembered[joint] = position
+            self.save(remembered)
+
     def forget(self) -> None:
         """Remember nothing (the arm is enabled: where it will stop is not known yet)."""
         if self.path.exists():

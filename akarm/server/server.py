@@ -213,11 +213,12 @@ class ArmServerCore:
         if self._stop.is_set():
             raise StateError("akarm serve is stopping: the arm is being disabled", fix="start the server again")
 
-    def enable(self) -> None:
+    def enable(self, accept_position: bool = False) -> None:
+        """Enable the arm (``accept_position``: skip the turn check once, see :meth:`akarm.Arm.enable`)."""
         with self._cmd:
             self._require_serving()
             self._end_teach()
-            self.arm.enable()
+            self.arm.enable(accept_position=accept_position)
 
     def disable(self) -> None:
         with self._cmd:
@@ -340,8 +341,8 @@ class ArmServerCore:
     def _op_state(self) -> dict[str, Any]:
         return self._state_doc()
 
-    def _op_enable(self) -> dict[str, Any]:
-        self.enable()
+    def _op_enable(self, accept_position: bool = False) -> dict[str, Any]:
+        self.enable(accept_position is True)
         return self._state_doc()
 
     def _op_disable(self) -> None:

@@ -33,6 +33,7 @@ __all__ = [
     "FrozenEncoder",
     "PowerCycle",
     "RogueExit",
+    "Twin",
     "Unplugged",
     "parse",
 ]
@@ -112,6 +113,24 @@ class PowerCycle(Fault):
         if not (isinstance(self.seconds, int | float) and 0.0 < self.seconds < math.inf):
             raise AkarmError(f"PowerCycle time {self.seconds!r} s is not a positive number",
                              fix="give how long the driver is off, e.g. PowerCycle(1, seconds=0.1)")
+
+
+@dataclass(frozen=True)
+class Twin(Fault):
+    """A second motor on this joint's CAN ID (a wiring mistake): it hears what this driver hears and
+    answers too. Every frame the driver sends (a reply, a status frame) is followed by the twin's, which
+    reads motor position ``position`` (rad at the output, motor side: the twin's own shaft, at rest).
+
+    Attributes:
+        position: rad.
+    """
+
+    position: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.position, int | float) and math.isfinite(self.position)):
+            raise AkarmError(f"Twin position {self.position!r} rad is not a finite number",
+                             fix="e.g. Twin(0.7): the second motor stands at 0.7 rad")
 
 
 @dataclass(frozen=True)
@@ -213,6 +232,7 @@ KINDS: dict[str, str] = {
     "delay": "delay:SECONDS          send every reply that late (e.g. delay:0.005)",
     "unplugged": "unplugged[:power]      no frames in or out; ':power' makes the output limp too",
     "power-cycle": "power-cycle:TURNS[,SECONDS]   off (default 0.1 s), back out of motor mode, TURNS rotor turns off",
+    "twin": "twin[:POS]             a second motor on the same CAN ID, its shaft at POS rad (default 0)",
     "error": "error:CODE             report that error code (1 over-temperature, 5 encoder, ...)",
     "frozen": "frozen[:control]       reported position stops changing; ':control' freezes the loops' too",
     "fault-after": "fault-after:SECONDS[,CODE]   report CODE (default 1) after that many seconds",
@@ -261,6 +281,8 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if not args or len(args) > 2:
                 raise _bad(spec, "power-cycle needs the rotor turns the reading shifts by (and the seconds off)")
             return joint, PowerCycle(int(args[0]), float(args[1]) if len(args) > 1 else 0.1)
+        if kind == "twin":
+            return joint, Twin(float(args[0]) if args else 0.0)
         if kind == "error":
             if not args:
                 raise _bad(spec, "error needs a code")

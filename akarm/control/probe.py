@@ -32,10 +32,11 @@ and offset); everything :func:`read_state` reports is joint side, converted by t
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 from akarm.buses.bus import close_buses, open_bus
@@ -73,6 +74,8 @@ class Found:
             (MIT: the ±12.5 rad range; servo: degrees taken as output-side degrees).
         active: MIT only: its replies were flowing before anything was sent, i.e. a controller
             is driving it; it was left alone.
+        duplicate: two motors answer on this ID: more than one reply to one EXIT (MIT), or status
+            frames at two positions (servo).
     """
 
     can_id: int
@@ -83,6 +86,7 @@ class Found:
     reply_id: int
     model: str | None = None
     active: bool = False
+    duplicate: bool = False
 
     def fault_text(self) -> str:
         """The error code with its meaning, e.g. ``"2 over-current"``; ``"-"`` when unknown."""
@@ -197,6 +201,7 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
     codecs: dict[int, mit.MitCodec] = {}
     found: dict[tuple[int, str], Found] = {}
     queried: set[int] = set()
+    heard: dict[tuple[int, str], list[float]] = {}  # positions heard per (ID, mode): two motors show here
 
     def mit_codec(can_id: int) -> tuple[mit.MitCodec, str | None]:
         m = models.get(can_id)
@@ -224,6 +229,7 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
                 pos, name = math.radians(st.position_deg), None
             found[(can_id, "servo")] = Found(can_id, "servo", pos, st.temperature_c, st.error, msg.arbitration_id,
                                              name)
+            heard.setdefault((can_id, "servo"), []).append(pos)
             return
         if len(data) not in (6, 8) or mit.special_frame(data) is not None:
             return
@@ -243,6 +249,8 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
             return
         found[(can_id, "mit")] = Found(can_id, "mit", r.position, r.temperature, r.error, msg.arbitration_id,
                                        name, active=passive)
+        if not passive:
+            heard.setdefault((can_id, "mit"), []).append(r.position)
 
     import can
 
@@ -266,7 +274,23 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
             msg = b.recv(timeout=left)
             if msg is not None:
                 handle(msg, passive=False)
-    return [found[k] for k in sorted(found)]
+    return [_with_duplicates(found[k], heard.get(k, [])) for k in sorted(found)]
+
+
+#: rad: consecutive status frames of one ID this far apart, back and forth, come from two motors
+_TWO_POSITIONS = 0.05
+
+
+def _with_duplicates(f: Found, positions: list[float]) -> Found:
+    """``f``, marked :attr:`Found.duplicate` when what was heard on its ID shows two motors: more than
+    one reply to the one EXIT sent (MIT), or status frames that jump back and forth between two
+    positions (servo: a moving motor's frames go one way)."""
+    if f.mode == "mit":
+        two = len(positions) > 1
+    else:
+        steps = [b - a for a, b in itertools.pairwise(positions) if abs(b - a) > _TWO_POSITIONS]
+        two = sum(1 for a, b in itertools.pairwise(steps) if (a > 0) != (b > 0)) >= 2
+    return replace(f, duplicate=True) if two else f
 
 
 # ------------------------------------------------------------------------------------------------

@@ -65,6 +65,7 @@ class _Attempt:
     timeout: list[float]  # s per joint to make contact
     received0: list[int]  # frames_received per joint when the enable began
     sent0: list[int]  # frames_sent per joint when the enable began
+    rejected0: list[int]  # replies rejected (implausible) per joint when the enable began
     first_reply: list[float | None]
     entered: bool = False
     first_sent: float = 0.0  # when the first frames (ENTER) went out
@@ -139,7 +140,8 @@ class Enabler:
         for j in self.joints:
             j.mode_seen = None
         self._attempt = _Attempt(now, contact, [j.frames_received for j in self.joints],
-                                 [j.frames_sent for j in self.joints], [None] * self.n)
+                                 [j.frames_sent for j in self.joints], [j.rejected for j in self.joints],
+                                 [None] * self.n)
         self._supervisor.arm(now)
         return max(contact)
 
@@ -216,11 +218,13 @@ class Enabler:
 
     def _miswired(self, en: _Attempt, now: float) -> Refusal | None:
         """A wiring mistake what came in so far shows (:func:`wiring_error`), before anything with
-        gains or torque was sent."""
+        gains or torque was sent; counted from the first frame sent."""
+        if not en.entered:
+            return None
         for i, j in enumerate(self.joints):
             first = en.first_reply[i]
-            error = wiring_error(j, j.frames_received - en.received0[i], j.frames_sent - en.sent0[i],
-                                 None if first is None else now - first)
+            plausible = j.frames_received - en.received0[i] - (j.rejected - en.rejected0[i])
+            error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first)
             if error is not None:
                 error.at = now
                 return Refusal(error, release=en.entered)
@@ -237,7 +241,10 @@ class Enabler:
     def _send_contact_frames(self, en: _Attempt, now: float) -> None:
         """ENTER once, then every cycle a zero-gain, zero-torque command: it overrides the command the
         driver remembers and asks for a reply."""
-        if not en.entered:
+        if not en.entered:  # count from here: what came before cannot answer our frames
+            en.received0 = [j.frames_received for j in self.joints]
+            en.rejected0 = [j.rejected for j in self.joints]
+            en.sent0 = [j.frames_sent for j in self.joints]
             for j in self.joints:
                 for f in j.enter_frames():
                     self._send(j, f)
@@ -269,6 +276,17 @@ class Enabler:
     def _silent(self, en: _Attempt, late: list[Joint], now: float) -> Refusal:
         """The joints that gave no (or too few consistent) replies within their timeout."""
         limit = en.timeout[late[0].index]
+        for j in late:  # answers at two positions, one of them rejected each time: two motors on one ID
+            i = j.index
+            replies, sent = j.frames_received - en.received0[i], j.frames_sent - en.sent0[i]
+            if j.answers_commands and sent >= 4 and replies >= 1.5 * sent:
+                c = j.config
+                twin = DuplicateCanId(f"{replies} replies to {sent} frames on CAN ID {c.can_id} on bus {c.bus!r}, at "
+                                      "two positions: two motors answer on this ID; nothing was enabled",
+                                      can_id=c.can_id, joint=j.name,
+                                      fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
+                twin.at = now
+                return Refusal(twin)
         heard = [j for j in late if j.frames_received > en.received0[j.index]]
         names = ", ".join(j.name for j in late)
         if heard:
@@ -282,8 +300,9 @@ class Enabler:
 
 
 def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None) -> WiringError | None:
-    """What contact shows of a wiring mistake on joint ``j``: ``heard`` frames from it and ``sent`` to
-    it since the enable began, the first heard ``since_first`` s ago (``None``: none yet).
+    """What contact shows of a wiring mistake on joint ``j``: ``heard`` plausible frames from it (the
+    gate's rejects are implausible traffic, the supervisor's) and ``sent`` to it since the enable
+    began, the first heard ``since_first`` s ago (``None``: none yet).
 
     - MIT: servo status frames on its ID (:class:`~akarm.errors.ModeMismatch`); more replies than
       frames (every frame gets one reply from one motor: :class:`~akarm.errors.DuplicateCanId`).

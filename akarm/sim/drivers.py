@@ -98,6 +98,7 @@ class SimulatedDriver:
         self._error = 0
         self._cycle: tuple[float, float] | None = None  # a PowerCycle under way: (time back on, reading's shift, rad)
         self._twin: float | None = None  # a Twin's motor position: a second motor answers on this ID
+        self._forged_error = 0  # the error code forged replies carry
         self._fault_after: list[tuple[float, int]] = []
         self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
@@ -149,6 +150,7 @@ class SimulatedDriver:
             self._fault_after.append((t + fault.after, int(fault.code)))
             self._reschedule(t)
         elif isinstance(fault, _f.ForgedReply):
+            self._forged_error = int(fault.error) & 0xFF
             self._forged.extend((t + k * fault.interval, float(fault.position)) for k in range(int(fault.count)))
             self._forged.sort()
             self._timers(t)
@@ -246,7 +248,7 @@ class SimulatedDriver:
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         """A reply (or status frame) in this driver's name at motor ``position`` (rad): (ID, data, extended)."""
         aid, data = servo.encode_status(self.can_id, units.rad_to_servo_deg(self.motor, position), 0.0, 0.0,
-                                        self.temperature, 0)
+                                        self.temperature, self._forged_error)
         return aid, data, True
 
     def _rogue_exit(self, t: float, on_bus: bool) -> None:
@@ -438,7 +440,7 @@ class MitDriver(SimulatedDriver):
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         if self.v3:
             return super()._forged_frame(position)
-        return 0, self._codec.encode_reply(self.can_id, position, 0.0, 0.0, self.temperature, 0), False
+        return 0, self._codec.encode_reply(self.can_id, position, 0.0, 0.0, self.temperature, self._forged_error), False
 
     def _rogue_exit(self, t: float, on_bus: bool) -> None:
         if self.v3:  # no EXIT frame: another controller's zero-gain command

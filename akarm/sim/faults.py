@@ -191,11 +191,13 @@ class ForgedReply(Fault):
 
     Attributes:
         position: rad, motor side. count: how many (≥ 1). interval: s between them (≥ 0).
+        error: the error code they carry (0: none; a flood of random frames carries any byte).
     """
 
     position: float
     count: int = 1
     interval: float = 0.0
+    error: int = 0
 
     def __post_init__(self) -> None:
         if int(self.count) < 1 or not 0.0 <= self.interval < math.inf:

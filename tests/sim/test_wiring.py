@@ -11,7 +11,7 @@ import pytest
 
 from akarm.arm import Arm
 from akarm.config import RobotConfig
-from akarm.errors import DuplicateCanId, ModeMismatch, StatusRateLow
+from akarm.errors import DuplicateCanId, ImplausibleFeedback, ModeMismatch, MotorFault, StatusRateLow
 from akarm.protocol import mit
 from akarm.robotfile.load import load_robot
 from akarm.sim import SimulatedRobot, faults
@@ -84,3 +84,23 @@ def test_the_right_wiring_enables(channel: str) -> None:
     with rig("servo3", channel) as (arm, _):
         arm.enable()
         assert arm.enabled
+
+
+def test_a_flood_of_forged_replies_with_a_code_no_driver_sends_is_implausible_traffic(channel: str) -> None:
+    with rig("planar2", channel) as (arm, sim):
+        arm.enable()
+        here = float(sim.q[1])  # the elbow's motor position (direction 1, offset 0): the forgeries pass the gate
+        t = arm.clock.now()
+        sim.inject("elbow", faults.ForgedReply(here, count=50, interval=0.001, error=208))
+        with pytest.raises(ImplausibleFeedback) as e:
+            arm.sleep(0.5)
+        assert e.value.joint == "elbow" and "error code 208, which no AK driver reports" in str(e.value)
+        assert "implausible traffic" in str(e.value) and e.value.at is not None and e.value.at - t <= 0.01
+
+
+def test_a_known_error_code_is_still_a_motor_fault(channel: str) -> None:
+    with rig("planar2", channel) as (arm, sim):
+        arm.enable()
+        sim.inject("elbow", faults.ErrorCode(2))
+        with pytest.raises(MotorFault):
+            arm.sleep(0.2)

@@ -188,6 +188,8 @@ def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = Non
         config = config_edit(config)
     if timing is not None:
         arm_options.setdefault("timing", timing)
+    # a new simulated arm: positions remembered (akarm.control.turns) are this arm's, not the last test arm's
+    arm_options.setdefault("remember_positions", Path(os.environ["XDG_STATE_HOME"]) / f"lockstep-{next(_counter)}.json")
     with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, **(sim_options or {})) as sim, \
             Arm(config, clock=sim.clock, **arm_options) as arm:
         if enable:

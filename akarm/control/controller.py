@@ -133,7 +133,7 @@ class Controller:
         self.enabler = Enabler(joints, config.buses, self.bus.send, self.supervisor, self.ff.gravity, self._commanded,
                                damping=self._damping, timeouts=self._timeouts, period=self.period,
                                settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
-                               at_contact=self._turn_check)
+                               at_contact=self._turn_check, lag=options.timing.lag)
         self.reflex = self._make_reflex()
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,

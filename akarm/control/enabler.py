@@ -85,6 +85,7 @@ class Enabler:
             with ``tau`` feed-forward), for telemetry and a stop's fade.
         damping: N·m·s/rad per joint while settling. timeouts: s per joint, its feedback timeout.
         period: s, the loop's. settle_speed: rad/s. settle_timeout: s.
+        lag: s a reading may trail on this machine (the timing profile's).
         at_contact: ``at_contact(now)`` once every joint answered, before anything with gains or
             torque is sent: the error refusing the enable, or ``None`` (the turn check).
     """
@@ -94,7 +95,8 @@ class Enabler:
                  gravity: Callable[[Sequence[float]], np.ndarray],
                  commanded: Callable[[float, Sequence[float], list[float]], None], *,
                  damping: Sequence[float], timeouts: Sequence[float], period: float, settle_speed: float,
-                 settle_timeout: float, at_contact: Callable[[float], AkarmError | None] | None = None) -> None:
+                 settle_timeout: float, at_contact: Callable[[float], AkarmError | None] | None = None,
+                 lag: float = 0.0) -> None:
         self.joints = list(joints)
         self.n = len(self.joints)
         self._buses = buses
@@ -109,6 +111,7 @@ class Enabler:
         self.settle_timeout = settle_timeout
         self._attempt: _Attempt | None = None
         self._at_contact = at_contact
+        self.lag = lag
 
     @property
     def under_way(self) -> bool:
@@ -224,7 +227,8 @@ class Enabler:
         for i, j in enumerate(self.joints):
             first = en.first_reply[i]
             plausible = j.frames_received - en.received0[i] - (j.rejected - en.rejected0[i])
-            error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first)
+            error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first,
+                                 self.lag)
             if error is not None:
                 error.at = now
                 return Refusal(error, release=en.entered)
@@ -299,7 +303,7 @@ class Enabler:
         return Refusal(silent)
 
 
-def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None) -> WiringError | None:
+def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag: float = 0.0) -> WiringError | None:
     """What contact shows of a wiring mistake on joint ``j``: ``heard`` plausible frames from it (the
     gate's rejects are implausible traffic, the supervisor's) and ``sent`` to it since the enable
     began, the first heard ``since_first`` s ago (``None``: none yet).
@@ -308,7 +312,8 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None) -> 
       frames (every frame gets one reply from one motor: :class:`~akarm.errors.DuplicateCanId`).
     - Servo: more status frames than one motor sends at the configured rate (two motors), or, once
       two periods of the configured rate have passed, fewer than a third of them
-      (:class:`~akarm.errors.StatusRateLow`, naming the measured rate).
+      (:class:`~akarm.errors.StatusRateLow`, naming the measured rate). ``lag``: s a reading may
+      trail on this machine (the timing profile's): frames that late may come in one burst.
     """
     c = j.config
     where = f"CAN ID {c.can_id} on bus {c.bus!r}"
@@ -328,7 +333,7 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None) -> 
     if since_first is None or rate <= 0:
         return None
     expected = since_first * rate + 1  # frames one motor sends from its first one to now
-    if heard > 1.5 * expected + 1:
+    if heard > 1.5 * expected + 1 + lag * rate:
         return DuplicateCanId(f"{heard} status frames in {since_first * 1e3:.0f} ms on {where}, where one motor "
                               f"at {rate:g} Hz sends {expected:.0f}: two motors answer on this ID; nothing was "
                               "enabled", can_id=c.can_id, joint=j.name,

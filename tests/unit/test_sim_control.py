@@ -15,7 +15,8 @@ from akarm.sim.channel import SimulatorControl, fault_from_json, fault_to_json
 
 EVERY_FAULT = [faults.DropReplies(0.3, seed=7), faults.DelayReplies(0.005), faults.Unplugged(power_lost=True),
                faults.ErrorCode(5), faults.FrozenEncoder(affects_control=True), faults.FaultAfter(1.5, code=2),
-               faults.ForgedReply(12.45, count=3, interval=0.01), faults.RogueExit(on_bus=False), faults.Blocked()]
+               faults.ForgedReply(12.45, count=3, interval=0.01), faults.RogueExit(on_bus=False), faults.Blocked(),
+               faults.PowerCycle(-2, seconds=0.5), faults.Twin(0.7)]
 
 
 @pytest.mark.parametrize("fault", EVERY_FAULT, ids=lambda f: type(f).__name__)

@@ -654,6 +654,20 @@ class Arm:
         return ArmState(now, reps, np.array([r.position for r in reps]), np.array([r.velocity for r in reps]),
                         np.array([r.torque for r in reps]), q_des, mode.enabled, moving, mode, ext)
 
+    def read_state(self, timeout: float = 0.25) -> ArmState:
+        """:meth:`state`, with a disabled arm's motors asked first, as ``akarm status`` asks them: its
+        silent MIT joints get EXIT (they stay disabled) and up to ``timeout`` s to answer (servo joints
+        report on their own). An enabled arm's feedback is fresh every cycle: nothing is sent. A joint
+        that did not answer keeps its old reading; its ``age`` says how old
+        (:mod:`akarm.control.reading`)."""
+        from akarm.control.reading import read_disabled
+
+        if not (isinstance(timeout, int | float) and 0 <= timeout < math.inf):
+            raise ArgumentError(f"timeout must be a finite number of seconds ≥ 0, got {timeout!r}")
+        if self._ctl.mode is not Mode.CLOSED:
+            read_disabled(self._ctl, timeout)
+        return self.state()
+
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Tell the arm about a payload at the tool frame: kg, centre of mass in the tool frame (m).
 

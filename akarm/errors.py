@@ -13,8 +13,14 @@ raises on purpose; anything else escaping akarm is a bug.
     ├── ConfigError            a robot YAML with problems (carries every one of them)
     ├── ModelError             a URDF Pinocchio cannot use
     ├── BusError               a CAN bus that cannot be opened or written
+    │   └── UartError          the serial (UART) line to a servo motor failed under the arm
+    │       ├── UartNoise          bytes that form no frame (noise, a wrong baud rate)
+    │       ├── UartPartialFrame   frames cut short
+    │       ├── UartBadCrc         frames whose CRC does not match
+    │       └── UartSilent         no byte from the motor
     ├── ArgumentError          a bad argument: wrong type or shape, not finite, out of its domain, an unknown name
     ├── StateError             an Arm call that does not fit its state (move before enable, ...)
+    │   └── StopLatched        a command refused: a safety stop is latched until an explicit enable
     ├── LimitError             a target or a planned path past a joint limit
     │   ├── UnreachableError   a Cartesian pose or path the tool cannot reach
     │   └── SingularityError   a Cartesian pose or path at (or through) a singularity
@@ -71,9 +77,15 @@ __all__ = [
     "StaleFeedback",
     "StateError",
     "StatusRateLow",
+    "StopLatched",
     "TrackingError",
     "TrajectoryError",
     "TurnCountLost",
+    "UartBadCrc",
+    "UartError",
+    "UartNoise",
+    "UartPartialFrame",
+    "UartSilent",
     "UnknownMotorError",
     "UnreachableError",
     "WiringError",
@@ -190,6 +202,51 @@ class BusError(AkarmError):
     """A CAN bus cannot be opened, or a frame cannot be sent on it."""
 
 
+class UartError(BusError):
+    """The serial line to a servo motor (:mod:`akarm.buses.uart`) carried no good reply for several
+    polls in a row while the motor was being commanded. The arm stops on it: it is the cause
+    (``__cause__``) of the :class:`BusLost` the arm raises.
+
+    Attributes:
+        port: the serial device (the bus's channel).
+        polls: the polls in a row that got no good reply.
+        data: some of the bytes received meanwhile (empty for :class:`UartSilent`).
+    """
+
+    kind = ""
+
+    def __init__(self, what: str, *, port: str, polls: int, data: bytes = b"", joint: str | None = None,
+                 fix: str = "") -> None:
+        self.port = port
+        self.polls = polls
+        self.data = bytes(data)
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class UartNoise(UartError):
+    """Bytes arrive, but none of them forms a frame: line noise, a wrong baud rate, another device."""
+
+    kind = "noise"
+
+
+class UartPartialFrame(UartError):
+    """Replies start (a frame header) but are cut short before their end."""
+
+    kind = "partial"
+
+
+class UartBadCrc(UartError):
+    """Replies arrive whole, but their CRC does not match: bits flipped on the line."""
+
+    kind = "crc"
+
+
+class UartSilent(UartError):
+    """Nothing at all comes back from the motor (it may still hear the commands)."""
+
+    kind = "silent"
+
+
 class ArgumentError(AkarmError, ValueError):
     """A bad argument to akarm's API: of the wrong type or shape, not finite, outside the values it
     can take, or naming something that does not exist (a joint, a pose). Nothing was done.
@@ -200,6 +257,23 @@ class ArgumentError(AkarmError, ValueError):
 
 class StateError(AkarmError):
     """An :class:`~akarm.Arm` call that does not fit the arm's state (e.g. move before enable)."""
+
+
+class StopLatched(StateError):
+    """A command refused because a safety stop is latched: ``akarm serve`` stopped the arm for safety
+    and nothing moves until the stop is acknowledged by an explicit enable (``akarm enable``, the
+    ``akarm/enable`` service, ``ArmServer.enable()``). Each refusal is a new object.
+
+    Attributes:
+        stop: the latched stop's error class, e.g. ``"FeedbackTimeout"`` (``""`` if unknown).
+        time: when the arm stopped, s since the epoch (``None`` if unknown).
+    """
+
+    def __init__(self, what: str, *, stop: str = "", time: float | None = None, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.stop = stop
+        self.time = time
+        super().__init__(what, joint=joint, fix=fix)
 
 
 class LimitError(AkarmError):

@@ -10,9 +10,11 @@
 
 :class:`ArmServer` is :class:`~akarm.server.server.ArmServerCore` (the buses claimed, the arm held,
 the CLI's socket) with, unless ``ros=False``, the ROS 2 node of :mod:`akarm.ros.node` as its
-frontend: ``joint_states``, ``joint_trajectory``, ``akarm/status`` and the
-``akarm/enable|disable|hold`` services over Cyclone DDS (the ``ros`` extra). This module sits above
-both layers, so the server knows nothing of ROS and ROS only the server's commands.
+frontend: ``joint_states``, ``joint_trajectory``, ``akarm/status``, the
+``akarm/enable|disable|hold`` services and MoveIt's ``CONTROLLER/follow_joint_trajectory`` action
+over Cyclone DDS (the ``ros`` extra), on this machine's loopback interface unless opened
+(``ros_network``, ROS 2's environment variables). This module sits above both layers, so the server
+knows nothing of ROS and ROS only the server's commands.
 
 Stopping it (:meth:`ArmServer.stop`, SIGINT or SIGTERM in :func:`serve`) damps and disables the arm.
 """
@@ -54,14 +56,25 @@ class ArmServer(ArmServerCore):
         status_hz: rate of ``akarm/status``.
         enable: enable (without a kick) and hold when starting.
         log: where the server's one-line reports go (default: stderr).
+        ros_network: let the ROS 2 node talk to other machines (ROS 2's ``SUBNET`` discovery range);
+            by default it talks over the loopback interface only, unless ``ROS_AUTOMATIC_DISCOVERY_RANGE``,
+            ``ROS_STATIC_PEERS``, ``ROS_LOCALHOST_ONLY`` or a ``CYCLONEDDS_URI`` of the user's own say
+            otherwise (:func:`akarm.ros.dds.discovery`).
+        controller: the FollowJointTrajectory action is ``NS/CONTROLLER/follow_joint_trajectory``
+            (MoveIt's ``moveit_controllers.yaml`` names it: ``akarm ros-config``).
+        ros_distro: the ROS 2 distribution whose message layouts to speak: ``humble``, ``jazzy``
+            (the same as humble's but for ``ros_discovery_info``) or ``rolling`` (the action's
+            feedback has ``index`` and ``multi_dof_index``).
+        node_name: the ROS 2 node's name (``ros2 node list`` shows ``/NS/NODE``).
 
-    A missing ``ros`` extra, a DDS that cannot start or a bad namespace is raised by :meth:`start`
-    before anything is opened or enabled.
+    A missing ``ros`` extra, a DDS that cannot start, a bad namespace, controller or node name, or
+    an unknown distribution is raised by :meth:`start` before anything is opened or enabled.
     """
 
     def __init__(self, arm: Arm, *, domain: int | None = None, namespace: str = "", ros: bool = True,
                  joint_states_hz: float | None = None, status_hz: float = 2.0, enable: bool = True,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, ros_network: bool = False,
+                 controller: str = "arm_controller", ros_distro: str = "jazzy", node_name: str = "akarm") -> None:
         for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
             if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
                 raise ArgumentError(f"{what} must be a positive number of Hz, got {hz!r}",
@@ -72,13 +85,18 @@ class ArmServer(ArmServerCore):
         rate = arm.config.rate_hz
         self.joint_states_hz = joint_states_hz if joint_states_hz is not None else rate / max(1, round(rate / 100.0))
         self.status_hz = status_hz
+        self.ros_network = ros_network
+        self.controller, self.ros_distro, self.node_name = controller, ros_distro, node_name
         super().__init__(arm, frontends=[self._ros_node] if ros else [], enable=enable, log=log,
                          about={"domain": self.domain, "namespace": self.namespace})
 
     def _ros_node(self, server: ArmServerCore) -> Frontend:
-        from akarm.ros.node import RosNode  # akarm.ros says so (AkarmError) when Cyclone DDS is not installed
+        from akarm.ros.dds import discovery  # akarm.ros says so (AkarmError) when Cyclone DDS is not installed
+        from akarm.ros.node import RosNode
 
-        return RosNode(server, self.domain, self.namespace, self.joint_states_hz, self.status_hz)
+        return RosNode(server, self.domain, self.namespace, self.joint_states_hz, self.status_hz,
+                       discovery(network=self.ros_network), controller=self.controller, distro=self.ros_distro,
+                       node_name=self.node_name)
 
 
 def serve(arm: Arm, **options: Any) -> None:

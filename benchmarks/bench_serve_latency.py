@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 
 from cyclonedds.core import ReadCondition, WaitSet  # noqa: E402
 
+from akarm.config import JointConfig  # noqa: E402
 from akarm.protocol import mit  # noqa: E402
 from akarm.robotfile.load import load_robot  # noqa: E402
 from akarm.ros import dds, msgs  # noqa: E402
@@ -91,6 +92,39 @@ class States:
         self.thread.join()
 
 
+def command_onsets(frames: list[can.Message], joint: JointConfig, sent: list[float]) -> tuple[list[float], float, str]:
+    """For each time in ``sent`` (a new motion asked for, from rest), how long until the first command
+    frame to ``joint`` that carries it: the first whose torque field (the inverse-dynamics
+    feed-forward of the new plan's acceleration, which moves at once where position and velocity
+    change only with t³ and t²) differs from the 100 ms before by more than 3x the largest deviation
+    seen while holding. Also the threshold (N·m) and a line on the commands seen."""
+    cmds = [(m.timestamp, mit.decode_command(joint.motor, bytes(m.data))) for m in frames
+            if m.arbitration_id == joint.can_id and not m.is_extended_id and mit.special_frame(bytes(m.data)) is None]
+    t = np.array([c[0] for c in cmds])
+    tau = np.array([c[1].torque for c in cmds])
+
+    def deviation(p: float, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+        """Frames from p+lo to p+hi, and how far their torque is from the median of the 100 ms before p."""
+        before = tau[(t > p - 0.1) & (t < p)]
+        base = np.median(before) if len(before) else np.nan
+        sel = (t > p + lo) & (t < p + hi)
+        return t[sel], np.abs(tau[sel] - base)
+
+    span = t[-1] - t[0] if len(t) > 1 else float("nan")
+    line = f"{len(cmds)} commands to {joint.name} in {span:.1f} s ({len(cmds) / span:.0f}/s; fewer than the loop's " \
+           "rate means a loaded machine)"
+    sent = [p for p in sent if len(deviation(p, -0.1, 0.0)[1]) >= 5]  # a stalled machine: no baseline
+    quiet = max(deviation(p, -0.1, 0.0)[1].max() for p in sent)
+    threshold = max(3.0 * quiet, 0.02)
+    onsets = []
+    for p in sent:
+        tt, dev = deviation(p, 0.0, 0.1)
+        hit = np.nonzero(dev > threshold)[0]
+        if len(hit):
+            onsets.append(tt[hit[0]] - p)
+    return onsets, threshold, line
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--robot", default=str(ROOT / "robots" / "arm6.yaml"))
@@ -140,30 +174,8 @@ def main() -> None:
             serve.wait(30)
 
     # -- trajectory → first command frame of the new motion ----------------------------------------
-    cmds = [(m.timestamp, mit.decode_command(jt.motor, bytes(m.data))) for m in frames.frames
-            if m.arbitration_id == jt.can_id and not m.is_extended_id and mit.special_frame(bytes(m.data)) is None]
-    t = np.array([c[0] for c in cmds])
-    tau = np.array([c[1].torque for c in cmds])
-
-    def deviation(p: float, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
-        """Frames from p+lo to p+hi, and how far their torque is from the median of the 100 ms before p."""
-        before = tau[(t > p - 0.1) & (t < p)]
-        base = np.median(before) if len(before) else np.nan
-        sel = (t > p + lo) & (t < p + hi)
-        return t[sel], np.abs(tau[sel] - base)
-
-    span = t[-1] - t[0] if len(t) > 1 else float("nan")
-    print(f"{len(cmds)} commands to {jt.name} in {span:.1f} s ({len(cmds) / span:.0f}/s; the loop's rate is "
-          f"{config.rate_hz:g} Hz: fewer means a loaded machine)")
-    published = [p for p in published if len(deviation(p, -0.1, 0.0)[1]) >= 5]  # a stalled machine: no baseline
-    quiet = max(deviation(p, -0.1, 0.0)[1].max() for p in published)
-    threshold = max(3.0 * quiet, 0.02)
-    to_frame = []
-    for p in published:
-        tt, dev = deviation(p, 0.0, 0.1)
-        hit = np.nonzero(dev > threshold)[0]
-        if len(hit):
-            to_frame.append(tt[hit[0]] - p)
+    to_frame, threshold, commanded = command_onsets(frames.frames, jt, published)
+    print(commanded)
     # -- reply → joint_states ----------------------------------------------------------------------
     replies = [(m.timestamp, mit.decode_reply(j0.motor, bytes(m.data))) for m in frames.frames
                if not m.is_extended_id and m.arbitration_id == j0.reply_id and len(m.data) >= 6
@@ -176,7 +188,7 @@ def main() -> None:
         if 1 <= len(recent) <= 2:  # a position only the last reply or two carried: the arm was moving
             to_states.append(when - rt[recent[-1]])
     print(f"akarm serve latency, {config.name}, {config.rate_hz:g} Hz loop, "
-          f"{len(published)} trajectories, {len(states.received)} joint_states")
+          f"{len(to_frame)} trajectories, {len(states.received)} joint_states")
     print(f"trajectory published -> first command frame of the new motion: {percentiles(to_frame)} "
           f"(joint {jt.name}; torque step over {threshold:.3f} N·m, 3x the largest while holding)")
     print(f"reply on the bus -> joint_states received (arm moving): {percentiles(to_states)}")

@@ -26,6 +26,9 @@ def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str
                 f"(check the adapter is plugged in: ip -br link)")
     if interface == "virtual":
         return "virtual buses need no setup; check the channel name"
+    if interface == "akarm_uart":
+        return (f"check that {channel} exists (ls /dev/ttyUSB* /dev/ttyACM*), that you may open it (the dialout "
+                "group) and that no other program has it open")
     if interface == "akarm_local":
         return ("akarm_local needs no setup: check that the channel's file (see akarm.buses.localbus.channel_path) "
                 "can be created, and that fewer than 32 buses use the channel")
@@ -90,10 +93,12 @@ def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusAB
 
     kwargs: dict[str, object] = {**bus.options, "interface": bus.interface, "channel": bus.channel,
                                  "receive_own_messages": receive_own_messages}
-    if bus.interface not in ("virtual", "socketcan", "akarm_local"):
+    if bus.interface not in ("virtual", "socketcan", "akarm_local", "akarm_uart"):
         kwargs["bitrate"] = bus.bitrate  # socketcan takes the bit rate from `ip link`, not from us
     try:
         return can.Bus(**kwargs)  # type: ignore[arg-type]
+    except BusError:
+        raise  # already says which port and what to check (akarm_uart)
     except (OSError, can.CanError, ValueError, ImportError, NotImplementedError, TypeError) as e:
         raise open_error(bus, e) from None
 
@@ -104,6 +109,12 @@ def no_answer_hint(bus: BusConfig) -> str:
     On ``akarm_local`` it says whether any other process is on the channel at all; on ``virtual``,
     that such a bus only reaches buses of the same process. On hardware, the usual suspects.
     """
+    if bus.interface == "akarm_uart":
+        from akarm.buses.uart import diagnose
+
+        return diagnose(bus.channel) or (
+            f"check that the motor on serial port {bus.channel} is powered and in servo mode, and the wiring; "
+            "a simulator answers on a serial line with akarm sim ROBOT.yaml --serial JOINT=pty")
     sim = f"akarm sim ROBOT.yaml -i {bus.interface} -c {bus.channel}"
     if bus.interface == "akarm_local":
         from akarm.buses.localbus import peers

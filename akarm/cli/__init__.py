@@ -33,6 +33,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording, checked against the limits first"),
     "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
+    "ros-config": ("akarm.cli.ros_config", "print or write what MoveIt needs to drive akarm serve for a robot"),
     "plot": ("akarm.cli.plot", "plot a telemetry log: desired vs measured, error, torque"),
     "identify": ("akarm.cli.identify", "identify friction, payload and collision thresholds by a safe excitation"),
     "bench": ("akarm.cli.bench", "measure the control loop's timing against the simulator"),
@@ -68,7 +69,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(module.run(args) or 0)
     except AkarmError as e:
-        print(f"akarm {args.verb}: error: {e}", file=sys.stderr)
+        from akarm.errors import SafetyStop
+
+        name = f"{type(e).__name__}: " if isinstance(e, SafetyStop) else ""  # a stop says which one
+        print(f"akarm {args.verb}: error: {name}{e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as e:
         print(f"akarm {args.verb}: interrupted", file=sys.stderr)

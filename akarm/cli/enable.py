@@ -9,6 +9,11 @@
 Exit status 0 after ``--seconds``, and after Ctrl-C without ``--seconds`` (the documented way to end
 it); 130 when Ctrl-C cuts ``--seconds`` short (the arm is damped and disabled either way); 1 on an
 error (a joint that does not answer, a motor fault, ...).
+
+While ``akarm serve`` drives the robot, ``enable`` asks it instead: it acknowledges a latched safety
+stop, enables (kick-free) and returns, leaving the arm **held by the server**; with ``--seconds`` it
+first watches the arm that long (a safety stop meanwhile is its error, exit status 1). ``akarm
+disable`` makes it limp.
 """
 
 from __future__ import annotations
@@ -51,8 +56,8 @@ def run(args: argparse.Namespace) -> int:
         return served
     from akarm.errors import ArgumentError
 
-    if args.seconds is not None and not args.seconds >= 0:
-        raise ArgumentError(f"--seconds {args.seconds} must not be negative")
+    if args.seconds is not None and not 0 <= args.seconds < float("inf"):
+        raise ArgumentError(f"--seconds {args.seconds} must be a number of seconds, not negative")
     config = load_from_args(args)
     with controlled(config, timing=args.profile) as arm:
         try:
@@ -79,12 +84,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
-    """Enable and return: the server holds the arm. With ``--seconds``, as without a server: hold
-    that long, then disable."""
-    from akarm.errors import AkarmError
+    """Acknowledge a latched safety stop, enable, and leave the arm held by the server; with
+    ``--seconds``, watch it that long first (a safety stop meanwhile: the error, exit status 1)."""
+    from akarm.errors import ArgumentError
 
-    if args.seconds is not None and not args.seconds >= 0:
-        raise AkarmError(f"--seconds {args.seconds} must not be negative")
+    if args.seconds is not None and not 0 <= args.seconds < float("inf"):
+        raise ArgumentError(f"--seconds {args.seconds} must be a number of seconds, not negative")
     state = arm.call("enable", accept_position=True) if args.accept_position else arm.call("enable")
     if args.seconds is None:
         print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}); "
@@ -97,6 +102,5 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
     except KeyboardInterrupt as e:
         print(f"interrupted: {arm.held}", file=sys.stderr)
         return interrupted(e)
-    arm.call("disable")
-    print("disabled")
+    print(f"{arm.held} (akarm disable releases it)")
     return 0

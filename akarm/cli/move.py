@@ -203,7 +203,7 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
         target = list(arm.config.pose(target))
     label = " ".join(args.target)
     try:
-        arm.call("enable")
+        arm.call("ready")  # refused while a safety stop is latched; a disabled arm is enabled
         motion = arm.call("move", target=target if isinstance(target, dict) else list(target), speed=args.speed)
         q_target = np.array(motion["target"])
         print(f"moving to {label} {format_q(q_target)} in {motion['duration']:.2f} s", flush=True)

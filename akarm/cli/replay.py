@@ -104,7 +104,7 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
     path = os.path.abspath(args.file)
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:
-        arm.call("enable")
+        arm.call("ready")  # refused while a safety stop is latched; a disabled arm is enabled
         motion = arm.call("replay", path=path, speed=args.speed)
         print(f"replaying {args.file} ({motion['kind']}) in {motion['duration']:.2f} s at speed {args.speed:g}",
               flush=True)

@@ -8,9 +8,13 @@
 
 While it runs, ``move``, ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` for this robot
 use it (the arm stays held between them), a second controller on its buses is refused, and ROS 2
-sees ``NS/joint_states``, ``NS/joint_trajectory``, ``NS/akarm/status`` and the
-``NS/akarm/enable|disable|hold`` services (``docs/ros2.md``). Ctrl-C or SIGTERM: the arm is damped,
-then disabled, and the exit status is 0.
+sees ``NS/joint_states``, ``NS/joint_trajectory``, ``NS/akarm/status``, the
+``NS/akarm/enable|disable|hold`` services and the FollowJointTrajectory action
+``NS/CONTROLLER/follow_joint_trajectory`` that MoveIt drives (``docs/ros2.md``; ``akarm ros-config``
+writes MoveIt's side): on this machine only (loopback) unless ``--ros-network`` (or ROS 2's
+``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``, ``ROS_STATIC_PEERS``, a ``CYCLONEDDS_URI`` of your own) opens
+it to the network. A safety stop latches: nothing moves until ``akarm enable`` (or the ``akarm/enable``
+service) acknowledges it. Ctrl-C or SIGTERM: the arm is damped, then disabled, and the exit status is 0.
 """
 
 from __future__ import annotations
@@ -18,8 +22,12 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, load_from_args
+
+if TYPE_CHECKING:
+    from akarm.serving import ArmServer
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--domain", type=int, metavar="N", help="DDS domain ID (default: $ROS_DOMAIN_ID, else 0)")
     parser.add_argument("--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics and services")
+    parser.add_argument("--controller", default="arm_controller", metavar="NAME",
+                        help="the FollowJointTrajectory action is NS/NAME/follow_joint_trajectory "
+                             "(default: arm_controller; akarm ros-config writes MoveIt's side)")
+    parser.add_argument("--ros-distro", default="jazzy", choices=("humble", "jazzy", "rolling"),
+                        help="the ROS 2 message layouts to speak (default: jazzy; rolling's action feedback "
+                             "has two more fields, humble's ros_discovery_info longer IDs)")
     parser.add_argument("--joint-states-hz", type=float, metavar="HZ",
                         help="joint_states rate (default: the loop rate divided by round(rate/100), ~100 Hz)")
     parser.add_argument("--feedback-timeout", type=float, metavar="S",
@@ -35,6 +49,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_profile_argument(parser)
     parser.add_argument("--no-ros", action="store_true",
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
+    parser.add_argument("--ros-network", action="store_true",
+                        help="let ROS 2 participants on other machines see and command the arm (ROS 2's SUBNET "
+                             "discovery range; default: this machine only, unless ROS_AUTOMATIC_DISCOVERY_RANGE, "
+                             "ROS_STATIC_PEERS or CYCLONEDDS_URI say otherwise)")
+
+
+def action(server: ArmServer) -> str:
+    """The FollowJointTrajectory action's full name and layout, as the start line says it."""
+    from akarm.ros.action import action_name
+    from akarm.ros.dds import ros_name
+
+    return f"{ros_name(server.namespace, action_name(server.controller))} ({server.ros_distro})"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,15 +71,20 @@ def run(args: argparse.Namespace) -> int:
 
     config = load_from_args(args)
     arm = Arm(config, feedback_timeout=args.feedback_timeout, timing=args.profile)
+    if args.no_ros and args.ros_network:
+        from akarm.errors import ArgumentError
+
+        raise ArgumentError("--ros-network and --no-ros contradict each other", fix="give one of them")
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
-                       joint_states_hz=args.joint_states_hz)
+                       joint_states_hz=args.joint_states_hz, ros_network=args.ros_network,
+                       controller=args.controller, ros_distro=args.ros_distro)
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
                                                                                            signal.SIGTERM)}
     try:
         server.start()
         ros = "ROS 2 off (--no-ros)" if args.no_ros else \
-            f"ROS 2 domain {server.domain}, namespace '/{server.namespace}'"
+            f"ROS 2 domain {server.domain}, namespace '/{server.namespace}', action {action(server)}"
         print(f"serving {config.name}: holding at {format_q(server.arm.state().q)}; {ros}; "
               "Ctrl-C or SIGTERM stops (damped, then disabled)", flush=True)
         server.wait(signals=False)

@@ -4,12 +4,16 @@ Each such verb calls :func:`via_server` first thing in its ``run``, with the fun
 own module) that does the verb through a :class:`RemoteArm`. It returns ``None`` when no server
 drives the robot's buses (the verb then does what it always did), else that function's exit code.
 Output is the verb's own, except that the arm is left held by the server instead of disabled, and
-the last line says so (:attr:`RemoteArm.held`).
+the last line says so (:attr:`RemoteArm.held`). A safety stop the server latched while the verb ran
+is the verb's error, as without a server (its class and text), with a line saying that only
+``akarm enable`` acknowledges it; verbs that move ask the server's ``ready`` first, which refuses
+while a stop is latched (the server never re-enables an arm a stop disabled).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -89,6 +93,7 @@ def via_server(args: argparse.Namespace, served: Callable[[RemoteArm, argparse.N
     """``served(arm, args)`` for a :class:`RemoteArm` of the server that drives this robot's buses, and
     its exit code; ``None`` when no server drives them."""
     from akarm.buses.ownership import any_server, find_server
+    from akarm.errors import SafetyStop
 
     if not any_server():  # the common case, decided without loading the robot
         return None
@@ -103,5 +108,9 @@ def via_server(args: argparse.Namespace, served: Callable[[RemoteArm, argparse.N
     arm = RemoteArm(config, info)
     try:
         return served(arm, args)
+    except SafetyStop:  # the stop that ended what this verb did: latched by the server
+        print(f"akarm {args.verb}: akarm serve (pid {arm.pid}) stopped the arm for safety and latched the stop: "
+              f"nothing moves until `akarm enable {args.robot}` acknowledges it", file=sys.stderr)
+        raise
     finally:
         arm.close()

@@ -6,6 +6,13 @@ Point a controller (or ``candump``) at the bus exactly as at the hardware::
     akarm sim robots/arm6.yaml -i socketcan -c vcan0 --fault elbow:drop:0.3 --fault wrist_roll:error:1
     akarm sim robots/arm6.yaml -i socketcan -c vcan0 --profile slow --control /tmp/arm6.sock
 
+``--serial JOINT=PATH`` puts a servo joint's simulated driver on a serial port instead of its CAN bus,
+speaking the UART protocol (:mod:`akarm.sim.uart`): ``JOINT=pty`` makes a pseudo-terminal pair and
+prints the path a controller opens (``serial JOINT: /dev/pts/N``); a device's path is opened at
+``--baudrate`` (e.g. a USB-UART adapter cabled to the controller's, or one end of a ``socat`` pair)::
+
+    akarm sim robots/servo3.yaml -i akarm_local -c can0 --serial elbow=pty
+
 ``--profile slow`` integrates at a rate a slow or shared machine keeps up with (see
 :mod:`akarm.timing`). ``--control PATH`` serves a control channel on that Unix-domain socket, through
 which another program injects and clears faults, reads the drivers and disables them while the
@@ -38,6 +45,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--fault", action="append", default=[], metavar="JOINT:KIND[:ARG]",
                         help="inject a fault at start (repeatable); KIND: " + "; ".join(KINDS.values()))
+    parser.add_argument("--serial", action="append", default=[], metavar="JOINT=PATH",
+                        help="the simulated driver of servo joint JOINT answers on this serial port instead of CAN "
+                             "(repeatable); PATH 'pty' makes a pseudo-terminal pair and prints the path to open")
+    parser.add_argument("--baudrate", type=int, default=921_600, metavar="BAUD",
+                        help="bit/s of the --serial devices (default 921600, the AK drivers'; a pty ignores it)")
     parser.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
     parser.add_argument("--plant-rate", type=float, metavar="HZ",
                         help="plant integration rate, Hz (default: the timing profile's; 2000 normally)")
@@ -57,13 +69,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="no status line")
 
 
-def _describe(config: RobotConfig) -> str:
+def _describe(config: RobotConfig, serial: dict[str, str]) -> str:
     lines = [f"akarm sim: simulating {config.name} ({len(config.joints)} joints)"]
     for name, b in config.buses.items():
         joints = ", ".join(f"{j.name} (id {j.can_id}, {j.mode}{' v3' if j.firmware == 'v3' else ''}, {j.motor.name})"
-                           for j in config.joints if j.bus == name)
-        lines.append(f"  bus {name}: {b.interface} {b.channel}: {joints}")
+                           for j in config.joints if j.bus == name and j.name not in serial)
+        if joints:
+            lines.append(f"  bus {name}: {b.interface} {b.channel}: {joints}")
+    for joint, path in serial.items():  # SimulatorProcess reads these lines
+        j = config.joint(joint)
+        lines.append(f"  serial {joint}: {path}   (id {j.can_id}, servo over UART, {j.motor.name})")
     return "\n".join(lines)
+
+
+def parse_serial(specs: list[str]) -> dict[str, str]:
+    """``--serial JOINT=PATH`` options as ``{joint: path}``.
+
+    Raises:
+        AkarmError: a spec without ``=``, or a joint given twice.
+    """
+    from akarm.errors import AkarmError
+
+    out: dict[str, str] = {}
+    for spec in specs:
+        joint, sep, path = spec.partition("=")
+        if not sep or not joint or not path:
+            raise AkarmError(f"bad --serial {spec!r}: expected JOINT=PATH", fix="e.g. --serial elbow=pty")
+        if joint in out:
+            raise AkarmError(f"--serial gives joint {joint!r} twice", fix="one serial port per joint")
+        out[joint] = path
+    return out
 
 
 def status_block(line: str, width: int) -> list[str]:
@@ -90,6 +125,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     from akarm.sim.channel import ChannelServer
 
     config = load_from_args(args)
+    serial = parse_serial(args.serial)
     injected = [faults.parse(spec) for spec in args.fault]
     for joint, _ in injected:
         config.joint(joint)  # ConfigError naming the joints when there is no such joint
@@ -100,7 +136,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
     sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate if args.plant_rate else None, q0=q0,
                          zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile,
-                         log_frames=bool(args.control))
+                         log_frames=bool(args.control), serial=serial, baudrate=args.baudrate)
 
     stop = threading.Event()
     previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
@@ -117,7 +153,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     shown = 0  # lines of the status block on screen (a terminal redraws it in place)
     try:
         with sim, contextlib.ExitStack() as stack:
-            print(_describe(sim.config), flush=True)
+            print(_describe(sim.config, sim.serial_ports), flush=True)
             print(f"  integrating at {1.0 / sim.dt:g} Hz (timing profile {sim.timing.name})", flush=True)
             for joint, fault in injected:
                 sim.inject(joint, fault)

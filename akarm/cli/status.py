@@ -47,28 +47,31 @@ def _num(x: float | None, fmt: str) -> str:
 def status_table(states: Sequence[JointStatus]) -> str:
     """The status table: one row per joint, SI units in the headers."""
     rows = [["joint", "mode", "bus/ID", "position (rad)", "velocity (rad/s)", "torque (N·m)", "temperature (°C)",
-             "fault"]]
+             "fault", "age (s)"]]
     for s in states:
         if s.missing:
-            rows.append([s.name, s.mode, f"{s.bus}/{s.can_id}", "no answer", "-", "-", "-", "-"])
+            rows.append([s.name, s.mode, f"{s.bus}/{s.can_id}", "no answer", "-", "-", "-", "-", "-"])
             continue
         rows.append([s.name, s.mode, f"{s.bus}/{s.can_id}", _num(s.position, "+.4f"), _num(s.velocity, "+.3f"),
-                     _num(s.torque, "+.3f"), _num(s.temperature, ".1f"), s.fault_text()])
-    text = format_table(rows, [False, False, False, True, True, True, True, False])
+                     _num(s.torque, "+.3f"), _num(s.temperature, ".1f"), s.fault_text(), _num(s.age, ".3f")])
+    text = format_table(rows, [False, False, False, True, True, True, True, False, True])
     asked = [s.name for s in states if s.queried and not s.missing]
     if asked:
         text += f"\n(asked with EXIT, so now disabled: {', '.join(asked)})"
     return text
 
 
-def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO, clear: bool) -> None:
+def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO, clear: bool,
+           about: dict[str, Any] | None) -> None:
     if args.json:
-        doc = {"time": time.time(), "joints": [s.as_dict() for s in states]}
+        doc = {"time": time.time(), "joints": [s.as_dict() for s in states], **(about or {})}
         print(json.dumps(doc, allow_nan=False), file=out, flush=True)
         return
     if clear:
         print("\x1b[H\x1b[2J", end="", file=out)
     print(status_table(states), file=out, flush=True)
+    if about and about.get("text"):
+        print(about["text"], file=out, flush=True)
 
 
 def check_options(args: argparse.Namespace) -> None:
@@ -80,9 +83,10 @@ def check_options(args: argparse.Namespace) -> None:
 
 
 def watch(args: argparse.Namespace, read: Callable[[], list[JointStatus]],
-          first: Callable[[], None] | None = None) -> list[JointStatus]:
+          about: Callable[[], dict[str, Any]] | None = None) -> list[JointStatus]:
     """Print ``read()`` once, or with --watch every --interval s (--count times, else until Ctrl-C);
-    ``first()`` after the first table. Returns the last states read."""
+    ``about()``, read after each ``read()``, adds its keys to the JSON and its ``text`` under the
+    table. Returns the last states read."""
     out = sys.stdout
     tty = out.isatty()
     n = 0
@@ -92,9 +96,7 @@ def watch(args: argparse.Namespace, read: Callable[[], list[JointStatus]],
         n += 1
         if args.watch and n > 1 and not args.json and not tty:
             print(file=out)
-        _print(states, args, out, clear=args.watch and tty and not args.json)
-        if n == 1 and first is not None:
-            first()
+        _print(states, args, out, clear=args.watch and tty and not args.json, about=about() if about else None)
         if not args.watch or (args.count is not None and n >= args.count):
             return states
         next_t += args.interval
@@ -126,24 +128,39 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
-    """Read the joints through ``akarm serve`` (as the server last heard from them)."""
+    """Read the joints through ``akarm serve``: live while it holds the arm; a disabled arm's joints
+    are asked first, as without a server. Each reading says its age; a latched safety stop is shown."""
     from akarm.control.probe import JointStatus
 
     check_options(args)
     last: dict[str, Any] = {}
 
     def read() -> list[JointStatus]:
-        d = last["doc"] = arm.call("state")
-        return [JointStatus(name, mode, bus, can_id, q, dq, tau, temp, fault, False)
-                for name, mode, bus, can_id, q, dq, tau, temp, fault in
+        d = last["doc"] = arm.call("state", read=True)
+        return [JointStatus(name, mode, bus, can_id, q, dq, tau, temp, fault, False, False, age)
+                for name, mode, bus, can_id, q, dq, tau, temp, fault, age in
                 zip(d["names"], d["modes"], d["buses"], d["can_ids"], d["q"], d["dq"], d["tau"],
-                    d["temperature"], d["fault"], strict=True)]
+                    d["temperature"], d["fault"], d["age"], strict=True)]
 
-    def first() -> None:
+    def about() -> dict[str, Any]:
         d = last["doc"]
-        if not args.json:
-            print(f"({d['mode']}; {arm.held})" if d["enabled"] else f"({d['mode']}; read through akarm serve "
-                                                                     f"pid {arm.pid})")
+        stop = d.get("stop")
+        lines = [f"({d['mode']}; {arm.held})" if d["enabled"] else
+                 f"({d['mode']}; read through akarm serve pid {arm.pid}"
+                 + ("; silent joints asked with EXIT)" if d.get("asked") else ")")]
+        old = [(n, a) for n, a in zip(d["names"], d["age"], strict=True) if a is not None and a > 1.0]
+        if old:
+            lines.append("(readings not fresh: " + ", ".join(f"{n} {a:.1f} s old" for n, a in old) + ")")
+        if stop:
+            clock = time.strftime("%H:%M:%S", time.localtime(stop["time"]))
+            lines.append(f"SAFETY STOP latched since {clock}: {stop['error']}: {stop['text']}\n"
+                         f"nothing moves until `akarm enable {args.robot}` acknowledges it")
+        return {"mode": d["mode"], "stop": stop, "server_pid": arm.pid, "text": "\n".join(lines)}
 
-    watch(args, read, first)
+    def json_about() -> dict[str, Any]:
+        doc = about()
+        del doc["text"]
+        return doc
+
+    watch(args, read, json_about if args.json else about)
     return 0

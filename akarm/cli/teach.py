@@ -17,6 +17,7 @@ file cannot be written (a path that cannot be written is refused before anything
 from __future__ import annotations
 
 import argparse
+import contextlib
 import queue
 import sys
 import threading
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, TextIO
 
 from akarm.cli.common import add_profile_argument, add_robot_arguments, interrupted, load_from_args
+from akarm.errors import AkarmError
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
@@ -217,7 +219,7 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
     """Teach through ``akarm serve``: as without it, but the server holds the arm afterwards."""
     out = Path(args.out)  # checked by run before it asked the server
     lines = _reader(sys.stdin)
-    state = arm.call("enable")
+    state = arm.call("ready")  # refused while a safety stop is latched; a disabled arm is enabled
     rate = args.sample_rate if args.sample_rate is not None else default_sample_rate(state["rate_hz"])  # its loop
     try:  # the server ends teach mode itself if this process goes without ending it (killed, hung up)
         arm.call("teach", damping=args.damping)
@@ -225,7 +227,10 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
             code = _teach_path(arm, out, lines, rate, args.seconds)
         else:
             code = _teach_keyframes(arm, out, lines)
-    finally:
-        arm.call("end_teach")
+    except BaseException:  # a safety stop, Ctrl-C: said as it is, not hidden by a failure to end teach mode
+        with contextlib.suppress(AkarmError):
+            arm.call("end_teach")
+        raise
+    arm.call("end_teach")
     print(arm.held)
     return code

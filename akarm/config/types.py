@@ -245,10 +245,15 @@ class RobotConfig:
         name to channel, or one channel name: used as is when there is one bus, and suffixed with
         ``-<bus name>`` for each bus when there are several (so the buses stay apart). ``options``
         (python-can keyword arguments) are added to every bus's. A bus whose interface changes drops
-        the keyword arguments it had: they were meant for the other interface.
+        the keyword arguments it had: they were meant for the other interface. A serial port
+        (``akarm_uart``) is no CAN bus: it keeps its settings, but for its channel where a mapping names it.
         """
         buses = {}
         for name, b in self.buses.items():
+            if b.interface == "akarm_uart":  # a serial port: only a channel mapping that names it changes it
+                named = isinstance(channel, Mapping) and name in channel
+                buses[name] = replace(b, channel=channel[name]) if named else b  # type: ignore[index]
+                continue
             ch = b.channel
             if isinstance(channel, Mapping):
                 ch = channel.get(name, ch)

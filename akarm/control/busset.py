@@ -159,4 +159,5 @@ class BusSet:
             fix="cut the motors' power (e-stop) if they are still holding; check the adapter, cable and "
                 "interface (ip link), then close the arm and open it again")
         stop.at = now
+        stop.__cause__ = error  # what failed, by its own name (a serial line's UartError ...)
         self._on_lost(stop)

@@ -106,6 +106,7 @@ class JointStatus:
         missing: True when nothing was heard from the joint within the timeout.
         queried: True when the joint was silent and exit frames were sent to read it (MIT: it is
             disabled now, whatever it was before).
+        age: how old the reading was when it was reported, s (``None`` when missing, or not known).
     """
 
     name: str
@@ -119,6 +120,7 @@ class JointStatus:
     fault: int | None
     missing: bool
     queried: bool = False
+    age: float | None = None
 
     def fault_text(self) -> str:
         """The error code with its meaning, e.g. ``"0 no fault"``; ``"-"`` when missing."""
@@ -130,7 +132,7 @@ class JointStatus:
                 "position": self.position, "velocity": self.velocity, "torque": self.torque,
                 "temperature": self.temperature, "fault": self.fault,
                 "fault_text": None if self.fault is None else servo.describe_error(self.fault)[0],
-                "missing": self.missing, "queried": self.queried}
+                "missing": self.missing, "queried": self.queried, "age": self.age}
 
 
 def _fault_text(code: int | None) -> str:
@@ -439,7 +441,8 @@ class Probe:
             return None if x != x else float(x)
 
         return JointStatus(j.name, j.mode, j.bus, c.can_id, num(s.position), num(s.velocity), num(s.torque),
-                           None if s.temperature is None else float(s.temperature), int(s.error), False, queried)
+                           None if s.temperature is None else float(s.temperature), int(s.error), False, queried,
+                           max(0.0, time.monotonic() - s.stamp))
 
     # -- zero and release --------------------------------------------------------------------
     def zero(self, name: str, permanent: bool = False, wait: float = 1.5, timeout: float = 1.0) -> float:

@@ -155,12 +155,22 @@ class ServoErrorCode(IntEnum):
 
 
 def describe_error(code: int) -> tuple[str, str]:
-    """``(description, remedy)`` for a servo/MIT error code, including codes no manual lists."""
+    """``(description, remedy)`` for a servo/MIT error code, including codes no manual lists (and the
+    serial port's faults that have no CAN code, passed on from 0x80 up by :mod:`akarm.buses.uart`)."""
     try:
-        return _ERROR_TEXT[operator.index(code)]
-    except (KeyError, TypeError):
-        return (f"unknown error code {code!r}",
-                "look the code up for this firmware version; power-cycle the driver if it persists")
+        key = operator.index(code)
+    except TypeError:
+        key = None
+    if key in _ERROR_TEXT:
+        return _ERROR_TEXT[key]
+    if key is not None:
+        from akarm.protocol.uart.packets import describe_serial_fault
+
+        serial = describe_serial_fault(key)
+        if serial is not None:
+            return serial
+    return (f"unknown error code {code!r}",
+            "look the code up for this firmware version; power-cycle the driver if it persists")
 
 
 class ServoStatus(NamedTuple):

@@ -39,11 +39,13 @@ from akarm.robotfile.schema import (
 )
 
 __all__ = ["DEFAULT_BUS", "RULES", "SERVO_POSITION_RANGE", "Joints", "bus_load", "buses", "catalogue", "gravity",
-           "locked", "payload", "poses", "rate", "tool_frame", "urdf_file"]
+           "locked", "payload", "poses", "rate", "serial_ports", "tool_frame", "urdf_file"]
 
 DEFAULT_BUS = "arm"
 #: Servo status frames carry position as int16 × 0.1°.
 SERVO_POSITION_RANGE = math.radians(3276.7)
+#: A UART reply carries position as int32 millionths of a degree.
+UART_POSITION_RANGE = math.radians(2147.483647)
 #: the gains' range without a known motor: the catalogue's usual kp_max and kd_max
 _GAIN_RANGE: dict[str, float] = {f.name: f.default for f in dataclass_fields(MotorModel)  # type: ignore[misc]
                                   if f.name in ("kp_max", "kd_max")}
@@ -72,6 +74,8 @@ RULES = (
     "`velocity` at most the motor's v_max; `torque` defaults to, and may not exceed, the motor's t_max; MIT "
     "joints need `kp` and `kd`, within the motor's kp_max and kd_max.",
     "A pose has one value per joint, each within the joint's limits.",
+    "A serial port (`interface: akarm_uart`) carries one servo-mode motor: no second joint, no MIT joint; its "
+    "range, seen from the motor, within the ±2147.48° a UART reply carries.",
     "Bus load: a bus whose nominal load would pass 80 % at `rate_hz` is refused (see `akarm.config.busload`; "
     "`akarm check` prints the load and the highest rate each bus carries).",
     "Gravity: the largest gravity torque of every joint over the joint ranges, payload included, may not exceed "
@@ -576,6 +580,31 @@ def bus_load(found: Findings, buses: Mapping[str, BusConfig], joints: list[Joint
                       f"on bus {name!r}, over the {100 * LOAD_LIMIT:.0f} % limit",
                       f"lower rate_hz to at most {math.floor(load.max_rate_hz_nominal)} Hz, or move joints to another "
                       "bus")
+
+
+def serial_ports(found: Findings, buses: Mapping[str, BusConfig], joints: list[JointConfig], item: Item | None
+                 ) -> None:
+    """Refuse a serial-port bus (``akarm_uart``) with more than one joint, or with a joint in MIT mode."""
+    for name, bus in buses.items():
+        if bus.interface != "akarm_uart":
+            continue
+        on = [j for j in joints if j.bus == name]
+        at = item.value[name].key if item is not None and item.ok and name in item.value else None
+        if len(on) > 1:
+            found.add(at, f"bus {name!r} is a serial port (akarm_uart), and joints {', '.join(j.name for j in on)} "
+                      "are on it: the serial protocol has no addresses, one motor per port",
+                      "give each motor its own serial port (a bus each), or put them on a CAN bus")
+        for j in on:
+            if j.mode != "servo":
+                found.add(at, f"joint {j.name!r} is in MIT mode on serial port bus {name!r}: MIT mode has no serial "
+                          "protocol", "use servo mode (mode: servo) for a motor on a serial port, or a CAN bus")
+                continue
+            reach = UART_POSITION_RANGE / (j.motor.gear_ratio if j.motor.servo_position == "rotor" else 1.0)
+            ends = sorted(((j.limits.lower - j.offset) * j.direction, (j.limits.upper - j.offset) * j.direction))
+            if ends[0] < -reach or ends[1] > reach:
+                found.add(at, f"joint {j.name!r} on serial port bus {name!r}: its range is motor [{ends[0]:g}, "
+                          f"{ends[1]:g}] rad, outside the ±{reach:g} rad a UART reply's position carries (int32 "
+                          "millionths of a degree)", "narrow it with `lower:`/`upper:` under limits, or use CAN")
 
 
 def gravity(found: Findings, config: RobotConfig, urdf_item: Item | None, torque_lines: Mapping[str, int | None]

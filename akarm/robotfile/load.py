@@ -106,6 +106,7 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     locked = checks.locked(found, top.get("locked"), urdf, joints.driven, at) if urdf is not None else {}
     poses = checks.poses(found, top.get("poses"), configs, joints.entries)
     checks.bus_load(found, buses, configs, rate_hz, rate_line)
+    checks.serial_ports(found, buses, configs, top.get("buses"))
     found.raise_if_any()
     assert urdf_path is not None and rate_hz is not None
     g = top.value("gravity", ROBOT_FILE["gravity"].default)

@@ -673,6 +673,9 @@ BUS = Section("bus", nested=False, shorthand="channel", doc=(
     Key("channel", Name(numbers=True), "the interface's channel: can0, PCAN_USBBUS1, a virtual channel's name",
         default="can0", fix="a channel name, or {channel: ..., ...}"),
     Key("bitrate", Integer(10_000, 1_000_000), "bit/s", default=1_000_000, fix="AK drivers use 1000000 bit/s"),
+    Key("baudrate", Integer(1_200, 12_000_000), "a serial port's (interface akarm_uart: a servo "
+        "motor's UART, one per port) bit/s", default_text="921600, the AK drivers'",
+        fix="AK drivers' serial ports run at 921600"),
 ), extra=PassThrough("the keyword arguments of python-can's bus for the interface",
                      reserved=RESERVED_BUS_KEYS,
                      examples="use python-can's argument names, e.g. device_id, app_name, serial, fd, data_bitrate"))

@@ -9,20 +9,28 @@
   and each endpoint's USER_DATA says ``clientid=...;`` or ``serviceid=...;`` so that a service can
   tell when a client's reply reader has been matched. The layout and its source: ``docs/ros2.md``.
 
-Which network Cyclone DDS uses, and whom it looks for, is Cyclone's own configuration: the
-``CYCLONEDDS_URI`` environment variable (:data:`LOOPBACK_CONFIG` keeps everything on this machine).
+Whom a participant talks to (:func:`discovery`) follows ROS 2's own settings, and is this machine
+only unless opened: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (``LOCALHOST``, the default here: the loopback
+interface only; ``SUBNET``: the network, by multicast; ``OFF``; ``SYSTEM_DEFAULT``: Cyclone's own
+defaults), ``ROS_STATIC_PEERS`` (``host;host``: these too), the older ``ROS_LOCALHOST_ONLY=1``, and
+``akarm serve --ros-network`` (``SUBNET``). A ``CYCLONEDDS_URI`` of the user's own replaces all of it:
+Cyclone DDS then reads that configuration alone (:data:`LOOPBACK_CONFIG` is the loopback setting
+spelt out for it).
 """
 
 from __future__ import annotations
 
 import itertools
+import os
 import re
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any, cast
 
-from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
-from cyclonedds.domain import DomainParticipant
+from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState
+from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
@@ -32,18 +40,164 @@ from cyclonedds.util import duration
 from akarm.errors import AkarmError
 from akarm.ros import msgs
 
-__all__ = ["LOOPBACK_CONFIG", "Node", "TriggerClient", "TriggerServer", "qos", "ros_name", "sample_info",
-           "service_topics", "topic_name"]
+__all__ = [
+    "LOOPBACK_CONFIG",
+    "RANGES",
+    "Discovery",
+    "Node",
+    "ServiceServer",
+    "TriggerClient",
+    "TriggerServer",
+    "discovery",
+    "latched_qos",
+    "qos",
+    "ros_name",
+    "sample_info",
+    "sender",
+    "service_topics",
+    "topic_name",
+]
+
+#: ROS 2's discovery ranges (``ROS_AUTOMATIC_DISCOVERY_RANGE``), as rcl spells them
+RANGES = ("LOCALHOST", "SUBNET", "OFF", "SYSTEM_DEFAULT")
+_PEER = re.compile(r"^[A-Za-z0-9_.:%\[\]-]{1,253}$")  # a host name or an IPv4/IPv6 address, nothing else
+_MAX_AUTO_INDEX = 60  # participants one machine can hold in unicast discovery (ROS 2 uses 32)
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """Whom a DDS participant talks to, and the Cyclone DDS configuration that says so.
+
+    Attributes:
+        range: ``"LOCALHOST"`` (this machine only: the loopback interface, unless static peers are
+            given), ``"SUBNET"`` (the network, by multicast), ``"OFF"`` (no other participant, not even
+            on this machine), ``"SYSTEM_DEFAULT"`` (Cyclone DDS's own defaults), or ``"CYCLONEDDS_URI"``
+            (the user's own configuration, which decides it all).
+        peers: the static peers (``ROS_STATIC_PEERS``), looked for in addition.
+        config: the Cyclone DDS XML to create the domain with; ``None``: Cyclone's own
+            (``CYCLONEDDS_URI``, else its defaults).
+        source: what chose it (``"default"``, ``"--ros-network"``, the variable and its value).
+        warnings: what in the environment was not understood, and ignored.
+    """
+
+    range: str
+    peers: tuple[str, ...] = ()
+    config: str | None = None
+    source: str = "default"
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def network(self) -> bool:
+        """True when participants on other machines may reach it (or the user's configuration decides)."""
+        return self.range in ("SUBNET", "SYSTEM_DEFAULT", "CYCLONEDDS_URI") or bool(self.peers)
+
+    def describe(self) -> str:
+        """One line for the server's output: who can reach the node."""
+        peers = f" and the static peers {', '.join(self.peers)}" if self.peers else ""
+        text = {
+            "LOCALHOST": ("this machine only (loopback)" if not self.peers else "this machine") + peers,
+            "SUBNET": "the network (multicast discovery)" + peers,
+            "OFF": "no one (discovery off)",
+            "SYSTEM_DEFAULT": "whoever Cyclone DDS's defaults reach (the network)",
+            "CYCLONEDDS_URI": "as CYCLONEDDS_URI configures Cyclone DDS",
+        }[self.range]
+        return f"{text}; {self.source}"
+
+
+def _fragment(general: str = "", discovery: str = "") -> str:
+    return (f'<CycloneDDS><Domain Id="any"><General>{general}</General><Discovery>{discovery}</Discovery>'
+            "</Domain></CycloneDDS>")
+
+
+def _peers_xml(peers: tuple[str, ...]) -> str:
+    return "<Peers>" + "".join(f'<Peer address="{p}"/>' for p in peers) + "</Peers>" if peers else ""
+
+
+_AUTO_INDEX = ("<ParticipantIndex>auto</ParticipantIndex>"
+               f"<MaxAutoParticipantIndex>{_MAX_AUTO_INDEX}</MaxAutoParticipantIndex>")
+_NO_MULTICAST = "<AllowMulticast>false</AllowMulticast>"
+
 
 #: Cyclone DDS configuration that keeps discovery and data on the loopback interface (no multicast,
-#: unicast discovery of the participants on 127.0.0.1): for tests and for trying things on one machine.
-#: Use it with ``export CYCLONEDDS_URI='<the string>'``.
-LOOPBACK_CONFIG = (
-    '<CycloneDDS><Domain Id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
-    "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-    "<MaxAutoParticipantIndex>60</MaxAutoParticipantIndex><Peers><Peer address=\"127.0.0.1\"/></Peers>"
-    "</Discovery></Domain></CycloneDDS>"
-)
+#: unicast discovery of the participants on 127.0.0.1): ``LOCALHOST``, the server's default, spelt out
+#: for other programs: ``export CYCLONEDDS_URI='<the string>'``.
+LOOPBACK_CONFIG = _fragment(f'<Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>{_NO_MULTICAST}',
+                            _AUTO_INDEX + _peers_xml(("127.0.0.1",)))
+
+
+def _config(rng: str, peers: tuple[str, ...]) -> str | None:
+    """The Cyclone DDS configuration of a discovery range with static peers (``None``: Cyclone's defaults)."""
+    if rng == "LOCALHOST" and not peers:  # the loopback interface alone: nothing else can reach it
+        return LOOPBACK_CONFIG
+    if rng == "LOCALHOST":  # ROS 2's own: no multicast, this machine and the peers, on the default interface
+        return _fragment(_NO_MULTICAST, _AUTO_INDEX + _peers_xml(("localhost", *peers)))
+    if rng == "SUBNET":
+        return _fragment(discovery=_AUTO_INDEX + _peers_xml(peers)) if peers else None
+    if rng == "OFF":
+        return _fragment(_NO_MULTICAST, f"<ParticipantIndex>none</ParticipantIndex><Tag>akarm_discovery_off_"
+                                        f"{os.getpid()}</Tag>")
+    return None
+
+
+def _range(env: Mapping[str, str], network: bool, warnings: list[str]) -> tuple[str, str, bool]:
+    """The discovery range, what chose it, and whether static peers apply."""
+    wanted = env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip()
+    if network:
+        return "SUBNET", "--ros-network", True
+    if env.get("ROS_LOCALHOST_ONLY", "").strip() == "1":
+        return "LOCALHOST", "ROS_LOCALHOST_ONLY=1", False
+    if wanted in RANGES:
+        return wanted, f"ROS_AUTOMATIC_DISCOVERY_RANGE={wanted}", wanted in ("LOCALHOST", "SUBNET")
+    if wanted:
+        warnings.append(f"ROS_AUTOMATIC_DISCOVERY_RANGE={wanted[:40]!r} is not one of {', '.join(RANGES)}; "
+                        "using LOCALHOST")
+    return "LOCALHOST", "default (--ros-network or ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET opens it)", True
+
+
+def discovery(env: Mapping[str, str] | None = None, network: bool = False) -> Discovery:
+    """Whom the server's participant talks to, from ROS 2's environment variables in ``env`` (default
+    ``os.environ``) and ``network`` (``akarm serve --ros-network``), as rmw_cyclonedds_cpp reads them,
+    except that the default, ``LOCALHOST``, uses the loopback interface alone.
+
+    Precedence: a ``CYCLONEDDS_URI`` of the user's own (Cyclone reads it, alone); ``network``
+    (``SUBNET``); ``ROS_LOCALHOST_ONLY=1`` (``LOCALHOST``, peers ignored, as ROS 2 does);
+    ``ROS_AUTOMATIC_DISCOVERY_RANGE``; else ``LOCALHOST``. ``ROS_STATIC_PEERS`` (``;``-separated
+    host names or addresses) adds peers to ``LOCALHOST`` and ``SUBNET``.
+    """
+    env = os.environ if env is None else env
+    if env.get("CYCLONEDDS_URI", "").strip():
+        return Discovery("CYCLONEDDS_URI", source="CYCLONEDDS_URI is set")
+    warnings: list[str] = []
+    peers: list[str] = []
+    for p in (x.strip() for x in env.get("ROS_STATIC_PEERS", "").split(";")):
+        if p and _PEER.match(p):
+            peers.append(p)
+        elif p:
+            warnings.append(f"ROS_STATIC_PEERS: {p[:60]!r} is not a host name or address; ignored")
+    rng, source, with_peers = _range(env, network, warnings)
+    if peers and not with_peers:
+        warnings.append(f"ROS_STATIC_PEERS is ignored with {source}")
+        peers = []
+    return Discovery(rng, tuple(peers), _config(rng, tuple(peers)), source, tuple(warnings))
+
+
+_domains: dict[int, tuple[Domain, str]] = {}  # the domains this process created with a configuration: kept
+_domains_lock = threading.Lock()
+
+
+def _open_domain(domain: int, config: str) -> str | None:
+    """Create DDS domain ``domain`` with ``config`` in this process (once: a domain's configuration is
+    fixed when it is made); a note when it existed already with another configuration, which then applies."""
+    with _domains_lock:
+        made = _domains.get(domain)
+        if made is not None:
+            return None if made[1] == config else "this process's DDS domain was made with another configuration"
+        try:
+            _domains[domain] = (Domain(domain, config), config)  # kept for the process's life: deleting a domain
+        except DDSException:  # deletes every participant in it, others' too
+            return "this process had made its DDS domain already, with Cyclone DDS's own configuration"
+        return None
+
 
 _TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 ANY = SampleState.Any | ViewState.Any | InstanceState.Any
@@ -82,9 +236,32 @@ def qos(depth: int = 10, user_data: bytes | None = None) -> Qos:
     return Qos(*policies)
 
 
+def latched_qos() -> Qos:
+    """Reliable, transient local, keep last 1: a late reader gets the last sample (an action's status,
+    ``ros_discovery_info``), with the durability service history rmw_cyclonedds_cpp sets for it."""
+    return Qos(Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
+               Policy.Durability.TransientLocal, Policy.History.KeepLast(1),
+               Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(1), max_samples=-1,
+                                        max_instances=-1, max_samples_per_instance=-1),
+               Policy.Liveliness.Automatic(lease_duration=duration(infinite=True)),
+               Policy.WriterDataLifecycle(autodispose=False))
+
+
 def sample_info(sample: object) -> Any:
     """The DDS sample info cyclonedds attaches to a sample it delivers."""
     return cast(Any, sample).sample_info
+
+
+def sender(reader: DataReader, sample: object) -> str:
+    """Who wrote ``sample`` (taken from ``reader``): ``participant GUID``, the DDS participant of the
+    writer (as ``ros2 doctor`` and Cyclone DDS's traces name it), or ``"an unknown participant"``
+    when it has gone meanwhile."""
+    try:
+        wr = reader.get_matched_publication_data(sample_info(sample).publication_handle)
+    except Exception:  # gone, or the binding refused the handle
+        wr = None
+    key = getattr(wr, "participant_key", None)
+    return f"participant {key}" if key is not None else "an unknown participant"
 
 
 def _user_data_key(q: Qos | None, key: str) -> str | None:
@@ -103,16 +280,28 @@ def _user_data_key(q: Qos | None, key: str) -> str | None:
 
 
 class Node:
-    """One DDS participant in ``domain`` with ROS 2 naming under ``namespace``."""
+    """One DDS participant in ``domain`` with ROS 2 naming under ``namespace``.
 
-    def __init__(self, domain: int = 0, namespace: str = "") -> None:
+    Its USER_DATA says ``enclave=/;`` as rmw_cyclonedds_cpp's participants do (ROS 2's graph keeps
+    the participants that say it). :attr:`endpoints` are the readers and writers opened through it,
+    for ``ros_discovery_info`` (:mod:`akarm.ros.graph`).
+
+    ``reach``: whom it talks to (:func:`discovery`); ``None``: Cyclone DDS's own configuration
+    (``CYCLONEDDS_URI``, else its defaults). :attr:`note` says when the process had already made the
+    domain with another configuration (the first one made applies to every participant in it).
+    """
+
+    def __init__(self, domain: int = 0, namespace: str = "", reach: Discovery | None = None) -> None:
         if not 0 <= domain <= 232:
             raise AkarmError(f"DDS domain {domain} is out of range",
                              fix="use a domain ID from 0 to 232 (ROS_DOMAIN_ID)")
         self.domain = domain
         self.namespace = namespace.strip("/")
         ros_name(self.namespace, "x")  # validates the namespace
-        self.participant = DomainParticipant(domain)
+        self.reach = reach
+        self.note = _open_domain(domain, reach.config) if reach is not None and reach.config is not None else None
+        self.participant = DomainParticipant(domain, qos=Qos(Policy.Userdata(data=b"enclave=/;")))
+        self.endpoints: list[DataReader | DataWriter] = []
         self._closed = False
         self._ids = itertools.count(1)
         self._prefix = self.participant.get_guid().bytes[:12]
@@ -127,11 +316,23 @@ class Node:
         """The DDS topic of ROS 2 topic ``name`` (or of the raw DDS topic ``name`` with ``ros=False``)."""
         return Topic(self.participant, topic_name(self.namespace, name) if ros else name, data_type, qos=qos())
 
-    def publisher(self, name: str, data_type: Any) -> DataWriter:
-        return DataWriter(self.participant, self.topic(name, data_type), qos=qos())
+    def publisher(self, name: str, data_type: Any, q: Qos | None = None) -> DataWriter:
+        return self.writer(topic_name(self.namespace, name), data_type, q or qos())
 
     def subscription(self, name: str, data_type: Any, depth: int = 10) -> DataReader:
-        return DataReader(self.participant, self.topic(name, data_type), qos=qos(depth))
+        return self.reader(topic_name(self.namespace, name), data_type, qos(depth))
+
+    def writer(self, dds_topic: str, data_type: Any, q: Qos) -> DataWriter:
+        """A writer on the DDS topic ``dds_topic`` (listed in :attr:`endpoints`)."""
+        w = DataWriter(self.participant, Topic(self.participant, dds_topic, data_type, qos=qos()), qos=q)
+        self.endpoints.append(w)
+        return w
+
+    def reader(self, dds_topic: str, data_type: Any, q: Qos) -> DataReader:
+        """A reader of the DDS topic ``dds_topic`` (listed in :attr:`endpoints`)."""
+        r = DataReader(self.participant, Topic(self.participant, dds_topic, data_type, qos=qos()), qos=q)
+        self.endpoints.append(r)
+        return r
 
     def close(self) -> None:
         """Delete the participant and everything in it (other participants see it leave at once)."""
@@ -140,22 +341,22 @@ class Node:
             self.participant.__del__()  # explicit: left to the garbage collector, a ghost stays for a lease
 
 
-class TriggerServer:
-    """A ``std_srvs/Trigger`` service, answered by ``handler() -> (success, message)``.
+class ServiceServer:
+    """The service side of ROS 2 service ``name`` with request and response types of
+    :mod:`akarm.ros.msgs` (their first fields: the request header), as rmw_cyclonedds_cpp lays it out.
 
-    Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
+    :meth:`take` the requests when :attr:`condition` triggers a WaitSet, and :meth:`reply` to each.
     """
 
-    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
+    def __init__(self, node: Node, name: str, request_type: Any, response_type: Any) -> None:
         self.name = ros_name(node.namespace, name)
         rq, rr = service_topics(node.namespace, name)
         q = qos(user_data=node.unique_id("serviceid"))
-        self._reader = DataReader(node.participant, Topic(node.participant, rq, msgs.TriggerRequest, qos=qos()), qos=q)
-        self._writer = DataWriter(node.participant, Topic(node.participant, rr, msgs.TriggerResponse, qos=qos()), qos=q)
-        self.handler = handler
+        self._reader = node.reader(rq, request_type, q)
+        self._writer = node.writer(rr, response_type, q)
         self.condition = ReadCondition(self._reader, ANY)
 
-    def _client_ready(self, request_writer: int) -> str:
+    def client_ready(self, request_writer: int) -> str:
         """``yes`` when the requesting client's reply reader is matched, ``maybe``, or ``gone``
         (rmw_cyclonedds_cpp's check_for_response_reader)."""
         wr = self._reader.get_matched_publication_data(request_writer)
@@ -170,9 +371,39 @@ class TriggerServer:
                 return "yes"
         return "maybe"
 
-    def take(self) -> list[msgs.TriggerRequest]:
+    def caller(self, req: Any) -> str:
+        """Who sent ``req``: its participant's GUID (see :func:`sender`)."""
+        return sender(self._reader, req)
+
+    def take(self) -> list[Any]:
         """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
         return [r for r in self._reader.take(16) if sample_info(r).valid_data]
+
+    def reply(self, request: Any, response: Any, wait: float = 0.1) -> str:
+        """Send ``response`` (its ``guid`` and ``seq`` are set from ``request``'s) to the client that sent
+        ``request``, once its reply reader is matched: waits up to ``wait`` s for that (as
+        rmw_cyclonedds_cpp, 100 ms). ``yes`` when sent; ``maybe`` or ``gone`` when not (not yet, never)."""
+        response.guid, response.seq = request.guid, request.seq
+        handle = sample_info(request).publication_handle
+        end = time.monotonic() + wait
+        state = self.client_ready(handle)
+        while state == "maybe" and time.monotonic() < end:
+            time.sleep(0.005)
+            state = self.client_ready(handle)
+        if state == "yes":
+            self._writer.write(response)
+        return state
+
+
+class TriggerServer(ServiceServer):
+    """A ``std_srvs/Trigger`` service, answered by ``handler() -> (success, message)``.
+
+    Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
+    """
+
+    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
+        super().__init__(node, name, msgs.TriggerRequest, msgs.TriggerResponse)
+        self.handler = handler
 
     def answer(self, req: msgs.TriggerRequest) -> bool:
         """Run the handler for ``req`` and reply (to the client that asked); False if it has gone."""
@@ -180,16 +411,7 @@ class TriggerServer:
             ok, text = self.handler()
         except AkarmError as e:
             ok, text = False, str(e)
-        handle = sample_info(req).publication_handle
-        end = time.monotonic() + 0.1  # as rmw_cyclonedds_cpp: wait up to 100 ms for the client's reader
-        state = self._client_ready(handle)
-        while state == "maybe" and time.monotonic() < end:
-            time.sleep(0.005)
-            state = self._client_ready(handle)
-        if state != "yes":
-            return False
-        self._writer.write(msgs.TriggerResponse(req.guid, req.seq, bool(ok), text))
-        return True
+        return self.reply(req, msgs.TriggerResponse(0, 0, bool(ok), text)) == "yes"
 
     def poll(self) -> int:
         """Answer every waiting request, one after the other; returns how many were answered."""

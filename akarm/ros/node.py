@@ -6,9 +6,18 @@ With ``NS`` the namespace:
   positions (rad), velocities (rad/s) and torques (N·m), stamped with the wall clock;
 - ``NS/joint_trajectory`` (trajectory_msgs/JointTrajectory), in: executed with the semantics of
   ros2_control's JointTrajectoryController topic (:meth:`~akarm.server.server.ArmServerCore.follow`);
-- ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, fault text, loop statistics,
-  the last refused trajectory;
-- ``NS/akarm/enable``, ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger).
+- ``NS/akarm/status`` (diagnostic_msgs/DiagnosticArray), out: mode, a latched safety stop (ERROR:
+  its error, joint, time and text), loop statistics, the oldest feedback's age, the last refused
+  trajectory;
+- ``NS/akarm/enable`` (acknowledges a latched stop), ``NS/akarm/disable``, ``NS/akarm/hold`` (std_srvs/Trigger);
+- ``NS/CONTROLLER/follow_joint_trajectory`` (control_msgs/action/FollowJointTrajectory): MoveIt's
+  way in (:mod:`akarm.ros.action`); it and ``joint_trajectory`` share one motion, the last one wins;
+- ``ros_discovery_info``, naming the node ``NS/NODE`` and its endpoints (:mod:`akarm.ros.graph`).
+
+``joint_states`` is stamped with the time of its readings (the oldest joint's), not the time it is
+sent: a disabled arm's silent joints show their age. Whom the node talks to is :func:`akarm.ros.dds.discovery`'s
+(this machine only, unless opened); every command it takes (a trajectory, a service call) is logged
+with the DDS participant that sent it.
 
 One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
 service requests are answered in threads of their own (enabling and disabling take a while).
@@ -28,52 +37,48 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
 from akarm.errors import AkarmError
 from akarm.ros import msgs
-from akarm.ros.dds import ANY, Node, TriggerServer, sample_info
+from akarm.ros.action import ActionServer
+from akarm.ros.dds import ANY, Discovery, Node, TriggerServer, sample_info, sender
+from akarm.ros.graph import DiscoveryInfo
+from akarm.ros.trajectory import TrajectoryRefused, check_trajectory
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
 
-__all__ = ["RosNode", "trajectory_arrays"]
+__all__ = ["RosNode"]
 
 _LEVEL = {"holding": 0, "moving": 0, "teach": 0, "disabled": 1, "fault": 2}
 
 
-def trajectory_arrays(msg: msgs.JointTrajectory, now: float | None = None) -> tuple[list[float], list[list[float]],
-                                                                                    list[list[float]] | None]:
-    """Times (s from now), positions and velocities of a JointTrajectory's points.
-
-    A zero ``header.stamp`` means "start now"; a later one shifts every point by the wait until
-    then; points whose time has already passed are dropped (as JointTrajectoryController does).
-    """
-    now = time.time() if now is None else now
-    stamp = msg.header.stamp.seconds()
-    offset = stamp - now if stamp > 0 else 0.0
-    times, positions, velocities = [], [], []
-    for p in msg.points:
-        t = p.time_from_start.seconds() + offset
-        if t < 0.0:
-            continue
-        times.append(t)
-        positions.append(list(p.positions))
-        velocities.append(list(p.velocities))
-    return times, positions, (velocities if any(velocities) else None)
-
-
 class RosNode:
-    """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own."""
+    """Publishes and serves for ``server`` in a DDS domain and ROS 2 namespace, in a thread of its own:
+    the node ``node_name``, whose FollowJointTrajectory action is ``controller``'s, with the message
+    layouts of ROS 2 ``distro`` (``humble``, ``jazzy``, ``rolling``)."""
 
     def __init__(self, server: ArmServerCore, domain: int, namespace: str, joint_states_hz: float,
-                 status_hz: float) -> None:
+                 status_hz: float, reach: Discovery | None = None, *, controller: str = "arm_controller",
+                 distro: str = "jazzy", node_name: str = "akarm") -> None:
         self.server = server
+        self._said = (0.0, 0)  # when a command was last logged, and how many were not since
         try:
-            self.node = Node(domain, namespace)
-            self._open()
+            self.node = Node(domain, namespace, reach)
+            self._open(controller, distro, node_name)
+        except AkarmError:  # a bad controller or node name, an unknown distribution: nothing left open
+            with contextlib.suppress(Exception):
+                self.node.close()
+            raise
         except DDSException as e:  # a bad CYCLONEDDS_URI (an interface this machine lacks), no network
             with contextlib.suppress(Exception):
                 self.node.close()
             raise AkarmError(f"Cyclone DDS could not start the ROS 2 node in domain {domain}: {e}",
                              fix="check CYCLONEDDS_URI (its network interface must exist here; unset it for "
                                  "the default), or serve without ROS 2 (akarm serve --no-ros)") from None
+        if reach is not None:
+            for warning in reach.warnings:
+                server.log(f"akarm serve: warning: {warning}")
+            server.log(f"akarm serve: ROS 2 reaches {reach.describe()}")
+        if self.node.note:
+            server.log(f"akarm serve: warning: {self.node.note}; it applies")
         self.js_period = 1.0 / joint_states_hz
         self.status_period = 1.0 / status_hz
         self._running = threading.Event()
@@ -82,7 +87,7 @@ class RosNode:
         self.published = 0
         self.errors = 0
 
-    def _open(self) -> None:
+    def _open(self, controller: str, distro: str, node_name: str) -> None:
         n = self.node
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
@@ -90,11 +95,26 @@ class RosNode:
         self._services = [TriggerServer(n, "akarm/enable", self._enable), TriggerServer(n, "akarm/disable",
                                                                                          self._disable),
                           TriggerServer(n, "akarm/hold", self._hold)]
+        self.action = ActionServer(n, self.server, controller, distro, heard=self._heard)
+        self.discovery = DiscoveryInfo(n, node_name, distro)
+        self.discovery.publish()  # every endpoint is open by now
         self._traj_cond = ReadCondition(self._traj, ANY)
         self._wake = GuardCondition(n.participant)
         self._waitset = WaitSet(n.participant)
-        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services)):
+        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services), *self.action.conditions):
             self._waitset.attach(c)
+
+    def _heard(self, text: str) -> None:
+        """Log a command taken from DDS: five a second in full, then counted (said when the second is over)."""
+        start, count = self._said
+        now = time.monotonic()
+        if now - start >= 1.0:
+            if count > 5:
+                self.server.log(f"akarm serve: ROS 2: {count - 5} more commands in that second, not shown")
+            start, count = now, 0
+        self._said = (start, count + 1)
+        if count < 5:
+            self.server.log(f"akarm serve: ROS 2: {text}")
 
     # -- services ------------------------------------------------------------------------------
     def _enable(self) -> tuple[bool, str]:
@@ -121,6 +141,7 @@ class RosNode:
             self._wake.set(True)
         if self._thread is not None:
             self._thread.join(5.0)
+        self.action.close()
         self.node.close()
 
     def _run(self) -> None:
@@ -139,21 +160,17 @@ class RosNode:
 
     def _serve_once(self) -> None:
         next_js, next_status = self._next
-        wait = max(0.0, min(next_js, next_status) - time.monotonic())
-        self._waitset.wait(int(wait * 1e9))
+        wait = max(0.0, min(next_js, next_status, self.action.next_due()) - time.monotonic())
+        self._waitset.wait(int(min(wait, 1.0) * 1e9))
         if not self._running.is_set():
             return
         for msg in self._traj.take(16):
             if sample_info(msg).valid_data:
-                with contextlib.suppress(AkarmError):  # refused: reported by the server (status, log)
-                    times, positions, velocities = trajectory_arrays(msg)
-                    if msg.points and not times:
-                        self.server.refuse("every point of the trajectory is already in the past "
-                                           "(header.stamp + time_from_start)",
-                                           fix="stamp it with the current time, or leave the stamp zero")
-                    self.server.follow(list(msg.joint_names), times, positions, velocities)
+                self.follow_topic(msg)
+        self.action.poll()
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
             for req in s.take():  # joint_states must go on meanwhile
+                self._heard(f"{s.name} called by {s.caller(req)}")
                 threading.Thread(target=s.answer, args=(req,), name="akarm-ros-service", daemon=True).start()
         now = time.monotonic()
         if now >= next_js:
@@ -164,16 +181,38 @@ class RosNode:
             next_status = now + self.status_period
         self._next = [next_js, next_status]
 
+    def follow_topic(self, msg: msgs.JointTrajectory) -> None:
+        """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:
+        a stop); a refusal is reported by the server (its log, ``akarm/status``) and nothing moves. Logged
+        with the participant that sent it."""
+        who = sender(self._traj, msg)
+        what = f"joint_trajectory from {who}: {len(msg.points)} points for {', '.join(msg.joint_names)[:200]}"
+        try:
+            points = check_trajectory(msg, self.server.arm.names, self.server.arm.limits)
+        except TrajectoryRefused as e:
+            e.report(self.server)
+            self._heard(f"{what}: refused ({type(e).__name__})")
+            return
+        try:
+            self.server.follow(points.joint_names, points.times, points.positions, points.velocities)
+        except AkarmError as e:  # refused: reported by the server (status, log)
+            self._heard(f"{what}: refused ({type(e).__name__})")
+            return
+        self._heard(f"{what}: accepted")
+
     def publish_joint_states(self) -> None:
+        """``joint_states`` stamped with when its readings were taken (the oldest joint's)."""
         s = self.server.arm.state()
-        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(time.time()), ""), self.names,
+        age = max((j.age for j in s.joints), default=0.0)
+        stamp = time.time() - (age if age < 1e9 else 0.0)  # never heard: now (the positions are NaN)
+        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(stamp), ""), self.names,
                                        s.q.tolist(), s.dq.tolist(), s.tau.tolist()))
         self.published += 1
 
     def publish_status(self) -> None:
         doc = self.server.status()
         mode = doc["mode"]
-        text = doc["fault"] if mode == "fault" else mode
+        text = f"safety stop latched: {doc['stop_error']}: {doc['fault']}" if mode == "fault" else mode
         values = [msgs.KeyValue(k, str(v)) for k, v in doc.items()]
         cfg = self.server.arm.config
         st = msgs.DiagnosticStatus(_LEVEL.get(mode, 1), f"akarm: {cfg.name}", text, cfg.name, values)

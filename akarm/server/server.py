@@ -4,10 +4,20 @@
 the arm, and holds it. It runs one command at a time on the arm, and serves
 
 - the ``akarm`` CLI of this machine through a Unix socket (:mod:`akarm.server.socket`): ``move``,
-  ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` use the server when one runs;
+  ``enable``, ``disable``, ``status``, ``teach`` and ``replay`` use the server when one runs; each
+  request's arguments are checked against its operation's signature first (:mod:`akarm.server.ops`);
 - its :class:`Frontend` objects, made from the factories it is given: each gets the server, calls
   its commands (:meth:`~ArmServerCore.follow`, :meth:`~ArmServerCore.enable`, ...), and is started
   once the arm is held and stopped once the server has disabled it.
+
+**Latched stops.** A safety stop (any :class:`~akarm.SafetyStop`: a silent joint, a lost bus, a
+collision, also one that refused an enable) latches: every client waiting on a motion, a teach or a
+replay gets it (its own class and text, as the Arm would raise it), status and ROS 2 diagnostics
+show it, and every motion request from then on is refused with a :class:`~akarm.StopLatched` that
+names it (:meth:`ArmServerCore.refuse_if_latched`, which a frontend calls too), so nothing moves.
+Only an explicit enable (:meth:`ArmServerCore.enable`: ``akarm enable``, the ``akarm/enable``
+service) acknowledges it, and enables through the usual kick-free enable. Errors are raised as new
+copies, never the stored one again (a re-raised exception keeps growing its traceback).
 
 Users build :class:`akarm.ArmServer` (:mod:`akarm.serving`), which is this core with the ROS 2
 node of :mod:`akarm.ros.node` as its frontend; this layer knows nothing of ROS.
@@ -20,11 +30,14 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import signal
 import sys
 import threading
+import time
 from collections import OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
@@ -32,13 +45,83 @@ import numpy as np
 from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
 from akarm.control.modes import Mode
-from akarm.errors import AkarmError, ArgumentError, StateError
+from akarm.errors import AkarmError, ArgumentError, SafetyStop, StateError, StopLatched
+from akarm.server import socket as _socket
+from akarm.server.ops import Operation
 from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion
 
-__all__ = ["ArmServerCore", "Frontend", "FrontendFactory"]
+__all__ = ["ArmServerCore", "Frontend", "FrontendFactory", "LatchedStop", "copy_error"]
+
+_E = TypeVar("_E", bound=BaseException)
+PROTOCOL = 2  #: the control socket's protocol version (``describe``)
+_READ_TIMEOUT = 0.25  # s a disabled arm's joints get to answer a status request (as akarm status's default)
+_POLL = 0.02  # s between looks while a request waits (a motion to end, time to pass)
+_OP = re.compile(r"^[a-z][a-z_]{0,39}$")
+
+
+def copy_error(e: _E) -> _E:
+    """A new exception of ``e``'s class with its text and attributes, without its traceback: what to
+    raise instead of an exception that is kept (raising the same object again grows its traceback)."""
+    new = type(e).__new__(type(e), *e.args)
+    vars(new).update(vars(e))
+    return new
+
+
+def _clock_text(t: float) -> str:
+    return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(t)) + f".{int(t % 1 * 1000):03d}"
+
+
+@dataclass(frozen=True)
+class LatchedStop:
+    """A safety stop the server latched, until an explicit enable acknowledges it.
+
+    Attributes:
+        error: the stop (kept, never raised itself: :meth:`copy`).
+        time: when the arm stopped, s since the epoch.
+        seq: 1 for the first stop the server saw, 2 for the next, ...
+    """
+
+    error: SafetyStop
+    time: float
+    seq: int
+
+    @property
+    def name(self) -> str:
+        """The stop's error class, e.g. ``"FeedbackTimeout"``."""
+        return type(self.error).__name__
+
+    def as_dict(self) -> dict[str, Any]:
+        """``error``, ``joint``, ``time`` (s since the epoch), ``text``, ``what`` and ``fix``, for JSON."""
+        e = self.error
+        return {"error": self.name, "joint": e.joint, "time": self.time, "text": str(e), "what": e.what, "fix": e.fix}
+
+    def copy(self) -> SafetyStop:
+        """The stop as a new exception of its class (to raise to a client whose motion it ended)."""
+        return copy_error(self.error)
+
+    def refusal(self) -> StopLatched:
+        """The error a request refused because of this stop gets (a new one each time)."""
+        e = self.error
+        return StopLatched(f"refused: the arm stopped for safety at {_clock_text(self.time)} ({self.name}: {e.what}); "
+                           "the stop is latched and nothing moves until it is acknowledged", stop=self.name,
+                           time=self.time, joint=e.joint,
+                           fix=(f"{e.fix}; then " if e.fix else "") + "acknowledge the stop by enabling the arm: "
+                               "akarm enable ROBOT.yaml, the akarm/enable service, or ArmServer.enable()")
+
+
+_OPERATIONS: dict[type, dict[str, Operation]] = {}
+
+
+def _operations(cls: type) -> dict[str, Operation]:
+    """The control socket's operations of ``cls``: its ``_op_NAME`` methods (read once per class)."""
+    ops = _OPERATIONS.get(cls)
+    if ops is None:
+        ops = _OPERATIONS[cls] = {name[4:]: Operation(name[4:], getattr(cls, name)) for name in dir(cls)
+                                  if name.startswith("_op_")}
+    return ops
 
 
 class Frontend(Protocol):
@@ -86,10 +169,11 @@ class ArmServerCore:
         self.log = log or (lambda text: print(text, file=sys.stderr, flush=True))
         self._cmd = threading.RLock()  # one command at a time reaches the arm
         self._stop = threading.Event()
-        self._motions: OrderedDict[int, Motion] = OrderedDict()
+        self._motions: OrderedDict[int, tuple[Motion, int]] = OrderedDict()  # id → (motion, stops seen before it)
         self._next_id = 0
         self._teaching = False
         self._teacher: int | None = None  # the control connection that started teach mode (None: ROS, Python)
+        self._teach_seq = 0  # stops seen before teach mode began
         self._opened_arm = False
         self._lock: BusLock | None = None
         self._socket: SocketServer | None = None
@@ -97,6 +181,12 @@ class ArmServerCore:
         self.socket_path = runtime_dir() / f"serve-{os.getpid()}-{id(self):x}.sock"
         self.last_refusal = ""
         self.counts = {"accepted": 0, "refused": 0}
+        self._latch_lock = threading.Lock()
+        self._latched: LatchedStop | None = None
+        self._last_stop: LatchedStop | None = None  # the latest stop, acknowledged or not
+        self._stop_seq = 0
+        self._seen: tuple[object, ...] = ()  # the arm's fault and last collision as last seen
+        self._refusals_logged = (0.0, 0)  # when a refusal was last logged, and how many since
 
     # ------------------------------------------------------------------------------------------
     # lifecycle
@@ -114,10 +204,11 @@ class ArmServerCore:
             if self.arm.mode is Mode.CLOSED:
                 self.arm.open()
                 self._opened_arm = True
+            self._update_latch()  # a stop from before (a script's arm): latched, unless enabled now
             if self._enable_at_start:
-                self.arm.enable()
-            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left)
-            threading.Thread(target=self._report_faults, name="akarm-serve-faults", daemon=True).start()
+                self.enable()
+            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left, log=self.log)
+            threading.Thread(target=self._watch_stops, name="akarm-serve-faults", daemon=True).start()
             for frontend in self._frontends:
                 frontend.start()
         except BaseException:
@@ -130,7 +221,8 @@ class ArmServerCore:
         it, free the buses. Commands that arrive meanwhile are refused."""
         self._stop.set()
         try:
-            with _signals.deferred(), self._cmd, contextlib.suppress(AkarmError):  # no signal cuts the damping short
+            # no signal cuts the damping short
+            with _signals.deferred(), self._cmd, contextlib.suppress(AkarmError), self._fresh_errors():
                 self._end_teach()
                 self.arm.disable()
         finally:
@@ -147,15 +239,10 @@ class ArmServerCore:
                 self._lock.release()
                 self._lock = None
 
-    def _report_faults(self) -> None:
-        """Say so when the arm stops for safety (it is then damped and disabled; the server goes on)."""
-        reported = None
-        while not self._stop.wait(0.1):
-            fault = self.arm.fault
-            if fault is not None and fault is not reported:
-                self.log(f"akarm serve: safety stop: {fault}; enable the arm again with akarm enable or the "
-                         "akarm/enable service")
-            reported = fault
+    def _watch_stops(self) -> None:
+        """Latch (and say) a safety stop soon after it happens, whether or not a client is asking."""
+        while not self._stop.wait(0.05):
+            self._update_latch()
 
     def __enter__(self: _Server) -> _Server:
         return self.start()
@@ -181,13 +268,71 @@ class ArmServerCore:
                 signal.signal(s, handler)
 
     # ------------------------------------------------------------------------------------------
+    # latched stops
+    # ------------------------------------------------------------------------------------------
+    def _update_latch(self) -> None:
+        """Latch a safety stop of the arm (its fault, or a collision with the "hold" reaction) not seen before."""
+        arm = self.arm
+        now = (arm.fault, arm.last_collision)
+        with self._latch_lock:
+            for e in now:
+                if e is not None and not any(e is seen for seen in self._seen):
+                    self._latch(e)
+            self._seen = now
+
+    def _latch(self, e: SafetyStop) -> None:
+        """(Under the latch lock) latch ``e``, and say so."""
+        if self._latched is not None and self._latched.error is e:
+            return
+        e.with_traceback(None)  # kept: let its frames go
+        at = getattr(e, "at", None)
+        t = time.time() - max(0.0, self.arm.clock.now() - at) if isinstance(at, float) and math.isfinite(at) \
+            else time.time()
+        self._stop_seq += 1
+        self._latched = self._last_stop = LatchedStop(e, t, self._stop_seq)
+        self.log(f"akarm serve: safety stop ({type(e).__name__}) at {_clock_text(t)}: {e}; latched: nothing moves "
+                 "until it is acknowledged (akarm enable, the akarm/enable service, ArmServer.enable())")
+
+    @property
+    def latched(self) -> LatchedStop | None:
+        """The safety stop latched now (``None``: none, or acknowledged)."""
+        self._update_latch()
+        return self._latched
+
+    def refuse_if_latched(self) -> None:
+        """Raise a new :class:`~akarm.StopLatched` naming the latched stop, if one is: what every
+        frontend calls before it starts a motion (nothing may move until an explicit enable)."""
+        stop = self.latched
+        if stop is not None:
+            raise stop.refusal()
+
+    def _raise_stop_since(self, seq: int) -> None:
+        """Raise (a copy of) the latest stop if it came after the ``seq``-th: it ended what began then."""
+        self._update_latch()
+        stop = self._last_stop
+        if stop is not None and stop.seq > seq:
+            raise stop.copy()
+
+    @contextlib.contextmanager
+    def _fresh_errors(self) -> Iterator[None]:
+        """A safety stop raised inside (the arm's stored fault, raised again) is latched, and leaves as a copy."""
+        try:
+            yield
+        except SafetyStop as e:
+            with self._latch_lock:
+                self._latch(e)  # an enable refused, or a fault not latched yet
+                self._seen = (*self._seen, e)
+            e.with_traceback(None)
+            raise copy_error(e) from None
+
+    # ------------------------------------------------------------------------------------------
     # what the arm is doing
     # ------------------------------------------------------------------------------------------
     @property
     def mode(self) -> str:
-        """``holding``, ``moving``, ``teach``, ``disabled`` or ``fault``."""
+        """``holding``, ``moving``, ``teach``, ``disabled`` or ``fault`` (a safety stop is latched)."""
         arm = self.arm
-        if arm.fault is not None:
+        if self.latched is not None:
             return "fault"
         if self._teaching or arm.mode is Mode.TEACH:
             return "teach"
@@ -196,10 +341,16 @@ class ArmServerCore:
         return "moving" if arm.moving else "holding"
 
     def status(self) -> dict[str, Any]:
-        """Mode, fault text, loop statistics and the last refused command, for ``akarm/status``."""
-        doc: dict[str, Any] = {"mode": self.mode, "fault": str(self.arm.fault) if self.arm.fault else "",
-                               "last_refusal": self.last_refusal, **{f"trajectories_{k}": v for k, v in
-                                                                     self.counts.items()}}
+        """Mode, the latched stop, loop statistics, the oldest feedback, the last refused command, for
+        ``akarm/status`` and the ``status`` operation."""
+        stop = self.latched
+        state = self.arm.state()
+        doc: dict[str, Any] = {
+            "mode": self.mode, "fault": str(stop.error) if stop else "",
+            "stop_error": stop.name if stop else "", "stop_joint": (stop.error.joint or "") if stop else "",
+            "stop_time": _clock_text(stop.time) if stop else "",
+            "feedback_age_max_ms": round(max((j.age for j in state.joints), default=0.0) * 1e3, 1),
+            "last_refusal": self.last_refusal, **{f"trajectories_{k}": v for k, v in self.counts.items()}}
         with contextlib.suppress(AkarmError):
             s = self.arm.stats()
             doc.update(loop_rate_hz=round(s.rate, 1), missed_slots=s.missed, late_p99_us=round(s.late_p99 * 1e6, 1),
@@ -214,22 +365,34 @@ class ArmServerCore:
             raise StateError("akarm serve is stopping: the arm is being disabled", fix="start the server again")
 
     def enable(self, accept_position: bool = False) -> None:
-        """Enable the arm (``accept_position``: skip the turn check once, see :meth:`akarm.Arm.enable`)."""
+        """Acknowledge a latched stop, if any, and enable the arm without a kick (it is then held).
+        A stop that refuses the enable is latched in its place. ``accept_position``: skip the turn
+        check once (see :meth:`akarm.Arm.enable`)."""
         with self._cmd:
             self._require_serving()
-            self._end_teach()
-            self.arm.enable(accept_position=accept_position)
+            with self._fresh_errors():
+                self._end_teach()
+                self._update_latch()
+                with self._latch_lock:
+                    acknowledged, self._latched = self._latched, None
+                if acknowledged is not None:
+                    self.log(f"akarm serve: the safety stop of {_clock_text(acknowledged.time)} "
+                             f"({acknowledged.name}) is acknowledged; enabling")
+                self.arm.enable(accept_position=accept_position)
 
     def disable(self) -> None:
-        with self._cmd:
+        """Damp, then disable the arm (it is limp). A latched stop stays latched."""
+        with self._cmd, self._fresh_errors():
             self._end_teach()
             self.arm.disable()
 
     def hold(self) -> None:
-        with self._cmd:
+        """Come to rest and hold (ending teach mode); refused while a stop is latched (it names the stop)."""
+        with self._cmd, self._fresh_errors():
             if self._teaching:
                 self._end_teach()
                 return
+            self.refuse_if_latched()
             self.arm.hold()
 
     def _end_teach(self) -> None:
@@ -242,15 +405,22 @@ class ArmServerCore:
 
     def _require_commandable(self) -> None:
         self._require_serving()
+        self.refuse_if_latched()
         if self._teaching:
             raise StateError("the arm is in teach mode", fix="end teaching first (akarm/hold, or finish akarm teach)")
         if not self.arm.enabled:
-            self._raise_fault()
             raise StateError("the arm is disabled", fix="enable it first (akarm enable, or the akarm/enable service)")
 
-    def _register(self, motion: Motion) -> int:
+    def check_motion_allowed(self) -> None:
+        """Raise what refuses a motion request now (a safety stop no enable has acknowledged, a disabled
+        arm, teach mode, the server stopping); return if one would be taken. Frontends call it before
+        they accept a request (the FollowJointTrajectory action, for its goals)."""
+        with self._cmd:
+            self._require_commandable()
+
+    def _register(self, motion: Motion, seq: int) -> int:
         self._next_id += 1
-        self._motions[self._next_id] = motion
+        self._motions[self._next_id] = (motion, seq)
         while len(self._motions) > 16:
             self._motions.popitem(last=False)
         return self._next_id
@@ -261,9 +431,9 @@ class ArmServerCore:
         topic: joints matched by name (a subset is allowed; the others keep their commanded
         position), each point reached at its time, jerk-limited; no points stops the arm; a new
         one replaces the running one smoothly. A bad message is refused whole (ArgumentError; a point past
-        a limit: LimitError) and nothing moves. Returns the motion (None for a stop)."""
+        a limit: LimitError; a latched stop: StopLatched) and nothing moves. Returns the motion (None for a stop)."""
         try:
-            with self._cmd:
+            with self._cmd, self._fresh_errors():
                 self._require_commandable()
                 if len(times) == 0:
                     self.arm.stop(wait=False)
@@ -297,9 +467,17 @@ class ArmServerCore:
             raise
 
     def _refused(self, e: AkarmError) -> None:
+        """Count and report a refused trajectory: a line now, or (a flood of them) one a second with the count."""
         self.counts["refused"] += 1
         self.last_refusal = str(e)
-        self.log(f"akarm serve: refused a trajectory, nothing moved: {e}")
+        last, quiet = self._refusals_logged
+        now = time.monotonic()
+        if now - last < 1.0:
+            self._refusals_logged = (last, quiet + 1)
+            return
+        more = f" ({quiet} more refused in the last second)" if quiet else ""
+        self.log(f"akarm serve: refused a trajectory, nothing moved: {e}{more}")
+        self._refusals_logged = (now, 0)
 
     def refuse(self, what: str, fix: str = "") -> None:
         """Refuse a trajectory the caller found unusable: counted, reported, raised as ArgumentError."""
@@ -310,39 +488,74 @@ class ArmServerCore:
     # -- the CLI's operations (JSON in, JSON out) --------------------------------------------------
     def dispatch(self, op: str, args: dict[str, Any], client: int | None = None) -> Any:
         """Run a control-socket operation (see :mod:`akarm.cli.served` for the client side) for the
-        control connection ``client``."""
-        handler = getattr(self, f"_op_{op}", None)
-        if handler is None:
-            raise StateError(f"unknown server operation {op!r}", fix="is the CLI the same akarm version as the server?")
-        if op == "teach":
-            return self._op_teach(**args, client=client)
-        return handler(**args)
+        control connection ``client``, once its arguments are checked against it (an
+        :class:`~akarm.ArgumentError` names the first that is missing, unknown or of the wrong type)."""
+        ops = _operations(type(self))
+        operation = ops.get(op) if isinstance(op, str) and _OP.match(op) else None
+        if operation is None:
+            raise ArgumentError(f"unknown server operation {str(op)[:40]!r}",
+                                fix="is the CLI the same akarm version as the server? operations: " + ", ".join(ops))
+        kwargs = operation.check(args)
+        handler = getattr(self, f"_op_{op}")
+        if "client" in handler.__code__.co_varnames[:handler.__code__.co_argcount]:
+            kwargs["client"] = client
+        with self._fresh_errors():
+            return handler(**kwargs)
 
     def _client_left(self, client: int) -> None:
         """A control connection ended: teach mode it started ends with it (the client was killed, hung
         up, or lost its terminal without ending it): the arm holds where the hand left it."""
         with self._cmd:
             if self._teaching and self._teacher == client:
-                with contextlib.suppress(AkarmError):
+                with contextlib.suppress(AkarmError), self._fresh_errors():
                     self._end_teach()
                 self.log("akarm serve: the client that started teach mode left without ending it; "
                          "teach mode ended, the arm holds where it was left")
 
-    def _state_doc(self) -> dict[str, Any]:
-        s = self.arm.state()
+    def _gone(self, client: int | None) -> bool:
+        sock = self._socket
+        return client is not None and sock is not None and sock.gone(client)
+
+    def _state_doc(self, read: bool = False) -> dict[str, Any]:
+        with self._cmd:  # no enable begins while a disabled arm's joints are asked
+            asked = read and not self.arm.enabled
+            s = self.arm.read_state(_READ_TIMEOUT) if asked else self.arm.state()
         cfg = self.arm.config
+        stop = self.latched
         return {"names": list(self.arm.names), "modes": [j.mode for j in cfg.joints],
                 "buses": [j.bus for j in cfg.joints], "can_ids": [j.can_id for j in cfg.joints],
                 "q": s.q.tolist(), "dq": s.dq.tolist(), "tau": s.tau.tolist(),
                 "temperature": [j.temperature for j in s.joints], "fault": [j.fault for j in s.joints],
-                "age": [j.age for j in s.joints], "enabled": s.enabled, "moving": s.moving, "mode": self.mode,
+                "age": [j.age for j in s.joints], "time": time.time(), "asked": asked,
+                "enabled": s.enabled, "moving": s.moving, "mode": self.mode,
+                "stop": stop.as_dict() if stop else None,
                 "robot": cfg.name, "pid": os.getpid(), "rate_hz": cfg.rate_hz}
 
-    def _op_state(self) -> dict[str, Any]:
-        return self._state_doc()
+    def _op_describe(self) -> dict[str, Any]:
+        """The protocol: its version, each operation with its arguments, the socket's limits."""
+        return {"protocol": PROTOCOL, "ops": {name: op.describe() for name, op in _operations(type(self)).items()},
+                "limits": {"connections": _socket.MAX_CONNECTIONS, "request_bytes": _socket.MAX_REQUEST_BYTES,
+                           "request_seconds": _socket.REQUEST_TIMEOUT, "idle_seconds": _socket.IDLE_TIMEOUT}}
+
+    def _op_state(self, read: bool = True) -> dict[str, Any]:
+        """Every joint's reading with its age; a disabled arm's joints are asked first (``read``)."""
+        return self._state_doc(read)
+
+    def _op_status(self) -> dict[str, Any]:
+        return {**self.status(), "stop": stop.as_dict() if (stop := self.latched) else None}
 
     def _op_enable(self, accept_position: bool = False) -> dict[str, Any]:
         self.enable(accept_position is True)
+        return self._state_doc()
+
+    def _op_ready(self) -> dict[str, Any]:
+        """Before a motion or teach mode: refused while a stop is latched; a disabled arm (``akarm
+        disable``) is enabled, as the verb would enable it without a server."""
+        with self._cmd:
+            self._require_serving()
+            self.refuse_if_latched()
+            if not self.arm.enabled:
+                self.enable()
         return self._state_doc()
 
     def _op_disable(self) -> None:
@@ -355,28 +568,50 @@ class ArmServerCore:
         with self._cmd:
             if self.arm.enabled and self.arm.moving:
                 self.arm.stop(wait=False)
-        for m in list(self._motions.values()):
-            with contextlib.suppress(AkarmError):
+        for m, _ in list(self._motions.values()):
+            with contextlib.suppress(AkarmError), self._fresh_errors():
                 m.wait()
 
-    def _motion_doc(self, motion: Motion) -> dict[str, Any]:
-        return {"id": self._register(motion), "duration": motion.duration, "t0": motion.plan.t0,
+    def _motion_doc(self, motion: Motion, seq: int) -> dict[str, Any]:
+        return {"id": self._register(motion, seq), "duration": motion.duration, "t0": motion.plan.t0,
                 "target": motion.plan.sample(motion.plan.t_end)[0].tolist()}
 
     def _op_move(self, target: str | list[float] | Mapping[str, float], speed: float = 1.0) -> dict[str, Any]:
         with self._cmd:
             self._require_commandable()
-            return self._motion_doc(self.arm.move_to(target, speed=speed, wait=False))
+            return self._motion_doc(self.arm.move_to(target, speed=speed, wait=False), self._stop_seq)
 
-    def _op_wait(self, id: int) -> dict[str, Any]:
-        motion = self._motions.get(id)
-        if motion is None:
+    def _op_wait(self, id: int, client: int | None = None) -> dict[str, Any]:
+        """Wait for a motion to end: its safety stop raised (a copy), or whether it was superseded."""
+        entry = self._motions.get(id)
+        if entry is None:
             raise StateError(f"no motion {id} on this server")
-        motion.wait()
+        motion, seq = entry
+        while not motion.done:
+            self._require_serving()
+            if self._gone(client):  # nobody to answer: stop waiting (the motion goes on)
+                return {"superseded": False, "q": []}
+            time.sleep(_POLL)
+        motion.wait()  # its stop, or what cut it short (a collision with the "hold" reaction)
+        if motion.superseded:
+            self._raise_stop_since(seq)  # ended by a stop that was acknowledged meanwhile
         return {"superseded": motion.superseded, "q": self.arm.state().q.tolist()}
 
-    def _op_sleep(self, seconds: float) -> None:
-        self.arm.sleep(seconds)
+    def _op_sleep(self, seconds: float, client: int | None = None) -> None:
+        """Let ``seconds`` pass with the arm held; a safety stop meanwhile (or latched already) is raised."""
+        if seconds < 0:
+            raise ArgumentError(f"argument 'seconds' of 'sleep' must not be negative, got {seconds}")
+        seq = self._stop_seq
+        stop = self.latched
+        if stop is not None:
+            raise stop.copy()
+        end = time.monotonic() + seconds
+        while (left := end - time.monotonic()) > 0:
+            time.sleep(min(_POLL, left))
+            self._raise_stop_since(seq)
+            self._require_serving()
+            if self._gone(client):
+                return
 
     def _op_teach(self, damping: float = 0.1, client: int | None = None) -> None:
         with self._cmd:
@@ -384,20 +619,22 @@ class ArmServerCore:
             self.arm.teach(damping)
             self._teaching = True
             self._teacher = client
+            self._teach_seq = self._stop_seq
 
-    def _raise_fault(self) -> None:
-        if self.arm.fault is not None:
-            raise self.arm.fault
+    def _teach_ok(self) -> None:
+        """What teach mode's operations check first: a stop since teach mode began ended it (raised)."""
+        self._raise_stop_since(self._teach_seq)
 
     def _op_keyframe(self, name: str | None = None) -> list[float]:
-        self._raise_fault()
+        self._teach_ok()
         return list(self.arm.keyframe(name).q)
 
     def _op_start_recording(self, rate: float, seconds: float | None = None) -> None:
+        self._teach_ok()
         self.arm.start_recording(rate, seconds)
 
     def _op_recording_finished(self) -> bool:
-        self._raise_fault()
+        self._teach_ok()
         return self.arm.recording_finished
 
     def _op_stop_recording(self) -> dict[str, Any]:
@@ -414,7 +651,7 @@ class ArmServerCore:
         with self._cmd:
             rec = self.arm.check_replay(path, speed)
             self._require_commandable()
-            doc = self._motion_doc(self.arm.replay(rec, speed=speed, wait=False))
+            doc = self._motion_doc(self.arm.replay(rec, speed=speed, wait=False), self._stop_seq)
         doc["kind"] = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
         return doc
 

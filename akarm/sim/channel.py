@@ -12,6 +12,7 @@ for you with ``control=True``)::
     sim.state()                                  # per joint: enabled, position, error, faults, ...
     frames, _ = sim.frames()                     # every frame the drivers took in and sent
     sim.clear_faults()
+    sim.push([0, 0, 0, 0, 0, 0.5])              # an external torque on the joints (N·m), until pushed again
     sim.disable_drivers()                        # every output limp; returns the joints that were enabled
 
 The protocol is one JSON object per line each way, so any language (or ``socat``) can use it:
@@ -20,6 +21,8 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
   (a class of :mod:`akarm.sim.faults` and its fields), or ``{"cmd": "inject", "spec": "elbow:drop:0.3"}``
   (the ``--fault`` form);
 - ``{"cmd": "clear"}`` or ``{"cmd": "clear", "joint": "elbow"}``;
+- ``{"cmd": "push", "tau": [0, 0, 0.5]}`` (N·m per joint, config order) or ``{"cmd": "push", "tau": null}``:
+  :meth:`~akarm.sim.SimulatedRobot.set_external_torque`;
 - ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
@@ -114,6 +117,9 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
     if cmd == "clear":
         sim.clear_faults(req.get("joint"))
         return {}
+    if cmd == "push":
+        sim.set_external_torque(req.get("tau"))  # the plant says what is wrong with a bad one
+        return {}
     if cmd in ("state", "disable", "frames"):
         sim.wait_received(10.0)  # what was sent to the drivers before the request counts
         if cmd == "state":
@@ -124,7 +130,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
                                                  f.to_motor] for f in frames]}
     raise AkarmError(f"unknown request {req!r}",
-                     fix='send {"cmd": "inject" | "clear" | "state" | "disable" | "frames", ...}')
+                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "disable" | "frames", ...}')
 
 
 class ChannelServer:
@@ -231,6 +237,11 @@ class SimulatorControl:
     def clear_faults(self, joint: str | None = None) -> None:
         """End the faults of ``joint`` (default: of every joint)."""
         self.request(cmd="clear", joint=joint)
+
+    def push(self, tau: list[float] | None) -> None:
+        """Push the arm with joint torques ``tau`` (N·m, config order) from outside, until pushed again;
+        ``None`` stops pushing (:meth:`~akarm.sim.SimulatedRobot.set_external_torque`)."""
+        self.request(cmd="push", tau=None if tau is None else [float(x) for x in tau])
 
     def state(self) -> list[DriverState]:
         """Every driver as it is now, config order."""

@@ -159,11 +159,22 @@ class SimulatedDriver:
             self._rogue_exit(t, fault.on_bus)
         elif isinstance(fault, _f.Blocked):
             self._host.set_blocked(self.name, True)
+        elif isinstance(fault, _f.SERIAL):
+            self._serial_fault(fault)
         else:
             raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
                              fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
-                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked")
+                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked; on a serial port "
+                                 "CorruptBytes, PartialFrame, BadCrc, SilentPort")
         self._faults.append(fault)
+
+    def _serial_fault(self, fault: _f.Fault) -> None:
+        """Start a fault of the serial line (:data:`akarm.sim.faults.SERIAL`): only a driver on a serial
+        port has one."""
+        raise AkarmError(f"{type(fault).__name__} is a fault of a serial port, and this driver is on CAN bus "
+                         f"{self.bus!r}", joint=self.name,
+                         fix=f"give the joint a serial port (akarm sim --serial {self.name}=pty, or "
+                             f"SimulatedRobot(..., serial={{{self.name!r}: 'pty'}}))")
 
     def clear_faults(self) -> None:
         """End every fault. A motor whose power was lost starts again as after power-up."""
@@ -651,20 +662,25 @@ class ServoDriver(SimulatedDriver):
 
     # -- frames
 
-    # C901 16 > 12, left as it was: a branch per servo packet the simulated driver answers
-    def _handle(self, arbitration_id: int, is_extended: bool, data: bytes, t: float) -> None:  # noqa: C901
+    def _handle(self, arbitration_id: int, is_extended: bool, data: bytes, t: float) -> None:
         if not self._powered:
             return
         try:
             cmd = servo.decode_command(arbitration_id, data, is_extended=is_extended)
         except ProtocolError:
             return  # malformed or out-of-range: the firmware ignores it
+        self.apply(cmd.packet, cmd.values, t)
+
+    # C901 15 > 12, left as it was: a branch per servo command the simulated driver carries out
+    def apply(self, packet: servo.ServoPacket, values: tuple[float, ...], t: float) -> None:  # noqa: C901
+        """Carry out a servo command at time ``t`` (s), whichever port it came by: ``values`` in the
+        servo codec's units (:class:`~akarm.protocol.servo.ServoCommand`)."""
         m = self.motor
-        pk = cmd.packet
+        pk = packet
         p_raw, v = self._measured(*self._state())
         previous = self.control
         if pk is servo.ServoPacket.SET_ORIGIN_HERE:
-            mode = int(cmd.values[0])
+            mode = int(values[0])
             if mode == 2:
                 self.origin = self.permanent_origin = 0.0
             else:
@@ -677,21 +693,21 @@ class ServoDriver(SimulatedDriver):
             return
         self._last_cmd = t
         if pk is servo.ServoPacket.SET_DUTY:
-            self.control, self._duty = "duty", cmd.values[0]
+            self.control, self._duty = "duty", values[0]
         elif pk is servo.ServoPacket.SET_CURRENT:
             # below the firmware's minimum current (VESC: cc_min_current) the output is released
-            self.control, self._amps = "current" if abs(cmd.values[0]) >= MIN_CURRENT else None, cmd.values[0]
+            self.control, self._amps = "current" if abs(values[0]) >= MIN_CURRENT else None, values[0]
         elif pk is servo.ServoPacket.SET_CURRENT_BRAKE:
-            self.control, self._amps = "brake" if abs(cmd.values[0]) >= MIN_CURRENT else None, cmd.values[0]
+            self.control, self._amps = "brake" if abs(values[0]) >= MIN_CURRENT else None, abs(values[0])
         elif pk is servo.ServoPacket.SET_RPM:
             if previous != "speed":
                 self._integral = 0.0
-            self.control, self._speed = "speed", units.erpm_to_rad_s(m, cmd.values[0])
+            self.control, self._speed = "speed", units.erpm_to_rad_s(m, values[0])
         else:  # SET_POS, SET_POS_SPD
             if pk is servo.ServoPacket.SET_POS:
-                deg, erpm, accel = cmd.values[0], self.position_speed_erpm, self.position_accel_erpm_s
+                deg, erpm, accel = values[0], self.position_speed_erpm, self.position_accel_erpm_s
             else:
-                deg, erpm, accel = cmd.values
+                deg, erpm, accel = values
                 if accel <= 0:
                     accel = self.position_accel_erpm_s  # 0 leaves the acceleration to the firmware default
             prof = self.profile

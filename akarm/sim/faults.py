@@ -23,7 +23,10 @@ from akarm.errors import AkarmError
 
 __all__ = [
     "KINDS",
+    "SERIAL",
+    "BadCrc",
     "Blocked",
+    "CorruptBytes",
     "DelayReplies",
     "DropReplies",
     "ErrorCode",
@@ -31,8 +34,10 @@ __all__ = [
     "FaultAfter",
     "ForgedReply",
     "FrozenEncoder",
+    "PartialFrame",
     "PowerCycle",
     "RogueExit",
+    "SilentPort",
     "Twin",
     "Unplugged",
     "parse",
@@ -228,6 +233,70 @@ class Blocked(Fault):
     moves no more, whatever torque its motor applies, until the fault is cleared."""
 
 
+def _fraction(kind: str, fraction: float) -> None:
+    if not 0.0 <= fraction <= 1.0:
+        raise AkarmError(f"{kind} fraction {fraction!r} is outside 0..1",
+                         fix="give the share of replies it spoils, e.g. 1.0 for every one")
+
+
+@dataclass(frozen=True)
+class CorruptBytes(Fault):
+    """Serial port only: a ``fraction`` of the motor's replies arrive as line noise (random bytes of the
+    same length, as a wrong baud rate or interference makes them).
+
+    Attributes:
+        fraction: probability 0..1 that a reply is replaced (default 1: every one). seed: of the
+            driver's random generator, so a run is repeatable.
+    """
+
+    fraction: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _fraction("CorruptBytes", self.fraction)
+
+
+@dataclass(frozen=True)
+class PartialFrame(Fault):
+    """Serial port only: a ``fraction`` of the motor's replies are cut short (their first half arrives,
+    the rest is lost: a loose connector, an adapter dropping bytes).
+
+    Attributes:
+        fraction: probability 0..1 that a reply is cut (default 1). seed: as :class:`CorruptBytes`.
+    """
+
+    fraction: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _fraction("PartialFrame", self.fraction)
+
+
+@dataclass(frozen=True)
+class BadCrc(Fault):
+    """Serial port only: a ``fraction`` of the motor's replies arrive whole but with a wrong CRC (bits
+    flipped on the line).
+
+    Attributes:
+        fraction: probability 0..1 that a reply is spoilt (default 1). seed: as :class:`CorruptBytes`.
+    """
+
+    fraction: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _fraction("BadCrc", self.fraction)
+
+
+@dataclass(frozen=True)
+class SilentPort(Fault):
+    """Serial port only: the motor sends nothing (a broken TX wire) but still hears, and carries out,
+    the commands it is sent (:class:`Unplugged` cuts both ways)."""
+
+
+#: The faults that only a simulated driver on a serial port (``akarm sim --serial``) can have.
+SERIAL = (CorruptBytes, PartialFrame, BadCrc, SilentPort)
+
 #: The CLI's fault kinds: ``--fault JOINT:KIND[:ARG]``, with what ARG means.
 KINDS: dict[str, str] = {
     "drop": "drop:FRACTION[,SEED]   lose that share of the replies (e.g. drop:0.3)",
@@ -241,7 +310,15 @@ KINDS: dict[str, str] = {
     "forged": "forged:POS[,COUNT[,INTERVAL]]   another node sends COUNT replies at motor position POS rad",
     "rogue-exit": "rogue-exit[:silent]    another program disables the joint (':silent': not seen on the bus)",
     "blocked": "blocked                the joint is mechanically blocked where it is",
+    "corrupt": "corrupt[:FRACTION[,SEED]]   serial port: replies arrive as noise (default: every one)",
+    "partial": "partial[:FRACTION[,SEED]]   serial port: replies are cut short",
+    "bad-crc": "bad-crc[:FRACTION[,SEED]]   serial port: replies arrive with a wrong CRC",
+    "silent": "silent                 serial port: the motor sends nothing (but hears commands)",
 }
+
+
+_WIRE: dict[str, type[CorruptBytes | PartialFrame | BadCrc]] = {"corrupt": CorruptBytes, "partial": PartialFrame,
+                                                                  "bad-crc": BadCrc}
 
 
 def _bad(spec: str, why: str) -> AkarmError:
@@ -249,13 +326,14 @@ def _bad(spec: str, why: str) -> AkarmError:
     return AkarmError(f"bad fault {spec!r}: {why}", fix=f"write JOINT:KIND[:ARG], KIND one of: {kinds}")
 
 
-# C901 21 > 12, left as it was: the fault syntax of the command line, a branch per kind of fault
+# C901 23 > 12, left as it was: the fault syntax of the command line, a branch per kind of fault
 def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
     """Parse a command-line fault ``JOINT:KIND[:ARG]`` into ``(joint name, fault)``.
 
     Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
     ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``,
-    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``.
+    ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``; on a
+    serial port ``elbow:corrupt``, ``elbow:partial:0.5``, ``elbow:bad-crc:1,3``, ``elbow:silent``.
 
     Raises:
         AkarmError: the text is not a fault; the message lists the kinds.
@@ -310,6 +388,14 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if args:
                 raise _bad(spec, "blocked takes no argument")
             return joint, Blocked()
+        if kind in _WIRE:
+            if len(args) > 2:
+                raise _bad(spec, f"{kind} takes at most a fraction and a seed")
+            return joint, _WIRE[kind](float(args[0]) if args else 1.0, int(args[1]) if len(args) > 1 else 0)
+        if kind == "silent":
+            if args:
+                raise _bad(spec, "silent takes no argument")
+            return joint, SilentPort()
     except ValueError as e:
         raise _bad(spec, str(e)) from None
     raise _bad(spec, f"unknown kind {kind!r}")

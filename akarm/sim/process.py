@@ -66,6 +66,8 @@ class SimulatorProcess:
 
     Attributes:
         control: the :class:`~akarm.sim.channel.SimulatorControl` (``None`` without ``control``).
+        serial_ports: per joint given a serial port (``args=["--serial", "elbow=pty"]``), the path the
+            simulator printed for it: the line's end a controller opens.
 
     Raises:
         StateError: the simulator did not start (with what it printed).
@@ -93,6 +95,7 @@ class SimulatorProcess:
         self.cpus = set(cpus) if cpus is not None else None
         self.start_timeout = start_timeout
         self.proc: subprocess.Popen[str] | None = None
+        self.serial_ports: dict[str, str] = {}
         self._output: collections.deque[str] = collections.deque(maxlen=50)
         self._reader: threading.Thread | None = None
 
@@ -127,6 +130,10 @@ class SimulatorProcess:
             self.__exit__()
             raise StateError(f"the simulator did not start: {' '.join(self.command)}\n{self.output}",
                              fix="run that command yourself to see what is wrong")
+        for line in list(seen):  # "  serial JOINT: PATH   (...)", printed before "running"
+            if line.startswith("  serial "):
+                joint, _, rest = line[len("  serial "):].partition(": ")
+                self.serial_ports[joint] = rest.split()[0]
         return self
 
     @property

@@ -12,6 +12,14 @@ simulated time, then integrates the plant in fixed steps up to ``t``, sending th
 due on the way (servo status frames, delayed replies, fault timers) at their simulated times. No
 threads, so a run is exactly repeatable and as fast as the CPU allows.
 
+Serial ports: ``serial={"elbow": "pty"}`` puts that joint's driver on a serial port instead of its
+CAN bus (a :class:`~akarm.sim.uart.UartServoDriver`, servo joints only): ``"pty"`` makes a
+pseudo-terminal pair and keeps one end, the other's path is in :attr:`SimulatedRobot.serial_ports`
+and :attr:`SimulatedRobot.config` has the joint on an ``akarm_uart`` bus with that path, so an Arm
+built from it drives the joint over UART; a device's path (``/dev/ttyUSB1``, one end of a ``socat``
+pair) is opened at the baud rate instead (point the controller at the line's other end yourself). A
+joint the robot file already puts on a serial port needs one.
+
 Real time (default, and what ``akarm sim`` uses): a thread per bus blocks on ``recv`` and answers each
 frame at once (after bringing the plant up to the wall clock), and a ticker thread keeps the plant
 at the wall clock between frames. When the machine cannot keep up, simulated time slips (it runs
@@ -26,12 +34,14 @@ import itertools
 import math
 import threading
 import time
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from akarm.buses.bus import close_buses, open_bus
+from akarm.buses.serialport import DEFAULT_BAUDRATE, Port, open_pty, open_serial
 from akarm.clock import RealClock, SteppedClock
 from akarm.errors import ConfigError, ConfigProblem, StateError
 from akarm.sim import faults as _faults
@@ -39,6 +49,7 @@ from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driv
 from akarm.sim.params import MotorSimParams, default_params
 from akarm.sim.plant import Plant
 from akarm.sim.records import DriverState, Frame
+from akarm.sim.uart import UartServoDriver
 from akarm.timing import TimingProfile, get_profile
 
 if TYPE_CHECKING:
@@ -50,6 +61,11 @@ __all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
 
 #: How many of the frames its drivers took in and sent a simulator keeps (:meth:`SimulatedRobot.logged_frames`).
 FRAME_LOG_SIZE = 200_000
+
+
+def _close_ports(ports: Mapping[str, Port]) -> None:
+    for port in ports.values():
+        port.close()
 
 
 def _driving(d: SimulatedDriver) -> bool:
@@ -79,6 +95,9 @@ class SimulatedRobot:
         max_lag: real time only: s the plant may fall behind the wall clock before time slips.
         faults: per joint name, faults in force from the start (e.g. a reply delay the controller
             meets at its first frame): ``{"elbow": faults.DelayReplies(0.06)}``.
+        serial: per joint name, the serial port its driver answers on instead of CAN: ``"pty"`` (a
+            pseudo-terminal pair) or a device's path (see the module's docstring).
+        baudrate: bit/s of those ports (921 600, the AK drivers').
 
     Attributes:
         config: the configuration in force (with the bus override).
@@ -88,9 +107,11 @@ class SimulatedRobot:
             :class:`~akarm.clock.RealClock` (real time).
         send_errors: frames the bus refused to send (a full socketcan queue, ...).
         timing: the :class:`~akarm.timing.TimingProfile` in force.
+        serial_ports: per joint on a serial port, the path a controller opens (a pseudo-terminal's
+            other end), or the device's path the simulator itself opened.
     """
 
-    # C901 13 > 12, left as it was: the simulator's options, each checked in turn
+    # C901 15 > 12, left as it was: the simulator's options, each checked in turn
     def __init__(  # noqa: C901
         self,
         config: RobotConfig,
@@ -107,9 +128,15 @@ class SimulatedRobot:
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
         timing: str | TimingProfile | None = None,
         log_frames: bool = False,
+        serial: Mapping[str, str] | None = None,
+        baudrate: int = DEFAULT_BAUDRATE,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
+        self._ports: dict[str, Port] = {}
+        self.serial_ports: dict[str, str] = {}
+        weakref.finalize(self, _close_ports, self._ports)  # also when the rest of __init__ raises
+        config = self._open_ports(config, dict(serial or {}), baudrate)
         self.config = config
         self.timing = get_profile(timing)
         if dt is None:
@@ -133,6 +160,11 @@ class SimulatedRobot:
         inertia = self.plant.joint_inertia()
         drivers: list[SimulatedDriver] = []
         for i, (j, p) in enumerate(zip(config.joints, plist, strict=True)):
+            if j.name in self._ports:
+                drivers.append(UartServoDriver(j, p, self, self._state_getter(i), self.dt,
+                                               load_inertia=float(inertia[i]), release_after=servo_release,
+                                               baudrate=baudrate))
+                continue
             drivers.append(make_driver(j, p, self, self._state_getter(i), self.dt, load_inertia=float(inertia[i]),
                                        zero_silence=zero_silence, servo_release=servo_release))
         self.drivers: tuple[SimulatedDriver, ...] = tuple(drivers)
@@ -153,6 +185,8 @@ class SimulatedRobot:
         # extended status frames by (bus, whole ID)
         self._senders: dict[tuple[str, int, int], str] = {}
         for d in drivers:
+            if isinstance(d, UartServoDriver):
+                continue
             if isinstance(d, MitDriver) and not d.v3:
                 self._senders[(d.bus, d.joint.reply_id, d.can_id)] = d.name
             else:
@@ -165,8 +199,11 @@ class SimulatedRobot:
         self._frames_logged = 0
         self._rx_empty: dict[str, float] = {}
         self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
+        self._serial_outbox: list[tuple[float, int, str, bytes]] = []  # (due, seq, joint, bytes)
+        self._uart = {d.name: d for d in drivers if isinstance(d, UartServoDriver)}
         self._seq = itertools.count()
         self._buses: dict[str, can.BusABC] = {}
+        self._open = False  # start() opened the buses (there may be none: every joint on a serial port)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._t0 = 0.0
@@ -191,10 +228,14 @@ class SimulatedRobot:
 
     def start(self) -> SimulatedRobot:
         """Open the buses (and, in real time, start the threads). :class:`~akarm.BusError` if a bus won't open."""
-        if self._buses:
+        if self._open:
             return self
+        from akarm.buses.uart import INTERFACE as UART
+
         try:
             for name, bus_cfg in self.config.buses.items():
+                if bus_cfg.interface == UART:
+                    continue  # the controller's end of a serial line: the driver has the other (self._ports)
                 bus = self._buses[name] = open_bus(bus_cfg)
                 # real time: take in only what the drivers listen to (in the kernel on socketcan): a
                 # simulator that read every frame of a busy bus could fall behind and lose the ones it
@@ -207,6 +248,7 @@ class SimulatedRobot:
         except BaseException:
             self._shutdown_buses()
             raise
+        self._open = True
         if self.realtime:
             self._stop.clear()
             self._rx_empty = dict.fromkeys(self._buses, -math.inf)
@@ -214,6 +256,10 @@ class SimulatedRobot:
             for name, bus in self._buses.items():
                 th = threading.Thread(target=self._rx_loop, args=(name, bus), name=f"akarm-sim-rx-{name}", daemon=True)
                 self._threads.append(th)
+            for joint, port in self._ports.items():
+                self._rx_empty[f"serial:{joint}"] = -math.inf
+                self._threads.append(threading.Thread(target=self._serial_loop, args=(joint, port),
+                                                      name=f"akarm-sim-serial-{joint}", daemon=True))
             self._threads.append(threading.Thread(target=self._tick_loop, name="akarm-sim-tick", daemon=True))
             for th in self._threads:
                 th.start()
@@ -226,9 +272,40 @@ class SimulatedRobot:
             th.join(timeout=2.0)
         self._threads.clear()
         self._shutdown_buses()
+        _close_ports(self._ports)
 
     def _shutdown_buses(self) -> None:
+        self._open = False
         close_buses(self._buses)
+
+    def _open_ports(self, config: RobotConfig, serial: dict[str, str], baudrate: int) -> RobotConfig:
+        """Open the serial ports of the joints in ``serial`` (and check that every joint the robot file
+        puts on a serial port has one); the config with those joints on ``akarm_uart`` buses."""
+        from akarm.buses.uart import INTERFACE as UART
+        from akarm.buses.uart import serial_config
+
+        where = str(config.source or config.name)
+        for j in config.joints:
+            if config.buses[j.bus].interface == UART and j.name not in serial:
+                raise ConfigError([ConfigProblem(where, None, f"joint {j.name!r} is on serial port bus {j.bus!r}, "
+                                                 "and the simulator was given no port for its driver",
+                                                 f"give it one: serial={{{j.name!r}: 'pty'}} (akarm sim --serial "
+                                                 f"{j.name}=pty, or {j.name}=PATH of the line's other end)")])
+        for name in serial:
+            if config.joint(name).mode != "servo":
+                raise ConfigError([ConfigProblem(where, None, f"joint {name!r} is in MIT mode, which has no serial "
+                                                 "protocol", "only servo-mode joints run over UART")])
+        try:
+            for name, path in serial.items():
+                if path == "pty":
+                    self._ports[name], self.serial_ports[name] = open_pty()
+                else:
+                    self._ports[name] = open_serial(path, baudrate)
+                    self.serial_ports[name] = path
+        except BaseException:
+            _close_ports(self._ports)
+            raise
+        return serial_config(config, self.serial_ports, baudrate) if serial else config
 
     def __enter__(self) -> SimulatedRobot:
         return self.start()
@@ -363,10 +440,27 @@ class SimulatedRobot:
 
     def transmit(self, bus: str, arbitration_id: int, data: bytes, is_extended: bool, due: float) -> None:
         """Send a frame on ``bus`` now, or queue it until simulated time ``due`` (s) (or until the buses open)."""
-        if due <= self._t + 1e-9 and self._buses:
+        if due <= self._t + 1e-9 and self._open:
             self._send_now(bus, arbitration_id, data, is_extended)
         else:
             heapq.heappush(self._outbox, (due, next(self._seq), bus, arbitration_id, data, is_extended))
+
+    def transmit_serial(self, joint: str, data: bytes, due: float) -> None:
+        """Write ``data`` on joint ``joint``'s serial port now, or at simulated time ``due`` (s)."""
+        if due <= self._t + 1e-9:
+            self._write_now(joint, data)
+        else:
+            heapq.heappush(self._serial_outbox, (due, next(self._seq), joint, data))
+
+    def _write_now(self, joint: str, data: bytes) -> None:
+        try:
+            self._ports[joint].write(data)
+        except OSError:
+            self.send_errors += 1
+            return
+        if self.log_frames:
+            d = self._uart[joint]
+            self._log(d.bus, data[2] if len(data) > 2 else -1, False, data, joint, False)
 
     def _send_now(self, bus_name: str, arbitration_id: int, data: bytes, is_extended: bool) -> None:
         import can
@@ -437,7 +531,7 @@ class SimulatedRobot:
         if self.realtime:
             raise StateError("advance_to is for lock step; this simulator runs in real time",
                              fix="build it with realtime=False")
-        if not self._buses:
+        if not self._open:
             raise StateError("the simulator's buses are not open",
                              fix="use `with SimulatedRobot(...) as sim:` or call sim.start() first")
         self._poll()
@@ -452,7 +546,7 @@ class SimulatedRobot:
             self.clock.sleep_until(max(self.clock.now(), self._t) + seconds)
 
     def _poll(self) -> None:
-        """Handle every frame waiting on every bus, at the current simulated time."""
+        """Handle every frame waiting on every bus and serial port, at the current simulated time."""
         for name, bus in self._buses.items():
             routes = self._routes.get(name, {})
             while True:
@@ -460,6 +554,25 @@ class SimulatedRobot:
                 if msg is None:
                     break
                 self._dispatch(name, routes, msg)
+        for joint, port in self._ports.items():
+            self._serial_in(joint, port)
+
+    def _serial_in(self, joint: str, port: Port) -> bool:
+        """Hand the bytes that arrived on ``joint``'s serial port to its driver (and to the frame log);
+        False when the port failed (a device that went away: the driver hears nothing, as unplugged)."""
+        try:
+            data = port.read()
+        except OSError:
+            return False
+        if not data:
+            return True
+        d = self._uart[joint]
+        for payload in d.receive_bytes(data, self._t):
+            if self.log_frames:
+                from akarm.protocol.uart import encode_frame
+
+                self._log(d.bus, payload[0], False, encode_frame(payload), joint, True)
+        return True
 
     def _dispatch(self, name: str, routes: Mapping[tuple[int, bool], SimulatedDriver], msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
@@ -476,6 +589,7 @@ class SimulatedRobot:
         target = math.floor(t / dt + 1e-6)
         plant = self.plant
         outbox = self._outbox
+        serial = self._serial_outbox
         drivers = self.drivers
         while self._k < target:
             tk = self._k * dt
@@ -483,13 +597,13 @@ class SimulatedRobot:
             plant.step(tk)
             self._k += 1
             self._t = self._k * dt
-            if outbox and outbox[0][0] <= self._t + 1e-9:
+            if (outbox and outbox[0][0] <= self._t + 1e-9) or (serial and serial[0][0] <= self._t + 1e-9):
                 self._flush()
         # timers due exactly now (a status frame at t) run now, not at the start of the next step
         tk = self._t
         for d in drivers:
             d.tick(tk)
-        if outbox and outbox[0][0] <= tk + 1e-9:
+        if (outbox and outbox[0][0] <= tk + 1e-9) or (serial and serial[0][0] <= tk + 1e-9):
             self._flush()
 
     def _flush(self) -> None:
@@ -497,6 +611,10 @@ class SimulatedRobot:
         while outbox and outbox[0][0] <= self._t + 1e-9:
             _, _, bus, aid, data, ext = heapq.heappop(outbox)
             self._send_now(bus, aid, data, ext)
+        serial = self._serial_outbox
+        while serial and serial[0][0] <= self._t + 1e-9:
+            _, _, joint, data = heapq.heappop(serial)
+            self._write_now(joint, data)
 
     # ------------------------------------------------------------------ real time
 
@@ -530,6 +648,22 @@ class SimulatedRobot:
                     time.sleep(0.01)
                     continue
                 self._rx_empty[name] = time.monotonic()
+        except BaseException as e:  # reported through thread_error
+            if not self._stop.is_set():
+                self.thread_error = e
+                self._stop.set()
+
+    def _serial_loop(self, joint: str, port: Port) -> None:
+        key = f"serial:{joint}"
+        try:
+            while not self._stop.is_set():
+                port.wait(0.02)
+                with self._lock:
+                    self._integrate_to(self._wall())
+                    ok = self._serial_in(joint, port)
+                self._rx_empty[key] = time.monotonic()
+                if not ok:
+                    time.sleep(0.05)  # a failed port reads as ready at once: do not spin
         except BaseException as e:  # reported through thread_error
             if not self._stop.is_set():
                 self.thread_error = e

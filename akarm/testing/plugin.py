@@ -34,7 +34,9 @@ the option says. Every fixture ends with the simulated drivers disabled: it clos
 powered). Options (each also an ini setting: ``akarm_robot = robots/my_arm.yaml`` in pytest.ini):
 ``--akarm-robot``, ``--akarm-interface``, ``--akarm-channel``, ``--akarm-profile`` (the timing
 profile, :mod:`akarm.timing`: ``slow`` on slow or shared machines), ``--akarm-pose`` (the pose the
-simulated arm starts in; default all zeros). A project can also override the ``akarm_robot`` fixture.
+simulated arm starts in; default all zeros), ``--akarm-serial`` (servo joints whose simulated drivers
+answer on serial ports, over pseudo-terminal pairs: ``--akarm-serial elbow,wrist``; the arms made by
+the fixture drive them over UART). A project can also override the ``akarm_robot`` fixture.
 
 This module is imported by pytest in every run where akarm is installed, akarm's own included: it
 adds options and fixtures, nothing runs until a test asks for one, and it imports nothing heavy.
@@ -65,6 +67,8 @@ _OPTIONS = {
     "profile": ("NAME", "timing profile of the simulator and the arm: normal (default) or slow (slow or shared "
                         "machines)"),
     "pose": ("POSE", "the named pose the simulated arm starts in (default: all joints at zero)"),
+    "serial": ("JOINT[,JOINT]", "servo joints driven over UART: their simulated drivers answer on pseudo-terminal "
+                                "pairs"),
 }
 
 
@@ -90,7 +94,7 @@ def pytest_report_header(config: pytest.Config) -> str | None:
     robot, _ = _setting(config, "robot")
     if robot is None:
         return None
-    parts = [f"robot {robot}"] + [f"{key} {value}" for key in ("interface", "channel", "profile", "pose")
+    parts = [f"robot {robot}"] + [f"{key} {value}" for key in ("interface", "channel", "profile", "pose", "serial")
                                   if (value := _setting(config, key)[0])]
     return "akarm: " + ", ".join(parts)
 
@@ -143,7 +147,8 @@ def _simulated_arm(request: pytest.FixtureRequest, robot: Path, timing: TimingPr
                         "sudo ip link set up vcan0)")
     elif transport == "virtual" or channel is None:
         channel = None  # a channel of this test's own, so that parallel runs never meet
-    sim = SimulatedArm.start(robot, transport, channel=channel, timing=timing, pose=pose)
+    serial = [j.strip() for j in (_setting(request.config, "serial")[0] or "").split(",") if j.strip()]
+    sim = SimulatedArm.start(robot, transport, channel=channel, timing=timing, pose=pose, serial=serial)
     try:
         yield sim
     finally:

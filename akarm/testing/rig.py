@@ -15,7 +15,10 @@
 Transports, by python-can interface name: ``virtual`` (a :class:`~akarm.sim.SimulatedRobot` in this
 process, in lock step with the arms made by :meth:`SimulatedArm.arm`), ``akarm_local`` and
 ``socketcan`` (``akarm sim`` in a process of its own, in real time, reached through its control
-channel, :mod:`akarm.sim.channel`). The frames are those the simulated drivers took in and sent,
+channel, :mod:`akarm.sim.channel`). Servo joints can instead be put on serial ports
+(``serial=["elbow"]``): their drivers then answer the UART protocol on a pseudo-terminal pair, and
+the arms made here drive them through ``akarm_uart`` buses on the pairs' other ends (joints the robot
+file already puts on a serial port always are). The frames are those the simulated drivers took in and sent,
 stamped with simulated time. Leaving a rig closes the arms it made (damped, disabled)
 and switches off any simulated driver still enabled. The pytest plugin (:mod:`akarm.testing.plugin`) gives
 tests a rig per test.
@@ -27,7 +30,7 @@ import itertools
 import os
 import sys
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -84,9 +87,10 @@ class SimulatedArm:
     @staticmethod
     def start(robot: str | os.PathLike[str], transport: str = "virtual",
               channel: str | Mapping[str, str] | None = None, timing: str | TimingProfile | None = None,
-              pose: str | None = None) -> SimulatedArm:
+              pose: str | None = None, serial: Iterable[str] = ()) -> SimulatedArm:
         """The simulated drivers of the robot file ``robot`` on ``transport``, started, the arm at rest
-        in ``pose`` (a named pose; default all zeros).
+        in ``pose`` (a named pose; default all zeros), the servo joints named in ``serial`` (and those
+        the file puts on a serial port) on serial ports, each over a pseudo-terminal pair.
 
         ``channel``: the bus's channel (for several buses a mapping ``{bus: channel}``, or one name
         each bus's channel is made from). Default: a name unique to this call (``virtual``,
@@ -102,7 +106,15 @@ class SimulatedArm:
 
         if transport not in TRANSPORTS:
             raise AkarmError(f"unknown transport {transport!r}", fix="use one of: " + ", ".join(TRANSPORTS))
+        from akarm.buses.uart import INTERFACE as UART
+
         config = load_robot(robot)
+        serial = list(dict.fromkeys([*serial, *(j.name for j in config.joints
+                                                if config.buses[j.bus].interface == UART)]))
+        for name in serial:
+            if config.joint(name).mode != "servo":
+                raise AkarmError(f"joint {name!r} is in MIT mode, which has no serial protocol",
+                                 fix="only servo-mode joints run over UART")
         profile = get_profile(timing)
         channel = default_channel(config, transport) if channel is None else channel
         config = config.with_bus(interface=transport, channel=channel)
@@ -112,8 +124,8 @@ class SimulatedArm:
                                         "sudo ip link set up vcan0 (or give the channel of one that exists)")
         q0 = config.pose(pose) if pose else None
         if transport == "virtual":
-            return _InProcess(config, profile, q0)
-        return _OwnProcess(Path(robot), config, profile, channel, pose)
+            return _InProcess(config, profile, q0, serial)
+        return _OwnProcess(Path(robot), config, profile, channel, pose, serial)
 
     def __enter__(self) -> SimulatedArm:
         return self
@@ -224,11 +236,12 @@ class _InProcess(SimulatedArm):
 
     transport = "virtual"
 
-    def __init__(self, config: RobotConfig, timing: TimingProfile, q0: Any) -> None:
+    def __init__(self, config: RobotConfig, timing: TimingProfile, q0: Any, serial: list[str]) -> None:
         from akarm.sim.robot import SimulatedRobot
 
         super().__init__()
-        self.sim = SimulatedRobot(config, realtime=False, q0=q0, timing=timing, log_frames=True)
+        self.sim = SimulatedRobot(config, realtime=False, q0=q0, timing=timing, log_frames=True,
+                                  serial=dict.fromkeys(serial, "pty"))
         self.config, self.timing, self.clock = self.sim.config, timing, self.sim.clock
         self.sim.start()
 
@@ -266,18 +279,22 @@ class _OwnProcess(SimulatedArm):
     """Real time: ``akarm sim`` in a process of its own, reached through its control channel."""
 
     def __init__(self, robot: Path, config: RobotConfig, timing: TimingProfile, channel: str | Mapping[str, str],
-                 pose: str | None) -> None:
+                 pose: str | None, serial: list[str]) -> None:
+        from akarm.buses.uart import INTERFACE as UART
+        from akarm.buses.uart import serial_config
         from akarm.sim.process import SimulatorProcess
 
         super().__init__()
-        self.transport = next(iter(config.buses.values())).interface
-        self.config, self.timing = config, timing
+        self.transport = next((b.interface for b in config.buses.values() if b.interface != UART), "akarm_local")
+        self.timing = timing
         text = channel if isinstance(channel, str) else ",".join(f"{k}={v}" for k, v in channel.items())
+        args = [a for name in serial for a in ("--serial", f"{name}=pty")]
         self.process = SimulatorProcess(robot, interface=self.transport, channel=text, pose=pose, timing=timing,
-                                        control=True, start_timeout=300.0)
+                                        control=True, start_timeout=300.0, args=args)
         self.process.__enter__()
         assert self.process.control is not None
         self.control = self.process.control
+        self.config = serial_config(config, self.process.serial_ports) if serial else config
 
     def _inject(self, joint: str, fault: Fault | str) -> None:
         self.control.inject(joint, fault)

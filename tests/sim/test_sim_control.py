@@ -11,6 +11,7 @@ import socket
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from akarm import AkarmError, StateError, load_robot
@@ -83,3 +84,22 @@ def test_a_second_simulator_cannot_take_a_served_socket_but_a_stale_one_is_reuse
         s.bind(str(stale))                                 # bound, never listening: what a killed simulator leaves
     with ChannelServer(sim, stale):
         assert len(SimulatorControl(stale).state()) == 2
+
+
+def test_push_sets_the_external_torque_on_the_arm(served: tuple[SimulatedRobot, SimulatorControl]) -> None:
+    sim, ctl = served
+    q0 = sim.q.copy()
+    sim.run_for(0.2)  # limp: gravity alone
+    unpushed = sim.q - q0
+    sim.set_state(q0)
+    ctl.push([0.0, 0.4])
+    sim.run_for(0.2)
+    assert (sim.q - q0)[1] - unpushed[1] > 0.01  # the push turns the elbow its way
+    sim.set_state(q0)
+    ctl.push(None)
+    sim.run_for(0.2)
+    assert np.allclose(sim.q - q0, unpushed, atol=1e-9)  # and no more
+    with pytest.raises(AkarmError, match="external torque must be 2 finite numbers"):
+        ctl.push([1.0])
+    with pytest.raises(AkarmError, match="external torque must be 2 finite numbers"):
+        ctl.push([0.0, float("nan")])

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -49,14 +50,17 @@ def unique(stem: str) -> str:
 class Served:
     """``akarm serve`` in a child process, started and stopped by a ``with`` block."""
 
-    def __init__(self, channel: str, namespace: str, robot: Path, domain: int = DOMAIN) -> None:
-        self.command = [sys.executable, "-m", "akarm", "serve", str(robot), "-i", "akarm_local", "-c", channel,
-                        "--domain", str(domain), "--namespace", namespace]
+    def __init__(self, channel: str, namespace: str, robot: Path, domain: int = DOMAIN, *, args: Sequence[str] = (),
+                 prefix: Sequence[str] = (), env: Mapping[str, str] | None = None) -> None:
+        self.command = [*prefix, sys.executable, "-m", "akarm", "serve", str(robot), "-i", "akarm_local", "-c",
+                        channel, "--domain", str(domain), "--namespace", namespace, *args]
+        self.env = dict(env) if env is not None else None
         self.lines: list[str] = []
         self.proc: subprocess.Popen[str] | None = None
 
     def __enter__(self) -> Served:
-        self.proc = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.proc = subprocess.Popen(self.command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=self.env)
         started = threading.Event()
 
         def read() -> None:
@@ -182,6 +186,25 @@ def served(tmp_path_factory):
 
 def bus_args(s: Setup) -> list[str]:
     return [str(s.robot), "-i", "akarm_local", "-c", s.channel]
+
+
+@pytest.fixture(autouse=True)
+def _no_stop_left_by_another_test(request):
+    """Each test starts with no safety stop latched: one that an earlier test's failure left (a real-time
+    stop on a loaded machine) fails that test, not every test after it. Acknowledged here, and said."""
+    if "served" not in request.fixturenames:
+        return
+    from akarm.buses.ownership import find_server
+    from akarm.server.socket import SocketClient
+
+    s = request.getfixturevalue("served")
+    info = find_server(CONFIG.with_bus(interface="akarm_local", channel=s.channel))
+    assert info is not None, "the module's server is gone:\n" + "".join(s.server.lines)
+    with SocketClient(info["socket"], timeout=30) as c:
+        stop = c.call("status")["stop"]
+        if stop is not None:
+            print(f"acknowledging a safety stop an earlier test left: {stop['text']}")
+            c.call("enable")
 
 
 def test_serve_holds_the_arm_and_publishes_joint_states(served):

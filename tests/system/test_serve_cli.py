@@ -95,8 +95,10 @@ def test_cli_verbs_drive_the_arm_a_script_serves(local_arm, tmp_path):
         assert not arm.enabled and server.mode == "disabled"
         out = cli("status", *bus)
         assert out.returncode == 0 and "disabled" in out.stdout
-        out = cli("enable", *bus, "--seconds", "0.3")  # as without a server: hold that long, then disable
-        assert out.returncode == 0 and out.stdout.strip().endswith("disabled") and not arm.enabled
+        out = cli("enable", *bus, "--seconds", "0.3")  # watched that long, then left held by the server
+        assert out.returncode == 0 and out.stdout.strip().endswith("(akarm disable releases it)"), out.stdout
+        assert arm.enabled and server.mode == "holding"
+        assert cli("disable", *bus).returncode == 0 and not arm.enabled
         assert cli("enable", *bus).returncode == 0
         assert arm.enabled
     assert not arm.enabled, "stopping the server damped and disabled the arm"

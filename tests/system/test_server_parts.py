@@ -78,10 +78,12 @@ def test_the_control_socket_carries_results_and_the_servers_errors(tmp_path):
                 c.call("limit")
             assert (e.value.joint, e.value.fix) == ("elbow", "a smaller target")
             assert str(e.value) == str(LimitError("past the range", joint="elbow", fix="a smaller target"))
-            with pytest.raises(akarm.SafetyStop, match="over-temperature"):  # its own constructor: the parent class
+            with pytest.raises(MotorFault, match="over-temperature") as fault:  # its class, text and attributes
                 c.call("fault")
-            with pytest.raises(AkarmError, match="server error: KeyError"):
+            assert fault.value.code == 1 and str(fault.value) == "joint 'elbow': over-temperature (fix: let it cool)"
+            with pytest.raises(AkarmError, match="akarm serve failed on this request") as bug:
                 c.call("nonsense")
+            assert "KeyError" not in str(bug.value) and "nonsense" not in str(bug.value), "a bug's text stays inside"
             assert c.call("add", a=1, b=1) == 2, "the connection survives an error"
     finally:
         server.close()
@@ -217,3 +219,17 @@ def test_without_cyclone_dds_serving_ros_is_refused_before_anything_is_enabled(m
         assert "--no-ros" in e.value.fix and not arm.enabled
         with akarm.ArmServer(arm, ros=False) as served:  # the CLI alone needs no DDS
             assert served.mode == "holding"
+
+
+def test_an_unknown_ros_distro_or_a_bad_controller_name_fails_the_start_before_anything_is_enabled(channel):
+    pytest.importorskip("cyclonedds")
+    config = config_on(channel, "virtual")
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        for options, text in (({"ros_distro": "iron"}, "unknown ROS 2 distribution 'iron'"),
+                              ({"controller": "arm-1"}, "not a valid ROS 2 name"),
+                              ({"node_name": "9lives"}, "not a valid ROS 2 name")):
+            server = akarm.ArmServer(arm, domain=77, **options)
+            with pytest.raises(AkarmError, match=text):
+                server.start()
+            assert not arm.enabled

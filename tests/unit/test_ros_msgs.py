@@ -13,7 +13,7 @@ rosbags_typesys = pytest.importorskip("rosbags.typesys")
 from akarm.errors import AkarmError  # noqa: E402
 from akarm.ros import msgs  # noqa: E402
 from akarm.ros.dds import ros_name, service_topics, topic_name  # noqa: E402
-from akarm.ros.node import trajectory_arrays  # noqa: E402
+from akarm.ros.trajectory import trajectory_arrays  # noqa: E402
 
 STORE = rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_HUMBLE)
 

@@ -17,6 +17,17 @@ def test_cli_rejects_a_fault_on_an_unknown_joint(capsys: pytest.CaptureFixture[s
     assert "no joint named 'wrist'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("args", "says"), [
+    (["--serial", "pan"], "bad --serial 'pan': expected JOINT=PATH"),
+    (["--serial", "pan=pty", "--serial", "pan=/dev/ttyUSB0"], "--serial gives joint 'pan' twice"),
+    (["--serial", "wrist=pty"], "no joint named 'wrist'"),
+])
+def test_cli_rejects_bad_serial_options(capsys: pytest.CaptureFixture[str], args: list[str], says: str) -> None:
+    assert main(["sim", str(ROBOTS / "servo3.yaml"), "-i", "virtual", "-c", "unused", *args]) == 1
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+
+
 def test_status_line_fits_80_columns_or_is_wrapped_per_joint() -> None:
     from akarm.cli.sim import status_block
 

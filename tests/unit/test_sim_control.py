@@ -16,6 +16,7 @@ from akarm.sim.channel import SimulatorControl, fault_from_json, fault_to_json
 EVERY_FAULT = [faults.DropReplies(0.3, seed=7), faults.DelayReplies(0.005), faults.Unplugged(power_lost=True),
                faults.ErrorCode(5), faults.FrozenEncoder(affects_control=True), faults.FaultAfter(1.5, code=2),
                faults.ForgedReply(12.45, count=3, interval=0.01), faults.RogueExit(on_bus=False), faults.Blocked(),
+               faults.CorruptBytes(0.5, seed=2), faults.PartialFrame(0.25), faults.BadCrc(seed=3), faults.SilentPort(),
                faults.PowerCycle(-2, seconds=0.5), faults.Twin(0.7)]
 
 

@@ -111,6 +111,7 @@ class FrameDecoder:
     Attributes:
         errors: the most recent reports (up to ``max_errors``), oldest first.
         error_count: how many bad frames were reported in all.
+        crc_errors: how many of them were whole (length and end byte right) but failed the CRC.
         discarded: how many bytes were skipped outside any candidate frame.
         frames: how many payloads were returned in all.
     """
@@ -123,6 +124,7 @@ class FrameDecoder:
         self.on_error = on_error
         self.errors: deque[FrameError] = deque(maxlen=max_errors)
         self.error_count = 0
+        self.crc_errors = 0
         self.discarded = 0
         self.frames = 0
         self._buf = bytearray()
@@ -233,6 +235,7 @@ class FrameDecoder:
             got = (buf[end - 3] << 8) | buf[end - 2]
             want = binascii.crc_hqx(payload, 0)
             if got != want:
+                self.crc_errors += 1
                 self._report(f"CRC mismatch in a frame of length {length}: frame says {got:04X}, "
                              f"payload gives {want:04X}", buf[i:end])
                 i += 1

@@ -62,6 +62,74 @@ class FaultCode(IntEnum):
     UNBALANCED_CURRENTS = 18
 
 
+#: A serial fault without a status-frame error code of its own is passed on as this plus its code.
+SERIAL_FAULT_BASE = 0x80
+
+# serial fault → the servo status frame's error code (akarm.protocol.servo.ServoErrorCode) that means the same
+_STATUS_CODES = {
+    FaultCode.NONE: 0,
+    FaultCode.OVER_TEMP_MOTOR: 1,
+    FaultCode.ABS_OVER_CURRENT: 2,
+    FaultCode.OVER_VOLTAGE: 3,
+    FaultCode.GATE_DRIVER_OVER_VOLTAGE: 3,
+    FaultCode.UNDER_VOLTAGE: 4,
+    FaultCode.GATE_DRIVER_UNDER_VOLTAGE: 4,
+    FaultCode.MCU_UNDER_VOLTAGE: 4,
+    FaultCode.ENCODER_SPI: 5,
+    FaultCode.ENCODER_SINCOS_BELOW_MIN_AMPLITUDE: 5,
+    FaultCode.ENCODER_SINCOS_ABOVE_MAX_AMPLITUDE: 5,
+    FaultCode.OVER_TEMP_FET: 6,
+}
+# status error code → the serial fault a motor reports for it (the simulator's side)
+_FAULT_CODES = {0: FaultCode.NONE, 1: FaultCode.OVER_TEMP_MOTOR, 2: FaultCode.ABS_OVER_CURRENT,
+                3: FaultCode.OVER_VOLTAGE, 4: FaultCode.UNDER_VOLTAGE, 5: FaultCode.ENCODER_SPI,
+                6: FaultCode.OVER_TEMP_FET}
+_FAULT_TEXT = {
+    FaultCode.DRV: ("gate driver (DRV) fault", "check the phase wiring for a short; power-cycle the driver"),
+    FaultCode.BOOTING_FROM_WATCHDOG_RESET: ("the driver rebooted after a watchdog reset",
+                                            "check the supply for brown-outs; report it if it recurs"),
+    FaultCode.FLASH_CORRUPTION: ("flash corruption", "re-flash the firmware with CubeMars' tool"),
+    FaultCode.HIGH_OFFSET_CURRENT_SENSOR_1: ("current sensor 1 offset too high", "power-cycle the driver; "
+                                             "if it persists, the driver needs repair"),
+    FaultCode.HIGH_OFFSET_CURRENT_SENSOR_2: ("current sensor 2 offset too high", "power-cycle the driver; "
+                                             "if it persists, the driver needs repair"),
+    FaultCode.HIGH_OFFSET_CURRENT_SENSOR_3: ("current sensor 3 offset too high", "power-cycle the driver; "
+                                             "if it persists, the driver needs repair"),
+    FaultCode.UNBALANCED_CURRENTS: ("unbalanced phase currents", "check the phase wiring and connectors"),
+}
+
+
+def status_code(fault: int) -> int:
+    """The servo status frame's error code for serial fault ``fault`` (a :class:`FaultCode` value):
+    the CAN code that means the same, or :data:`SERIAL_FAULT_BASE` + ``fault`` when CAN has none
+    (:func:`describe_serial_fault` describes those)."""
+    try:
+        return _STATUS_CODES[FaultCode(fault)]
+    except (ValueError, KeyError):
+        return SERIAL_FAULT_BASE | (int(fault) & 0x7F)
+
+
+def fault_code(status: int) -> int:
+    """Motor side: the serial fault a driver reports for the status frame's error code ``status``
+    (motor stall and unknown codes, which the serial list lacks, as :attr:`FaultCode.DRV`)."""
+    if status >= SERIAL_FAULT_BASE:
+        return status - SERIAL_FAULT_BASE
+    return int(_FAULT_CODES.get(status, FaultCode.DRV))
+
+
+def describe_serial_fault(code: int) -> tuple[str, str] | None:
+    """``(description, remedy)`` of a status error code :func:`status_code` made from a serial fault
+    CAN has no code for (``0x80 + fault``), or ``None`` for any other code."""
+    try:
+        fault = FaultCode(code - SERIAL_FAULT_BASE)
+    except ValueError:
+        return None
+    text = _FAULT_TEXT.get(fault)
+    if text is None:
+        return None
+    return f"{text[0]} (serial-port fault {fault.name}, passed on as code {code})", text[1]
+
+
 class ValueField(IntFlag):
     """The GET_VALUES_SETUP field mask. The manual numbers bits from 1 (bit 1 = least significant).
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -125,23 +126,25 @@ def decode_get_values_setup(payload: bytes | bytearray, fields: ValueField | int
         ProtocolError: ``fields`` empty or with reserved bits.
         FrameError: not command 50, or a length that does not match the requested fields.
     """
-    mask = setup_mask(fields)
+    st, wanted = _setup_layout(setup_mask(fields))
     payload = as_bytes(payload)
     if not payload or payload[0] != UartPacket.GET_VALUES_SETUP:
         raise FrameError("not a GET_VALUES_SETUP reply (command 50)", data=payload)
-    wanted = [(f, st, div) for f, st, div in SETUP_FIELDS if mask & f]
-    size = 1 + sum(st.size for _, st, _ in wanted)
-    if len(payload) != size:
-        names = ", ".join(f.name or "" for f, _, _ in wanted)
-        raise FrameError(f"a GET_VALUES_SETUP reply with {names} has {size} payload bytes, this one {len(payload)}",
-                         data=payload, fix="decode with the field set that was requested")
-    out: dict[ValueField, float] = {}
-    i = 1
-    for f, st, div in wanted:
-        (k,) = st.unpack_from(payload, i)
-        i += st.size
-        out[f] = k if div is None else (k / div if div != 1.0 else float(k))
-    return out
+    if len(payload) != st.size:
+        names = ", ".join(f.name or "" for f, _ in wanted)
+        raise FrameError(f"a GET_VALUES_SETUP reply with {names} has {st.size} payload bytes, this one "
+                         f"{len(payload)}", data=payload, fix="decode with the field set that was requested")
+    return {f: k if div is None else (k / div if div != 1.0 else float(k))
+            for (f, div), k in zip(wanted, st.unpack(payload)[1:], strict=True)}
+
+
+@functools.lru_cache(maxsize=64)
+def _setup_layout(mask: int) -> tuple[struct.Struct, tuple[tuple[ValueField, float | None], ...]]:
+    """The reply to a GET_VALUES_SETUP for ``mask`` (an int): its whole payload's struct (the command
+    byte first), and each field with its divisor, in bit order (worked out once per mask: polls repeat)."""
+    wanted = [(f, st, div) for f, st, div in SETUP_FIELDS if mask & int(f)]
+    layout = struct.Struct(">B" + "".join(st.format.lstrip(">") for _, st, _ in wanted))
+    return layout, tuple((f, div) for f, _, div in wanted)
 
 
 def encode_get_values_setup_reply(values: Mapping[ValueField, float]) -> bytes:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import itertools
 import os
 import signal
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import AbstractContextManager, contextmanager
@@ -88,6 +89,10 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
             monkeypatch.delenv(name)
     monkeypatch.setattr(can.util, "CONFIG_FILES", [])
     monkeypatch.setattr(can, "rc", {})
+
+
+# module- and session-scoped fixtures run before the per-test state directory below: never the developer's
+os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="akarm-test-state-")
 
 
 @pytest.fixture(autouse=True)

@@ -167,10 +167,11 @@ def run(args: argparse.Namespace) -> int:
     wall0 = time.perf_counter()
     with SimulatedRobot(config, realtime=not args.fast, timing=args.profile) as sim:
         if args.fast:
-            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, timing=args.profile)
+            # a simulated arm, new each run: no positions to remember (akarm.control.turns) for a real arm6
+            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, timing=args.profile, remember_positions=False)
         else:
             arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
-                      timing=args.profile)
+                      timing=args.profile, remember_positions=False)
             arm.set_collision(thresholds={n: t * REALTIME_COLLISION_SCALE
                                           for n, t in arm.collision_thresholds.items() if t is not None})
             watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none

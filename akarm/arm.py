@@ -36,6 +36,7 @@ from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
 from akarm.control.motions import Motion, State
 from akarm.control.options import ControllerOptions
+from akarm.control.turns import state_file
 from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
@@ -184,6 +185,12 @@ class Arm:
             friction leaves with a pure PD (kp = 40 N·m/rad against 0.3 N·m of friction: 7.5 mrad).
             Reset whenever a motion starts; its torque is clamped to 10 % of the joint's torque
             limit. 0 turns it off.
+        remember_positions: ``True`` (default): remember each joint's position when the arm stops,
+            in the robot's state file (:func:`akarm.control.turns.state_file`:
+            ``$XDG_STATE_HOME/akarm/positions/NAME.json``), and refuse an enable where a joint reads
+            whole rotor turns from it (:class:`~akarm.TurnCountLost`, a driver that lost its turn
+            count in a power cycle; see :meth:`enable`'s ``accept_position``). A path: that state
+            file. ``False``: nothing is remembered or checked.
 
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
@@ -201,8 +208,17 @@ class Arm:
                  loop_cpu: int | None = None, settle_speed: float = 0.1, settle_timeout: float = 3.0,
                  range_margin: float = 0.05, implausible_limit: int = 3,
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
-                 collision_gain: float = DEFAULT_GAIN) -> None:
+                 collision_gain: float = DEFAULT_GAIN,
+                 remember_positions: bool | str | PathLike[str] = True) -> None:
         self.timing = get_profile(timing)
+        if remember_positions is True:
+            position_file: str | PathLike[str] | None = state_file(config.name)
+        elif remember_positions is False:
+            position_file = None
+        elif isinstance(remember_positions, str | PathLike) and str(remember_positions):
+            position_file = remember_positions
+        else:
+            raise ArgumentError(f"remember_positions must be True, False or a file's path, got {remember_positions!r}")
         options = ControllerOptions(
             timing=self.timing, feedforward=feedforward, friction_feedforward=friction_feedforward,
             hold_integral=hold_integral, feedback_timeout=feedback_timeout, stall_limit=stall_limit,
@@ -210,7 +226,7 @@ class Arm:
             stop_damping_time=stop_damping_time, settle_speed=settle_speed, settle_timeout=settle_timeout,
             implausible_limit=implausible_limit, telemetry_seconds=telemetry_seconds, can_log=can_log,
             realtime_priority=realtime_priority, loop_cpu=loop_cpu,
-            collision_reaction=collision_reaction, collision_gain=collision_gain)
+            collision_reaction=collision_reaction, collision_gain=collision_gain, position_file=position_file)
         config = self.timing.apply(config)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
@@ -272,7 +288,7 @@ class Arm:
     # ------------------------------------------------------------------------------------------
     # enable / disable
     # ------------------------------------------------------------------------------------------
-    def enable(self, timeout: float | None = None) -> None:
+    def enable(self, timeout: float | None = None, *, accept_position: bool = False) -> None:
         """Power the joints without a kick, wait for the arm to be at rest, and hold it where it is.
 
         1. Listen to the buses briefly: another controller driving these motors refuses the enable
@@ -287,14 +303,24 @@ class Arm:
            :class:`~akarm.NotSettled` after ``settle_timeout``).
         4. The measured pose becomes the commanded one; kp ramps up from zero over ``enable_ramp`` s.
 
+        Between 2 and 3, once every joint answered and before anything with gains or torque is sent,
+        each reading is compared with the position remembered when the arm last stopped (see
+        ``remember_positions``): a joint whole rotor turns from it refuses the enable with
+        :class:`~akarm.TurnCountLost`.
+
         Args:
             timeout: s to wait for every joint's replies (default: the timing profile's, 0.5 s normally).
+            accept_position: skip that comparison this once: the positions the joints read now were
+                checked by eye (or the joints were zeroed).
 
         Raises:
             FeedbackTimeout: a joint did not answer (it names the joint; nothing is left enabled).
+            TurnCountLost: a joint reads whole rotor turns from where it stopped (nothing was enabled).
             SafetyStop: what else refused it (the arm is left disabled).
         """
-        self._ctl.enable(timeout)
+        if not isinstance(accept_position, bool):
+            raise ArgumentError(f"accept_position must be True or False, got {accept_position!r}")
+        self._ctl.enable(timeout, accept_position)
 
     def disable(self, wait: bool = True) -> None:
         """Damp every joint (kp = 0) for ``stop_damping_time`` s, then exit motor mode. Blocks unless

@@ -34,6 +34,11 @@ raises on purpose; anything else escaping akarm is a bug.
         ├── TrackingError      a joint is too far from where it is commanded, or does not move
         ├── ImplausibleFeedback  replies no physical joint could send (several in a row)
         ├── ForeignTraffic     another program commands, disables or answers for our motors
+        ├── TurnCountLost      a joint reads whole rotor turns from where it stopped (its driver was power-cycled)
+        ├── WiringError        the bus is not wired as configured, found before anything is powered
+        │   ├── DuplicateCanId   two motors answer on one CAN ID
+        │   ├── ModeMismatch     a motor speaks the other mode (MIT configured, servo frames seen, or back)
+        │   └── StatusRateLow    a servo motor's status frames come far slower than configured
         ├── NotSettled         the arm kept moving while enable() waited for it to come to rest
         ├── CollisionError     the collision reflex: a joint's external torque estimate passed its threshold
         ├── LoopStall          the control loop itself did not run for longer than its stall_limit
@@ -57,12 +62,14 @@ __all__ = [
     "ConfigProblem",
     "ConfigWarning",
     "DriverReset",
+    "DuplicateCanId",
     "FeedbackTimeout",
     "ForeignTraffic",
     "FrameError",
     "ImplausibleFeedback",
     "LimitError",
     "LoopStall",
+    "ModeMismatch",
     "ModelError",
     "MotorFault",
     "NotSettled",
@@ -73,9 +80,11 @@ __all__ = [
     "SingularityError",
     "StaleFeedback",
     "StateError",
+    "StatusRateLow",
     "StopLatched",
     "TrackingError",
     "TrajectoryError",
+    "TurnCountLost",
     "UartBadCrc",
     "UartError",
     "UartNoise",
@@ -83,6 +92,7 @@ __all__ = [
     "UartSilent",
     "UnknownMotorError",
     "UnreachableError",
+    "WiringError",
     "did_you_mean",
 ]
 
@@ -419,6 +429,67 @@ class ForeignTraffic(SafetyStop):
     def __init__(self, what: str, *, kind: str, joint: str | None = None, fix: str = "") -> None:
         self.kind = kind
         super().__init__(what, joint=joint, fix=fix)
+
+
+class TurnCountLost(SafetyStop):
+    """At enable, a joint reads a whole number of rotor turns (``k · 2π / gear ratio``) from the position
+    akarm remembered when the arm last stopped: its driver lost its multi-turn count (a power cycle).
+    Nothing was enabled.
+
+    Attributes:
+        reading: rad now. remembered: rad when the arm stopped. turns: ``k`` (reading minus remembered).
+    """
+
+    def __init__(self, what: str, *, reading: float, remembered: float, turns: int, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.reading = reading
+        self.remembered = remembered
+        self.turns = turns
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class WiringError(SafetyStop):
+    """The bus is not what the robot file says, found at contact (before any command with gains or
+    torque) or by ``akarm scan``. Nothing was enabled.
+
+    Attributes:
+        can_id: the CAN ID concerned.
+    """
+
+    def __init__(self, what: str, *, can_id: int, joint: str | None = None, fix: str = "") -> None:
+        self.can_id = can_id
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class DuplicateCanId(WiringError):
+    """Two motors answer on one CAN ID: more replies than frames sent, or more status frames than one
+    motor sends."""
+
+
+class ModeMismatch(WiringError):
+    """The motor on a joint's CAN ID speaks the other mode.
+
+    Attributes:
+        seen: ``"servo"`` (status frames from a joint configured MIT) or ``"mit"`` (the reverse).
+    """
+
+    def __init__(self, what: str, *, can_id: int, seen: str, joint: str | None = None, fix: str = "") -> None:
+        self.seen = seen
+        super().__init__(what, can_id=can_id, joint=joint, fix=fix)
+
+
+class StatusRateLow(WiringError):
+    """A servo motor's status frames come far slower than the configured ``status_rate_hz``.
+
+    Attributes:
+        measured: Hz. configured: Hz.
+    """
+
+    def __init__(self, what: str, *, can_id: int, measured: float, configured: float, joint: str | None = None,
+                 fix: str = "") -> None:
+        self.measured = measured
+        self.configured = configured
+        super().__init__(what, can_id=can_id, joint=joint, fix=fix)
 
 
 class NotSettled(SafetyStop):

@@ -19,6 +19,7 @@ from __future__ import annotations
 import itertools
 import os
 import signal
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import AbstractContextManager, contextmanager
@@ -91,6 +92,19 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
             monkeypatch.delenv(name)
     monkeypatch.setattr(can.util, "CONFIG_FILES", [])
     monkeypatch.setattr(can, "rc", {})
+
+
+# module- and session-scoped fixtures run before the per-test state directory below: never the developer's
+os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="akarm-test-state-")
+
+
+@pytest.fixture(autouse=True)
+def _state_in_tmp(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The joints' remembered positions (akarm.control.turns) go to a state directory of each test's
+    own: nothing of the developer's, and no test sees what another one remembered."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.mktemp("state")))
+
+
 ROBOTS = ROOT / "robots"
 URDFS = ROOT / "tests" / "urdfs"  # the exporter-style URDF corpus (tests/unit/test_urdf.py)
 _counter = itertools.count()
@@ -184,6 +198,8 @@ def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = Non
         config = config_edit(config)
     if timing is not None:
         arm_options.setdefault("timing", timing)
+    # a new simulated arm: positions remembered (akarm.control.turns) are this arm's, not the last test arm's
+    arm_options.setdefault("remember_positions", Path(os.environ["XDG_STATE_HOME"]) / f"lockstep-{next(_counter)}.json")
     with SimulatedRobot(config, realtime=False, q0=q0, timing=timing, clock=clock, **(sim_options or {})) as sim, \
             Arm(config, clock=sim.clock, **arm_options) as arm:
         if enable:

@@ -176,10 +176,12 @@ def run(args: argparse.Namespace) -> int:
     wall0 = time.perf_counter()
     with SimulatedRobot(config, realtime=not args.fast, timing=args.profile) as sim:
         if args.fast:
-            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, **loop_options(args))
+            # a simulated arm, new each run: no positions to remember (akarm.control.turns) for a real arm6
+            arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, remember_positions=False,
+                      **loop_options(args))
         else:
             arm = Arm(config, feedback_timeout=REALTIME_FEEDBACK_TIMEOUT, telemetry_seconds=120.0,
-                      **loop_options(args))
+                      remember_positions=False, **loop_options(args))
             arm.set_collision(thresholds={n: t * REALTIME_COLLISION_SCALE
                                           for n, t in arm.collision_thresholds.items() if t is not None})
             watchdog = max(REALTIME_FEEDBACK_TIMEOUT, arm.timing.min_feedback_timeout)  # arm6's joints set none

@@ -4,6 +4,7 @@
 
     akarm enable robots/arm6.yaml               # hold until Ctrl-C, then damp and disable
     akarm enable robots/arm6.yaml --seconds 10  # hold for 10 s
+    akarm enable robots/arm6.yaml --accept-position   # after TurnCountLost: the joints were checked by eye
 
 Exit status 0 after ``--seconds``, and after Ctrl-C without ``--seconds`` (the documented way to end
 it); 130 when Ctrl-C cuts ``--seconds`` short (the arm is damped and disabled either way); 1 on an
@@ -42,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--seconds", type=float, metavar="S", help="hold for S seconds, then disable "
                         "(default: until Ctrl-C)")
+    parser.add_argument("--accept-position", action="store_true",
+                        help="skip the check that each joint reads where it was when the arm last stopped "
+                             "(after a TurnCountLost, once you have checked by eye where the joints stand)")
     add_profile_argument(parser)
 
 
@@ -58,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_from_args(args)
     with controlled(config, **loop_options(args)) as arm:
         try:
-            arm.enable()
+            arm.enable(accept_position=args.accept_position)
             until = f"for {args.seconds:g} s" if args.seconds is not None else "until Ctrl-C"
             print(f"enabled {config.name}: holding at {format_q(arm.state().q)} ({', '.join(arm.names)}) {until}",
                   flush=True)
@@ -87,7 +91,7 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
 
     if args.seconds is not None and not 0 <= args.seconds < float("inf"):
         raise ArgumentError(f"--seconds {args.seconds} must be a number of seconds, not negative")
-    state = arm.call("enable")
+    state = arm.call("enable", accept_position=True) if args.accept_position else arm.call("enable")
     if args.seconds is None:
         print(f"enabled {arm.config.name}: holding at {format_q(state['q'])} ({', '.join(arm.names)}); "
               f"{arm.held} (akarm disable releases it)", flush=True)

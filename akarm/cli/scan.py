@@ -12,7 +12,11 @@ A MIT motor whose replies are already flowing (a controller is driving it) is li
 
 Positions are motor side (rad at the output): decoded with the configured motor model when a robot
 file is given, else with the ±12.5 rad MIT range and output-side servo degrees.
-Exit status 0 when something answered (and, with a robot file, every configured joint did), else 1.
+Two motors on one ID (more than one reply to one EXIT, or servo status frames at two positions) and,
+with a robot file, a motor in the other mode than its joint's are named on stderr ("wiring: ...").
+
+Exit status 0 when something answered (and, with a robot file, every configured joint did, in its
+mode, alone on its ID), else 1.
 """
 
 from __future__ import annotations
@@ -24,7 +28,8 @@ from typing import TYPE_CHECKING
 from akarm.cli.common import add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
-    from akarm.config import BusConfig
+    from akarm.config import BusConfig, JointConfig
+    from akarm.control.probe import Found
 
 
 def parse_ids(text: str) -> list[int]:
@@ -83,6 +88,24 @@ def _bus_from_args(args: argparse.Namespace) -> BusConfig:
     return bus
 
 
+def _row(bus: BusConfig, f: Found, j: JointConfig | None, wrong: list[str]) -> list[str]:
+    """The table's row for what answered, ``j`` the joint configured on its ID; wiring mistakes go to ``wrong``."""
+    note = ""
+    if j is not None:
+        note = j.name
+        if j.mode != f.mode:
+            note += f" (configured as {j.mode}!)"
+            wrong.append(f"joint {j.name!r} is configured as {j.mode}, but the motor on CAN ID {f.can_id} "
+                         f"(bus {bus.name!r}) is in {f.mode} mode: switch the motor's mode, or the joint's")
+    if f.duplicate:
+        note = (note + " " if note else "") + "[TWO MOTORS on this ID]"
+        wrong.append(f"two motors answer on CAN ID {f.can_id} (bus {bus.name!r}): give each its own ID")
+    if f.active:
+        note = (note + " " if note else "") + "[being driven: left alone]"
+    temp = "-" if f.temperature is None else f"{f.temperature:.0f}"
+    return [bus.channel, str(f.can_id), f.mode, f"0x{f.reply_id:X}", f"{f.position:+.4f}", temp, f.fault_text(), note]
+
+
 def run(args: argparse.Namespace) -> int:
     """Scan the bus(es); print a table of what answered."""
     from akarm.cli.common import format_table
@@ -104,22 +127,13 @@ def run(args: argparse.Namespace) -> int:
     refuse_if_served(buses, "akarm scan")  # its EXIT frames would disable the arm a running server holds
     rows = [["bus", "CAN ID", "mode", "reply ID", "position (rad)", "temperature (°C)", "fault", "joint"]]
     answered: set[tuple[str, int]] = set()
+    wrong: list[str] = []  # wiring mistakes: named, and the exit status is 1
     for bus in buses:
         mine = {j.can_id: j for j in joints if j.bus == bus.name}
         for f in scan(bus, args.ids, timeout=args.timeout, listen=args.listen,
                       models={i: j.motor for i, j in mine.items()}):
             answered.add((bus.name, f.can_id))
-            j = mine.get(f.can_id)
-            note = ""
-            if j is not None:
-                note = j.name
-                if j.mode != f.mode:
-                    note += f" (configured as {j.mode}!)"
-            if f.active:
-                note = (note + " " if note else "") + "[being driven: left alone]"
-            temp = "-" if f.temperature is None else f"{f.temperature:.0f}"
-            rows.append([bus.channel, str(f.can_id), f.mode, f"0x{f.reply_id:X}", f"{f.position:+.4f}", temp,
-                         f.fault_text(), note])
+            rows.append(_row(bus, f, mine.get(f.can_id), wrong))
     if len(rows) > 1:
         print(format_table(rows, [False, True, False, True, True, True, False, False]))
     lost = [j for j in joints if (j.bus, j.can_id) not in answered and j.can_id in args.ids]
@@ -131,5 +145,7 @@ def run(args: argparse.Namespace) -> int:
         hints = "; ".join(dict.fromkeys(no_answer_hint(b) for b in buses))
         raise AkarmError("no motor answered", fix=f"{hints}; servo motors must have status frames on (or listen "
                          "longer: --listen 1)")
-    return 1 if lost else 0
+    for text in wrong:
+        print(f"wiring: {text}", file=sys.stderr)
+    return 1 if lost or wrong else 0
 

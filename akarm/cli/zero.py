@@ -51,8 +51,12 @@ def run(args: argparse.Namespace) -> int:
             print(f"zeroing {j.name} (MIT ID {j.can_id}): the joint is limp for about {args.wait:g} s ...",
                   file=sys.stderr, flush=True)
         p = probe.zero(j.name, args.permanent, wait=args.wait, timeout=args.timeout)
+    reads = j.offset + j.direction * p
+    from akarm.control.turns import PositionMemory, state_file
+
+    PositionMemory(state_file(config.name), config.joints).update(j.name, reads)  # the turn check's memory
     kind = "" if j.mode == "mit" else (" (permanent)" if args.permanent else " (until power is lost)")
-    print(f"zeroed {j.name}{kind}: motor reads {p:+.4f} rad; the joint now reads {j.offset + j.direction * p:+.4f} "
+    print(f"zeroed {j.name}{kind}: motor reads {p:+.4f} rad; the joint now reads {reads:+.4f} "
           f"rad (offset {j.offset:+.4f} rad)")
     if abs(p) > 0.02:
         print(f"warning: {j.name} moved {p:+.4f} rad while it was being zeroed; support the arm and zero it again",

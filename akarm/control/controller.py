@@ -53,6 +53,7 @@ from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
+from akarm.control.turns import PositionMemory
 from akarm.dynamics.model import RobotModel
 from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, LoopStall, SafetyStop, StateError
 from akarm.motion.trajectory import Plan, Planner
@@ -136,7 +137,8 @@ class Controller:
         self.ramp = GainRamp(options.enable_ramp)
         self.enabler = Enabler(joints, config.buses, self.bus.send, self.supervisor, self.ff.gravity, self._commanded,
                                damping=self._damping, timeouts=self._timeouts, period=self.period,
-                               settle_speed=options.settle_speed, settle_timeout=options.settle_timeout)
+                               settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
+                               at_contact=self._turn_check, lag=options.timing.lag)
         self.reflex = self._make_reflex()
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,
@@ -157,6 +159,12 @@ class Controller:
         # plan time: the clock less the slots the loop missed (a stalled loop resumes where its plan was)
         self._lag = 0.0
         self._t_plan = 0.0  # the plan time of the cycle running (or last run)
+        # the turn check (akarm.control.turns): positions remembered when the arm stops, compared at enable
+        self.positions = PositionMemory(options.position_file, config.joints) if options.position_file else None
+        self._remembered: dict[str, float] | None = None  # what this enable compares with (None: accepted)
+        self._positions_known = False  # the readings passed the turn check: a stop may remember them
+        self._stop_q = [0.0] * n  # each joint's reading when the stop began
+        self._stop_stale = [False] * n  # its feedback went silent during the stop: remember _stop_q
 
     def _make_reflex(self) -> CollisionReflex:
         config, model, options = self.config, self.model, self.options
@@ -298,9 +306,10 @@ class Controller:
                 raise StateError(f"timed out after {timeout:.2f} s waiting for {what}")
             loop.wait_cycle(0.1)
 
-    def enable(self, timeout: float | None = None) -> None:
+    def enable(self, timeout: float | None = None, accept_position: bool = False) -> None:
         """Enable (see :meth:`Arm.enable`); blocks until held, or raises what refused it. ``timeout``:
-        s for every joint's replies (default: the timing profile's)."""
+        s for every joint's replies (default: the timing profile's); ``accept_position``: skip the
+        turn check this once (the positions were checked by eye)."""
         self.require_open()
         if timeout is None:
             timeout = self.options.timing.enable_timeout
@@ -330,6 +339,8 @@ class Controller:
             self.fault = None
             self.enable_error = None
             self.tau_ff = [0.0] * self.n  # a stop during contact fades from here, not the last session's torque
+            self._remembered = None if accept_position or self.positions is None else self.positions.load()
+            self._positions_known = False
             longest = self.enabler.begin(now, timeout)
             self.modes.go(Mode.ENABLING)
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
@@ -337,6 +348,7 @@ class Controller:
         if self.enable_error is not None:
             self.loop.wait_cycle(0.1)  # deliver the exit frames
             raise self.enable_error
+        self._forget_positions()
         self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
 
     def disable(self, wait: bool = True) -> None:
@@ -363,6 +375,9 @@ class Controller:
             return
         self.modes.go(Mode.STOPPING)
         self._t_stop = min(self.plan_now(), self._t_plan)
+        now = self.clock.now()
+        self._stop_q = [j.state.position for j in self.joints]
+        self._stop_stale = [now - j.state.stamp > t for j, t in zip(self.joints, self._timeouts, strict=True)]
         self._stop_from = np.asarray(self.tau_ff, dtype=float).copy()
         self.enabler.abandon()
         self.motions.cancel()
@@ -772,6 +787,10 @@ class Controller:
         """Damping (kp = 0, feed-forward fading out) for stop_damping_time (of plan time), then exit."""
         T = self.options.stop_damping_time
         s = (self._t_plan - self._t_stop) / T if T > 0 else 1.0
+        stale = self._stop_stale
+        for i, j in enumerate(self.joints):
+            if now - j.state.stamp > self._timeouts[i]:
+                stale[i] = True
         if s < 1.0:
             fade = 1.0 - s
             tau = (self._stop_from * fade).tolist()
@@ -785,3 +804,46 @@ class Controller:
         self.supervisor.disarm()
         self.recorder = None
         self.modes.go(Mode.FAULT if self.bus.lost else Mode.DISABLED)
+        self._remember_positions()
+
+    # ------------------------------------------------------------------------------------------
+    # the turn check (akarm.control.turns)
+    # ------------------------------------------------------------------------------------------
+    def _turn_check(self, now: float) -> AkarmError | None:
+        """(Loop, at contact) :class:`~akarm.errors.TurnCountLost` when a joint reads whole rotor turns
+        from where it was remembered; else ``None``, and a later stop may remember these readings."""
+        mem, remembered = self.positions, self._remembered
+        error = None
+        if mem is not None and remembered:
+            error = mem.check([j.state.position for j in self.joints], remembered)
+        if error is None:
+            self._positions_known = True
+        else:
+            error.at = now
+        return error
+
+    def _forget_positions(self) -> None:
+        """(Caller, enabled) Forget the remembered positions: until the arm stops, they are not known."""
+        if self.positions is not None:
+            try:
+                self.positions.forget()
+            except AkarmError as e:
+                warnings.warn(f"the joint positions could not be forgotten: {e}", RuntimeWarning, stacklevel=3)
+
+    def _remember_positions(self) -> None:
+        """(Loop, the stop's end, motors limp) Remember where each joint is: its reading now, or, for
+        a joint whose feedback went silent during the stop (a driver power-cycled), its reading when
+        the stop began. Only readings that passed the turn check are remembered."""
+        mem = self.positions
+        if mem is None or not self._positions_known:
+            return
+        self._positions_known = False
+        named = self.fault.joint if self.fault is not None else None  # the joint a stop named: its reading then
+        out = {}
+        for i, j in enumerate(self.joints):
+            if j.state.stamp != -math.inf:
+                out[j.name] = self._stop_q[i] if self._stop_stale[i] or j.name == named else j.state.position
+        try:
+            mem.save(out)
+        except AkarmError as e:  # the loop must go on: the arm is disabled, the next enable compares nothing new
+            warnings.warn(f"the joint positions could not be remembered: {e}", RuntimeWarning, stacklevel=2)

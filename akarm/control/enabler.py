@@ -25,7 +25,17 @@ from akarm.buses.bus import no_answer_hint
 from akarm.config import BusConfig
 from akarm.control.joints import Joint
 from akarm.control.safety import Supervisor, contact_delay
-from akarm.errors import AkarmError, FeedbackTimeout, ForeignTraffic, NotSettled, StaleFeedback
+from akarm.errors import (
+    AkarmError,
+    DuplicateCanId,
+    FeedbackTimeout,
+    ForeignTraffic,
+    ModeMismatch,
+    NotSettled,
+    StaleFeedback,
+    StatusRateLow,
+    WiringError,
+)
 
 if TYPE_CHECKING:
     import can
@@ -54,6 +64,8 @@ class _Attempt:
     t0: float
     timeout: list[float]  # s per joint to make contact
     received0: list[int]  # frames_received per joint when the enable began
+    sent0: list[int]  # frames_sent per joint when the enable began
+    rejected0: list[int]  # replies rejected (implausible) per joint when the enable began
     first_reply: list[float | None]
     entered: bool = False
     first_sent: float = 0.0  # when the first frames (ENTER) went out
@@ -73,6 +85,9 @@ class Enabler:
             with ``tau`` feed-forward), for telemetry and a stop's fade.
         damping: N·m·s/rad per joint while settling. timeouts: s per joint, its feedback timeout.
         period: s, the loop's. settle_speed: rad/s. settle_timeout: s.
+        lag: s a reading may trail on this machine (the timing profile's).
+        at_contact: ``at_contact(now)`` once every joint answered, before anything with gains or
+            torque is sent: the error refusing the enable, or ``None`` (the turn check).
     """
 
     def __init__(self, joints: Sequence[Joint], buses: Mapping[str, BusConfig],
@@ -80,7 +95,8 @@ class Enabler:
                  gravity: Callable[[Sequence[float]], np.ndarray],
                  commanded: Callable[[float, Sequence[float], list[float]], None], *,
                  damping: Sequence[float], timeouts: Sequence[float], period: float, settle_speed: float,
-                 settle_timeout: float) -> None:
+                 settle_timeout: float, at_contact: Callable[[float], AkarmError | None] | None = None,
+                 lag: float = 0.0) -> None:
         self.joints = list(joints)
         self.n = len(self.joints)
         self._buses = buses
@@ -94,6 +110,8 @@ class Enabler:
         self.settle_speed = settle_speed
         self.settle_timeout = settle_timeout
         self._attempt: _Attempt | None = None
+        self._at_contact = at_contact
+        self.lag = lag
 
     @property
     def under_way(self) -> bool:
@@ -122,7 +140,11 @@ class Enabler:
             if not j.answers_commands and j.config.status_rate_hz > 0:  # status frames at their own rate
                 t = max(t, (CONTACT_REPLIES + 0.5) / j.config.status_rate_hz)
             contact.append(t)
-        self._attempt = _Attempt(now, contact, [j.frames_received for j in self.joints], [None] * self.n)
+        for j in self.joints:
+            j.mode_seen = None
+        self._attempt = _Attempt(now, contact, [j.frames_received for j in self.joints],
+                                 [j.frames_sent for j in self.joints], [j.rejected for j in self.joints],
+                                 [None] * self.n)
         self._supervisor.arm(now)
         return max(contact)
 
@@ -170,6 +192,9 @@ class Enabler:
         refused = self.refuse_foreign(now, en.t0 - FOREIGN_RECENT)
         if refused is not None:  # before anything is sent: another controller must not lose its arm to us
             return Refusal(refused, release=en.entered)
+        miswired = self._miswired(en, now)
+        if miswired is not None:
+            return miswired
         self._send_contact_frames(en, now)
         ready = True
         late: list[Joint] = []
@@ -183,16 +208,47 @@ class Enabler:
                 ready = False
                 if now - en.t0 > en.timeout[i]:
                     late.append(j)
+            elif not self._heard_long_enough(en, i, j, now):
+                ready = False
         if late:
             return self._silent(en, late, now)
         if ready:
+            wrong = self._at_contact(now) if self._at_contact is not None else None
+            if wrong is not None:  # only zero-gain, zero-torque commands were sent: nothing moved
+                return Refusal(wrong)
             en.settling_since = now
         return None
+
+    def _miswired(self, en: _Attempt, now: float) -> Refusal | None:
+        """A wiring mistake what came in so far shows (:func:`wiring_error`), before anything with
+        gains or torque was sent; counted from the first frame sent."""
+        if not en.entered:
+            return None
+        for i, j in enumerate(self.joints):
+            first = en.first_reply[i]
+            plausible = j.frames_received - en.received0[i] - (j.rejected - en.rejected0[i])
+            error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first,
+                                 self.lag)
+            if error is not None:
+                error.at = now
+                return Refusal(error, release=en.entered)
+        return None
+
+    @staticmethod
+    def _heard_long_enough(en: _Attempt, i: int, j: Joint, now: float) -> bool:
+        """Servo joints are listened to for two status periods from their first frame, so that their
+        frames can be counted (:func:`wiring_error`: a second motor, a low rate)."""
+        rate = j.config.status_rate_hz
+        first = en.first_reply[i]
+        return j.answers_commands or rate <= 0 or (first is not None and now - first >= 2.0 / rate - 1e-9)
 
     def _send_contact_frames(self, en: _Attempt, now: float) -> None:
         """ENTER once, then every cycle a zero-gain, zero-torque command: it overrides the command the
         driver remembers and asks for a reply."""
-        if not en.entered:
+        if not en.entered:  # count from here: what came before cannot answer our frames
+            en.received0 = [j.frames_received for j in self.joints]
+            en.rejected0 = [j.rejected for j in self.joints]
+            en.sent0 = [j.frames_sent for j in self.joints]
             for j in self.joints:
                 for f in j.enter_frames():
                     self._send(j, f)
@@ -224,6 +280,17 @@ class Enabler:
     def _silent(self, en: _Attempt, late: list[Joint], now: float) -> Refusal:
         """The joints that gave no (or too few consistent) replies within their timeout."""
         limit = en.timeout[late[0].index]
+        for j in late:  # answers at two positions, one of them rejected each time: two motors on one ID
+            i = j.index
+            replies, sent = j.frames_received - en.received0[i], j.frames_sent - en.sent0[i]
+            if j.answers_commands and sent >= 4 and replies >= 1.5 * sent:
+                c = j.config
+                twin = DuplicateCanId(f"{replies} replies to {sent} frames on CAN ID {c.can_id} on bus {c.bus!r}, at "
+                                      "two positions: two motors answer on this ID; nothing was enabled",
+                                      can_id=c.can_id, joint=j.name,
+                                      fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
+                twin.at = now
+                return Refusal(twin)
         heard = [j for j in late if j.frames_received > en.received0[j.index]]
         names = ", ".join(j.name for j in late)
         if heard:
@@ -234,6 +301,51 @@ class Enabler:
                                  joint=late[0].name, fix=no_answer_hint(self._buses[late[0].bus]))
         silent.at = now
         return Refusal(silent)
+
+
+def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag: float = 0.0) -> WiringError | None:
+    """What contact shows of a wiring mistake on joint ``j``: ``heard`` plausible frames from it (the
+    gate's rejects are implausible traffic, the supervisor's) and ``sent`` to it since the enable
+    began, the first heard ``since_first`` s ago (``None``: none yet).
+
+    - MIT: servo status frames on its ID (:class:`~akarm.errors.ModeMismatch`); more replies than
+      frames (every frame gets one reply from one motor: :class:`~akarm.errors.DuplicateCanId`).
+    - Servo: more status frames than one motor sends at the configured rate (two motors), or, once
+      two periods of the configured rate have passed, fewer than a third of them
+      (:class:`~akarm.errors.StatusRateLow`, naming the measured rate). ``lag``: s a reading may
+      trail on this machine (the timing profile's): frames that late may come in one burst.
+    """
+    c = j.config
+    where = f"CAN ID {c.can_id} on bus {c.bus!r}"
+    if j.answers_commands:
+        if j.mode_seen is not None:
+            return ModeMismatch(f"configured as a MIT joint, but {where} sends servo-mode status frames: its motor "
+                                "is in servo mode; nothing was enabled", can_id=c.can_id, seen=j.mode_seen,
+                                joint=j.name,
+                                fix="switch the motor to MIT mode (CubeMars' upper-computer tool), or configure "
+                                    "the joint as `mode: servo`")
+        if heard > sent + 1:  # (one reply may answer a frame sent before the enable: a stop's exit)
+            return DuplicateCanId(f"{heard} replies to {sent} frames on {where}: two motors answer on this ID; "
+                                  "nothing was enabled", can_id=c.can_id, joint=j.name,
+                                  fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
+        return None
+    rate = float(c.status_rate_hz)
+    if since_first is None or rate <= 0:
+        return None
+    expected = since_first * rate + 1  # frames one motor sends from its first one to now
+    if heard > 1.5 * expected + 1 + lag * rate:
+        return DuplicateCanId(f"{heard} status frames in {since_first * 1e3:.0f} ms on {where}, where one motor "
+                              f"at {rate:g} Hz sends {expected:.0f}: two motors answer on this ID; nothing was "
+                              "enabled", can_id=c.can_id, joint=j.name,
+                              fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
+    if since_first >= 2.0 / rate and heard >= 2 and heard < expected / 3:
+        measured = (heard - 1) / since_first
+        return StatusRateLow(f"its status frames come at about {measured:.1f} Hz, not the {rate:g} Hz configured "
+                             f"({heard} in {since_first * 1e3:.0f} ms); nothing was enabled", can_id=c.can_id,
+                             measured=measured, configured=rate, joint=j.name,
+                             fix=f"set the motor's status rate to {rate:g} Hz (CubeMars' upper-computer tool), "
+                                 "or status_rate_hz to what it sends")
+    return None
 
 
 class GainRamp:

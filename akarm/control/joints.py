@@ -120,6 +120,7 @@ class Joint(abc.ABC):
         self.cmd_kp = 0.0
         self.cmd_kd = 0.0
         self.cmd_torque = 0.0
+        self.mode_seen: str | None = None  # "servo": status frames on this MIT joint's ID (set by the Router)
 
     # -- conversions --------------------------------------------------------------------------
     def joint_position(self, motor_position: float) -> float:
@@ -503,9 +504,12 @@ class Router:
         self.by_driver_id: dict[int, Joint] = {}
         self.by_status_id: dict[int, Joint] = {}
         self.by_command_id: dict[tuple[int, bool], Joint] = {}
+        self.by_other_mode: dict[int, Joint] = {}  # servo status IDs of MIT V1/V2 joints: a motor in servo mode
         for j in joints:
             how, key = j.feedback_route()
             (self.by_driver_id if how == "byte0" else self.by_status_id)[key] = j
+            if how == "byte0":
+                self.by_other_mode[(servo.ServoPacket.STATUS << 8) | key] = j
             for cid in j.command_ids():
                 self.by_command_id[cid] = j
         self.unrouted = 0
@@ -524,6 +528,9 @@ class Router:
                 if j is not None:
                     j.note_foreign("command", now)
                     return None
+                j = self.by_other_mode.get(msg.arbitration_id)
+                if j is not None:
+                    j.mode_seen = "servo"
             elif not msg.is_remote_frame and not msg.is_error_frame:
                 dlc = msg.dlc
                 jc = self.by_command_id.get((msg.arbitration_id, False))

@@ -29,6 +29,8 @@ class ControllerOptions:
 
     ``feedback_timeout`` ``None`` takes the timing profile's; :attr:`watchdog` is the one in force.
     ``stall_limit`` ``None`` takes the timing profile's; :attr:`loop_stall_limit` is the one in force.
+    ``position_file``: the state file where the joints' positions are remembered when the arm stops
+    and compared at the next enable (:mod:`akarm.control.turns`); ``None``: nothing is remembered.
 
     Raises:
         ArgumentError: a value of the wrong kind or out of its range (names it).
@@ -51,6 +53,7 @@ class ControllerOptions:
     loop_cpu: int | None = None
     collision_reaction: Reaction = "disable"
     collision_gain: float = DEFAULT_GAIN
+    position_file: str | PathLike[str] | None = None
 
     def __post_init__(self) -> None:
         if self.feedforward not in ("full", "gravity", "none"):

@@ -32,10 +32,11 @@ and offset); everything :func:`read_state` reports is joint side, converted by t
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 from akarm.buses.bus import close_buses, open_bus
@@ -73,6 +74,8 @@ class Found:
             (MIT: the ±12.5 rad range; servo: degrees taken as output-side degrees).
         active: MIT only: its replies were flowing before anything was sent, i.e. a controller
             is driving it; it was left alone.
+        duplicate: two motors answer on this ID: more than one reply to one EXIT (MIT), or status
+            frames at two positions (servo).
     """
 
     can_id: int
@@ -83,6 +86,7 @@ class Found:
     reply_id: int
     model: str | None = None
     active: bool = False
+    duplicate: bool = False
 
     def fault_text(self) -> str:
         """The error code with its meaning, e.g. ``"2 over-current"``; ``"-"`` when unknown."""
@@ -190,85 +194,111 @@ def scan(bus: BusConfig, ids: Iterable[int] = range(1, 128), *, timeout: float =
     Raises:
         BusError: the bus cannot be opened or written (the message says how to bring it up).
     """
-    from akarm.protocol import motors
+    import can
 
-    wanted = _ids(ids)
-    wanted_set = set(wanted)
-    models = dict(models or {})
-    generic = motors.get(GENERIC_MIT_MODEL)
-    codecs: dict[int, mit.MitCodec] = {}
-    found: dict[tuple[int, str], Found] = {}
-    queried: set[int] = set()
+    sc = _Scan(_ids(ids), models)
+    with open_bus(bus) as b:
+        sc.read_for(b, listen, passive=True)
+        active = {k[0] for k in sc.found if k[1] == "mit"}
+        for can_id in sc.wanted:
+            if can_id in active:
+                continue
+            sc.queried.add(can_id)
+            _send(b, can.Message(arbitration_id=can_id, data=mit.EXIT, is_extended_id=False),
+                  f"EXIT to ID {can_id} on bus {bus.name!r}")
+            while (msg := b.recv(timeout=0.0)) is not None:
+                sc.handle(msg, passive=False)
+        sc.read_for(b, timeout, passive=False)
+    return [_with_duplicates(sc.found[k], sc.heard.get(k, [])) for k in sorted(sc.found)]
 
-    def mit_codec(can_id: int) -> tuple[mit.MitCodec, str | None]:
-        m = models.get(can_id)
-        if can_id not in codecs:
-            codecs[can_id] = mit.codec(m if m is not None else generic)
-        return codecs[can_id], (motors.get(m).name if m is not None else None)
 
-    def handle(msg: can.Message, passive: bool) -> None:
+class _Scan:
+    """What a :func:`scan` has heard: the motors found, the IDs queried, the positions per (ID, mode)."""
+
+    def __init__(self, wanted: list[int], models: Mapping[int, MotorModel | str] | None) -> None:
+        from akarm.protocol import motors
+
+        self.wanted = wanted
+        self.wanted_set = set(wanted)
+        self.models = dict(models or {})
+        self.generic = motors.get(GENERIC_MIT_MODEL)
+        self.codecs: dict[int, mit.MitCodec] = {}
+        self.found: dict[tuple[int, str], Found] = {}
+        self.queried: set[int] = set()
+        self.heard: dict[tuple[int, str], list[float]] = {}  # positions per (ID, mode): two motors show here
+
+    def read_for(self, b: can.BusABC, seconds: float, passive: bool) -> None:
+        """Handle what comes in for ``seconds`` s."""
+        end = time.monotonic() + max(0.0, seconds)
+        while (left := end - time.monotonic()) > 0:
+            msg = b.recv(timeout=left)
+            if msg is not None:
+                self.handle(msg, passive)
+
+    def handle(self, msg: can.Message, passive: bool) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
             return
         data = bytes(msg.data)
         if msg.is_extended_id:
-            if msg.arbitration_id >> 8 != servo.ServoPacket.STATUS or len(data) != 8:
-                return
-            can_id = msg.arbitration_id & 0xFF
-            if can_id not in wanted_set:
-                return
-            st = servo.decode_status(msg.arbitration_id, data)
-            m = models.get(can_id)
-            if m is not None:
-                from akarm.protocol.units import servo_deg_to_rad
+            self._servo(msg.arbitration_id, data)
+        elif len(data) in (6, 8) and mit.special_frame(data) is None:
+            self._mit(msg.arbitration_id, data, passive)
 
-                pos, name = servo_deg_to_rad(motors.get(m), st.position_deg), motors.get(m).name
-            else:
-                pos, name = math.radians(st.position_deg), None
-            found[(can_id, "servo")] = Found(can_id, "servo", pos, st.temperature_c, st.error, msg.arbitration_id,
-                                             name)
+    def _servo(self, arbitration_id: int, data: bytes) -> None:
+        from akarm.protocol import motors
+        from akarm.protocol.units import servo_deg_to_rad
+
+        if arbitration_id >> 8 != servo.ServoPacket.STATUS or len(data) != 8:
             return
-        if len(data) not in (6, 8) or mit.special_frame(data) is not None:
+        can_id = arbitration_id & 0xFF
+        if can_id not in self.wanted_set:
             return
+        st = servo.decode_status(arbitration_id, data)
+        m = self.models.get(can_id)
+        if m is not None:
+            pos, name = servo_deg_to_rad(motors.get(m), st.position_deg), motors.get(m).name
+        else:
+            pos, name = math.radians(st.position_deg), None
+        self.found[(can_id, "servo")] = Found(can_id, "servo", pos, st.temperature_c, st.error, arbitration_id, name)
+        self.heard.setdefault((can_id, "servo"), []).append(pos)
+
+    def _mit(self, arbitration_id: int, data: bytes, passive: bool) -> None:
+        from akarm.protocol import motors
+
         can_id = data[0]
-        if can_id not in wanted_set:
+        if can_id not in self.wanted_set:
             return
         # Before anything is sent, only frames on the usual reply IDs count (a controller's own
         # commands to a motor are standard frames too); afterwards, any ID the queried motor answers on.
-        if passive and msg.arbitration_id not in (0, can_id):
+        if (passive and arbitration_id not in (0, can_id)) or (not passive and can_id not in self.queried):
             return
-        if not passive and can_id not in queried:
-            return
-        codec, name = mit_codec(can_id)
+        m = self.models.get(can_id)
+        if can_id not in self.codecs:
+            self.codecs[can_id] = mit.codec(m if m is not None else self.generic)
         try:
-            r = codec.decode_reply(data)
+            r = self.codecs[can_id].decode_reply(data)
         except AkarmError:
             return
-        found[(can_id, "mit")] = Found(can_id, "mit", r.position, r.temperature, r.error, msg.arbitration_id,
-                                       name, active=passive)
+        self.found[(can_id, "mit")] = Found(can_id, "mit", r.position, r.temperature, r.error, arbitration_id,
+                                            motors.get(m).name if m is not None else None, active=passive)
+        if not passive:
+            self.heard.setdefault((can_id, "mit"), []).append(r.position)
 
-    import can
 
-    with open_bus(bus) as b:
-        end = time.monotonic() + max(0.0, listen)
-        while (left := end - time.monotonic()) > 0:
-            msg = b.recv(timeout=left)
-            if msg is not None:
-                handle(msg, passive=True)
-        active = {k[0] for k in found if k[1] == "mit"}
-        for can_id in wanted:
-            if can_id in active:
-                continue
-            queried.add(can_id)
-            _send(b, can.Message(arbitration_id=can_id, data=mit.EXIT, is_extended_id=False),
-                  f"EXIT to ID {can_id} on bus {bus.name!r}")
-            while (msg := b.recv(timeout=0.0)) is not None:
-                handle(msg, passive=False)
-        end = time.monotonic() + max(0.0, timeout)
-        while (left := end - time.monotonic()) > 0:
-            msg = b.recv(timeout=left)
-            if msg is not None:
-                handle(msg, passive=False)
-    return [found[k] for k in sorted(found)]
+#: rad: consecutive status frames of one ID this far apart, back and forth, come from two motors
+_TWO_POSITIONS = 0.05
+
+
+def _with_duplicates(f: Found, positions: list[float]) -> Found:
+    """``f``, marked :attr:`Found.duplicate` when what was heard on its ID shows two motors: more than
+    one reply to the one EXIT sent (MIT), or status frames that jump back and forth between two
+    positions (servo: a moving motor's frames go one way)."""
+    if f.mode == "mit":
+        two = len(positions) > 1
+    else:
+        steps = [b - a for a, b in itertools.pairwise(positions) if abs(b - a) > _TWO_POSITIONS]
+        two = sum(1 for a, b in itertools.pairwise(steps) if (a > 0) != (b > 0)) >= 2
+    return replace(f, duplicate=True) if two else f
 
 
 # ------------------------------------------------------------------------------------------------
@@ -448,26 +478,38 @@ class Probe:
                              fix="set the zero with CubeMars' upper-computer tool")
         j.state = JointState()
         if j.answers_commands:  # MIT: answers when asked; off-line for a while after ZERO
-            self.pump(time.monotonic() + 0.05)
-            if j.state.stamp > -math.inf:
-                raise StateError("a controller is driving it (its replies are flowing); zeroing now would move "
-                                 "its target", joint=name, fix="stop that controller (akarm disable) first")
-            if not self._ask(j, timeout):
-                raise AkarmError(f"no answer from its motor ({where}); nothing was zeroed", joint=name,
-                                 fix="check power, CAN wiring, bit rate and the CAN ID (akarm scan)")
-            for frame in zero_frames:
-                self.send(j, frame)
-            j.rezeroed()
-            end = time.monotonic() + max(0.0, wait)
-            while time.monotonic() < end:
-                self.discard()
-                time.sleep(min(0.02, max(0.0, end - time.monotonic())))
+            return self._zero_mit(j, zero_frames, where, wait, timeout)
+        return self._zero_servo(j, zero_frames, where, timeout)
+
+    def _zero_mit(self, j: Joint, zero_frames: list[can.Message], where: str, wait: float, timeout: float) -> float:
+        """:meth:`zero` of a MIT joint: EXIT (it must answer), ZERO, wait, ask until it answers again."""
+        name = j.name
+        self.pump(time.monotonic() + 0.05)
+        if j.state.stamp > -math.inf:
+            raise StateError("a controller is driving it (its replies are flowing); zeroing now would move "
+                             "its target", joint=name, fix="stop that controller (akarm disable) first")
+        if not self._ask(j, timeout):
+            raise AkarmError(f"no answer from its motor ({where}); nothing was zeroed", joint=name,
+                             fix="check power, CAN wiring, bit rate and the CAN ID (akarm scan)")
+        for frame in zero_frames:
+            self.send(j, frame)
+        j.rezeroed()
+        end = time.monotonic() + max(0.0, wait)
+        while time.monotonic() < end:
             self.discard()
-            if not self._ask(j, timeout, every=0.1):
-                raise AkarmError(f"its motor ({where}) did not come back {wait + timeout:.1f} s after ZERO",
-                                 joint=name, fix="wait a moment, then check it with akarm status; power-cycle it "
-                                                 "if it stays silent")
-            return j.motor_position(j.state.position)
+            time.sleep(min(0.02, max(0.0, end - time.monotonic())))
+        self.discard()
+        if not self._ask(j, timeout, every=0.1):
+            raise AkarmError(f"its motor ({where}) did not come back {wait + timeout:.1f} s after ZERO",
+                             joint=name, fix="wait a moment, then check it with akarm status; power-cycle it "
+                                             "if it stays silent")
+        return j.motor_position(j.state.position)
+
+    def _zero_servo(self, j: Joint, zero_frames: list[can.Message], where: str, timeout: float) -> float:
+        """:meth:`zero` of a servo joint: SET_ORIGIN_HERE, then status frames until one reads about 0."""
+        from akarm.control.joints import JointState
+
+        name, c = j.name, j.config
         period = 1.0 / c.status_rate_hz if c.status_rate_hz > 0 else 1.0
         wait_status = max(timeout, 2.5 * period)
         self.pump(time.monotonic() + wait_status, lambda: j.state.stamp > -math.inf)

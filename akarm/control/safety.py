@@ -68,7 +68,7 @@ from akarm.errors import (
     SafetyStop,
     TrackingError,
 )
-from akarm.protocol.servo import describe_error
+from akarm.protocol.servo import ServoErrorCode, describe_error
 
 __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_travel"]
 
@@ -91,6 +91,7 @@ RESET_ASK = 0.1
 RESET_NONE = 0.005
 #: See :data:`RESET_NONE`.
 RESET_SHARE = 0.25
+_KNOWN_ERRORS = frozenset(int(c) for c in ServoErrorCode)  # the codes the manual lists (0-7)
 
 _FIX_FOREIGN = ("stop the other program (akarm disable or akarm status from another terminal count too), or give "
                 "each motor its own CAN ID; then enable again")
@@ -281,6 +282,13 @@ class Supervisor:
                 return self.foreign_stop(j, j.foreign or "command")
             s = j.state
             if s.error:
+                if s.error not in _KNOWN_ERRORS:  # no driver sends it: forged or corrupt replies
+                    return ImplausibleFeedback(
+                        f"a reply carries error code {s.error}, which no AK driver reports: implausible traffic "
+                        "(replies forged by another node, or corrupt), not a motor fault; the arm was damped and "
+                        "disabled", value=s.position, limit=j.max_speed, count=1, joint=j.name,
+                        fix="look for another node sending in this motor's name (candump), and check the CAN "
+                            "wiring and termination")
                 desc, remedy = describe_error(s.error)
                 return MotorFault(f"motor reports error {s.error} ({desc}); the arm was damped and disabled",
                                   code=s.error, joint=j.name, fix=remedy)

@@ -365,9 +365,10 @@ class ArmServerCore:
         if self._stop.is_set():
             raise StateError("akarm serve is stopping: the arm is being disabled", fix="start the server again")
 
-    def enable(self) -> None:
+    def enable(self, accept_position: bool = False) -> None:
         """Acknowledge a latched stop, if any, and enable the arm without a kick (it is then held).
-        A stop that refuses the enable is latched in its place."""
+        A stop that refuses the enable is latched in its place. ``accept_position``: skip the turn
+        check once (see :meth:`akarm.Arm.enable`)."""
         with self._cmd:
             self._require_serving()
             with self._fresh_errors():
@@ -378,7 +379,7 @@ class ArmServerCore:
                 if acknowledged is not None:
                     self.log(f"akarm serve: the safety stop of {_clock_text(acknowledged.time)} "
                              f"({acknowledged.name}) is acknowledged; enabling")
-                self.arm.enable()
+                self.arm.enable(accept_position=accept_position)
 
     def disable(self) -> None:
         """Damp, then disable the arm (it is limp). A latched stop stays latched."""
@@ -551,8 +552,8 @@ class ArmServerCore:
     def _op_snapshot(self) -> dict[str, Any]:
         return self.snapshot().to_doc()
 
-    def _op_enable(self) -> dict[str, Any]:
-        self.enable()
+    def _op_enable(self, accept_position: bool = False) -> dict[str, Any]:
+        self.enable(accept_position is True)
         return self._state_doc()
 
     def _op_ready(self) -> dict[str, Any]:

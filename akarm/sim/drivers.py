@@ -96,6 +96,9 @@ class SimulatedDriver:
         self._unplugged = False
         self._powered = True
         self._error = 0
+        self._cycle: tuple[float, float] | None = None  # a PowerCycle under way: (time back on, reading's shift, rad)
+        self._twin: float | None = None  # a Twin's motor position: a second motor answers on this ID
+        self._forged_error = 0  # the error code forged replies carry
         self._fault_after: list[tuple[float, int]] = []
         self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
@@ -133,6 +136,8 @@ class SimulatedDriver:
             if fault.power_lost:
                 self._powered = False
                 self._power_off()
+        elif isinstance(fault, _f.Twin):
+            self._twin = float(fault.position)
         elif isinstance(fault, _f.ErrorCode):
             self._error = int(fault.code)
         elif isinstance(fault, _f.FrozenEncoder):
@@ -146,8 +151,8 @@ class SimulatedDriver:
         elif not self._start_timed(fault, t):
             raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
                              fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
-                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked, Brownout; on a serial "
-                                 "port CorruptBytes, PartialFrame, BadCrc, SilentPort")
+                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked, Brownout, PowerCycle, "
+                                 "Twin; on a serial port CorruptBytes, PartialFrame, BadCrc, SilentPort")
         self._faults.append(fault)
 
     def _start_timed(self, fault: _f.Fault, t: float) -> bool:
@@ -156,6 +161,7 @@ class SimulatedDriver:
             self._fault_after.append((t + fault.after, int(fault.code)))
             self._reschedule(t)
         elif isinstance(fault, _f.ForgedReply):
+            self._forged_error = int(fault.error) & 0xFF
             self._forged.extend((t + k * fault.interval, float(fault.position)) for k in range(int(fault.count)))
             self._forged.sort()
             self._timers(t)
@@ -164,6 +170,8 @@ class SimulatedDriver:
             self._rogue_exit(t, fault.on_bus)
         elif isinstance(fault, _f.Brownout):
             self._brown_out(t, fault.seconds)
+        elif isinstance(fault, _f.PowerCycle):
+            self._power_cycle(t, fault)
         else:
             return False
         return True
@@ -188,6 +196,8 @@ class SimulatedDriver:
         self._error = 0
         self._fault_after.clear()
         self._forged.clear()
+        self._cycle = None
+        self._twin = None
         self._frozen = None
         self._frozen_control = False
         self._host.set_blocked(self.name, False)
@@ -212,6 +222,9 @@ class SimulatedDriver:
             return
         self.frames_sent += 1
         self._host.transmit(self.bus, arbitration_id, data, is_extended, t + self._delay)
+        if self._twin is not None:  # the second motor on this ID answers too (its own frame, its position)
+            aid, twin, ext = self._forged_frame(self._twin)
+            self._host.transmit(self.bus, aid, twin, ext, t + self._delay)
 
     # ------------------------------------------------------------------ the plant's side
 
@@ -248,6 +261,8 @@ class SimulatedDriver:
             _, position = self._forged.pop(0)
             aid, data, ext = self._forged_frame(position)
             self._host.transmit(self.bus, aid, data, ext, t)  # another node's frame: no drops, no delay
+        if self._cycle is not None and t + 1e-9 >= self._cycle[0]:
+            self._power_back(self._cycle[1])
 
     def _timer_deadlines(self) -> list[float]:
         return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]] + [self._back_at]
@@ -271,7 +286,7 @@ class SimulatedDriver:
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         """A reply (or status frame) in this driver's name at motor ``position`` (rad): (ID, data, extended)."""
         aid, data = servo.encode_status(self.can_id, units.rad_to_servo_deg(self.motor, position), 0.0, 0.0,
-                                        self.temperature, 0)
+                                        self.temperature, self._forged_error)
         return aid, data, True
 
     def _rogue_exit(self, t: float, on_bus: bool) -> None:
@@ -280,6 +295,8 @@ class SimulatedDriver:
 
     def _reschedule(self, t: float) -> None:
         self._next_timer = min(self._timer_deadlines(), default=_INF)
+        if self._cycle is not None:
+            self._next_timer = min(self._next_timer, self._cycle[0])
 
     def tick(self, t: float) -> None:
         """Run the driver's timers due at time ``t`` (s): status frames, timeouts, delayed faults."""
@@ -297,6 +314,27 @@ class SimulatedDriver:
 
     def _power_on(self) -> None:
         """Power back: the driver's state as after power-up."""
+
+    def _power_cycle(self, t: float, fault: _f.PowerCycle) -> None:
+        """Off (limp, deaf and mute) from ``t`` for ``fault.seconds``; then :meth:`_power_back`."""
+        self._unplugged = True
+        self._powered = False
+        self._power_off()
+        self._cycle = (t + fault.seconds, fault.turns * 2.0 * math.pi / self.motor.gear_ratio)
+        self._reschedule(t)
+
+    def _power_back(self, shift: float) -> None:
+        """A power cycle ends: the driver starts as after power-up, its reading ``shift`` rad off."""
+        self._cycle = None
+        self._unplugged = False
+        self._powered = True
+        self._faults = [f for f in self._faults if not isinstance(f, _f.PowerCycle)]
+        self._power_on()
+        self._lose_turns(shift)
+
+    def _lose_turns(self, shift: float) -> None:
+        """From now on report the position ``shift`` rad (motor side) higher: the multi-turn count is lost."""
+        raise NotImplementedError
 
     def _handle(self, arbitration_id: int, is_extended: bool, data: bytes, t: float) -> None:
         raise NotImplementedError
@@ -440,7 +478,7 @@ class MitDriver(SimulatedDriver):
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         if self.v3:
             return super()._forged_frame(position)
-        return 0, self._codec.encode_reply(self.can_id, position, 0.0, 0.0, self.temperature, 0), False
+        return 0, self._codec.encode_reply(self.can_id, position, 0.0, 0.0, self.temperature, self._forged_error), False
 
     def _rogue_exit(self, t: float, on_bus: bool) -> None:
         if self.v3:  # no EXIT frame: another controller's zero-gain command
@@ -510,6 +548,9 @@ class MitDriver(SimulatedDriver):
         self._cmd = mit.MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
         self._silent_until = -_INF
         self._last_rx = self._host.now()
+
+    def _lose_turns(self, shift: float) -> None:
+        self._zero -= shift
 
 
 class TrapezoidProfile:
@@ -810,6 +851,9 @@ class ServoDriver(SimulatedDriver):
         self.origin = self.permanent_origin  # a temporary origin does not survive power loss
         self._status_epoch, self._status_n = self._host.now(), 1
         self._next_status = self._status_epoch + self.status_period
+
+    def _lose_turns(self, shift: float) -> None:
+        self.origin -= shift
 
 
 def make_driver(joint: JointConfig, params: MotorSimParams, host: DriverHost, state: StateGetter, dt: float, *,

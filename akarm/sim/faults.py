@@ -36,8 +36,10 @@ __all__ = [
     "ForgedReply",
     "FrozenEncoder",
     "PartialFrame",
+    "PowerCycle",
     "RogueExit",
     "SilentPort",
+    "Twin",
     "Unplugged",
     "parse",
 ]
@@ -92,6 +94,49 @@ class Unplugged(Fault):
     """
 
     power_lost: bool = False
+
+
+@dataclass(frozen=True)
+class PowerCycle(Fault):
+    """The driver's power is switched off and on again: for ``seconds`` it is off (output limp, no
+    frames in or out), then it starts as after power-up, out of motor mode (MIT: disabled, stored
+    command zero; servo: released, temporary origin forgotten), and its multi-turn count is gone: it
+    reports its position shifted by ``turns`` rotor turns (``turns · 2π / gear ratio`` rad at the
+    output, motor side), as a real AK driver may after a power cycle.
+
+    Attributes:
+        turns: whole rotor turns the reading is off by after the power cycle (0: none).
+        seconds: s the driver is off, > 0.
+    """
+
+    turns: int
+    seconds: float = 0.1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.turns, bool) or not isinstance(self.turns, int):
+            raise AkarmError(f"PowerCycle turns {self.turns!r} is not a whole number",
+                             fix="give the rotor turns the reading shifts by, e.g. PowerCycle(turns=1)")
+        if not (isinstance(self.seconds, int | float) and 0.0 < self.seconds < math.inf):
+            raise AkarmError(f"PowerCycle time {self.seconds!r} s is not a positive number",
+                             fix="give how long the driver is off, e.g. PowerCycle(1, seconds=0.1)")
+
+
+@dataclass(frozen=True)
+class Twin(Fault):
+    """A second motor on this joint's CAN ID (a wiring mistake): it hears what this driver hears and
+    answers too. Every frame the driver sends (a reply, a status frame) is followed by the twin's, which
+    reads motor position ``position`` (rad at the output, motor side: the twin's own shaft, at rest).
+
+    Attributes:
+        position: rad.
+    """
+
+    position: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.position, int | float) and math.isfinite(self.position)):
+            raise AkarmError(f"Twin position {self.position!r} rad is not a finite number",
+                             fix="e.g. Twin(0.7): the second motor stands at 0.7 rad")
 
 
 @dataclass(frozen=True)
@@ -152,11 +197,13 @@ class ForgedReply(Fault):
 
     Attributes:
         position: rad, motor side. count: how many (≥ 1). interval: s between them (≥ 0).
+        error: the error code they carry (0: none; a flood of random frames carries any byte).
     """
 
     position: float
     count: int = 1
     interval: float = 0.0
+    error: int = 0
 
     def __post_init__(self) -> None:
         if int(self.count) < 1 or not 0.0 <= self.interval < math.inf:
@@ -274,6 +321,8 @@ KINDS: dict[str, str] = {
     "drop": "drop:FRACTION[,SEED]   lose that share of the replies (e.g. drop:0.3)",
     "delay": "delay:SECONDS          send every reply that late (e.g. delay:0.005)",
     "unplugged": "unplugged[:power]      no frames in or out; ':power' makes the output limp too",
+    "power-cycle": "power-cycle:TURNS[,SECONDS]   off (default 0.1 s), back out of motor mode, TURNS rotor turns off",
+    "twin": "twin[:POS]             a second motor on the same CAN ID, its shaft at POS rad (default 0)",
     "error": "error:CODE             report that error code (1 over-temperature, 5 encoder, ...)",
     "frozen": "frozen[:control]       reported position stops changing; ':control' freezes the loops' too",
     "fault-after": "fault-after:SECONDS[,CODE]   report CODE (default 1) after that many seconds",
@@ -329,6 +378,12 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if args and args[0] not in ("power", "power_lost", "power-lost"):
                 raise _bad(spec, f"unplugged takes nothing or 'power', not {args[0]!r}")
             return joint, Unplugged(power_lost=bool(args))
+        if kind == "power-cycle":
+            if not args or len(args) > 2:
+                raise _bad(spec, "power-cycle needs the rotor turns the reading shifts by (and the seconds off)")
+            return joint, PowerCycle(int(args[0]), float(args[1]) if len(args) > 1 else 0.1)
+        if kind == "twin":
+            return joint, Twin(float(args[0]) if args else 0.0)
         if kind == "error":
             if not args:
                 raise _bad(spec, "error needs a code")

@@ -143,6 +143,7 @@ class SimulatedArm:
         from akarm.arm import Arm
 
         options.setdefault("timing", self.timing)
+        options.setdefault("remember_positions", False)  # a simulated arm: not the real one's positions to keep
         if self.clock is not None:
             options.setdefault("clock", self.clock)
         arm = Arm(self.config, **options)

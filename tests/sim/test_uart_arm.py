@@ -28,7 +28,7 @@ ALL = ("pan", "shoulder", "elbow")
 def servo3(channel: str, serial: tuple[str, ...], **sim_options) -> Iterator[tuple[akarm.Arm, SimulatedRobot]]:
     config = load_robot(ROBOTS / "servo3.yaml").with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(config, realtime=False, serial=dict.fromkeys(serial, "pty"), log_frames=True,
-                        **sim_options) as sim, akarm.Arm(sim.config, clock=sim.clock) as arm:
+                        **sim_options) as sim, akarm.Arm(sim.config, clock=sim.clock, remember_positions=False) as arm:
         yield arm, sim
 
 

@@ -96,14 +96,14 @@ class SimulatedDriver:
         self._unplugged = False
         self._powered = True
         self._error = 0
-        self._cycle: tuple[float, float] | None = None  # a PowerCycle under way: (time back on, reading's shift, rad)
+        # the supply is off (a Brownout, a PowerCycle): (time back on, the reading's shift then (rad), the fault's type)
+        self._off: tuple[float, float, type[_f.Fault]] | None = None
         self._twin: float | None = None  # a Twin's motor position: a second motor answers on this ID
         self._forged_error = 0  # the error code forged replies carry
         self._fault_after: list[tuple[float, int]] = []
         self._forged: list[tuple[float, float]] = []  # (due time, motor position) of replies another node forges
         self._frozen: tuple[float, float] | None = None  # (reported position, motor side raw), when frozen
         self._frozen_control = False
-        self._back_at = _INF  # a Brownout's end: the driver starts again then
         self._next_timer = _INF
 
     # ------------------------------------------------------------------ faults
@@ -169,9 +169,9 @@ class SimulatedDriver:
         elif isinstance(fault, _f.RogueExit):
             self._rogue_exit(t, fault.on_bus)
         elif isinstance(fault, _f.Brownout):
-            self._brown_out(t, fault.seconds)
+            self._supply_off(t, fault.seconds, 0.0, _f.Brownout)
         elif isinstance(fault, _f.PowerCycle):
-            self._power_cycle(t, fault)
+            self._supply_off(t, fault.seconds, fault.turns * 2.0 * math.pi / self.motor.gear_ratio, _f.PowerCycle)
         else:
             return False
         return True
@@ -187,7 +187,7 @@ class SimulatedDriver:
     def clear_faults(self) -> None:
         """End every fault. A motor whose power was lost starts again as after power-up."""
         was_off = not self._powered
-        self._back_at = _INF
+        self._off = None
         self._faults.clear()
         self._drop = 0.0
         self._delay = 0.0
@@ -196,7 +196,6 @@ class SimulatedDriver:
         self._error = 0
         self._fault_after.clear()
         self._forged.clear()
-        self._cycle = None
         self._twin = None
         self._frozen = None
         self._frozen_control = False
@@ -250,8 +249,8 @@ class SimulatedDriver:
 
     def _timers(self, t: float) -> None:
         """Run whatever is due at time ``t`` (s); subclasses extend and call this."""
-        if t + 1e-9 >= self._back_at:
-            self._powered_again(t)
+        if self._off is not None and t + 1e-9 >= self._off[0]:
+            self._supply_on()
         if self._fault_after:
             due = [c for (ta, c) in self._fault_after if ta <= t]
             if due:
@@ -261,27 +260,32 @@ class SimulatedDriver:
             _, position = self._forged.pop(0)
             aid, data, ext = self._forged_frame(position)
             self._host.transmit(self.bus, aid, data, ext, t)  # another node's frame: no drops, no delay
-        if self._cycle is not None and t + 1e-9 >= self._cycle[0]:
-            self._power_back(self._cycle[1])
 
     def _timer_deadlines(self) -> list[float]:
-        return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]] + [self._back_at]
+        off = [self._off[0]] if self._off is not None else []
+        return [ta for ta, _ in self._fault_after] + [ta for ta, _ in self._forged[:1]] + off
 
-    def _brown_out(self, t: float, seconds: float) -> None:
-        """The supply dips: off (limp, deaf and mute) from ``t`` for ``seconds``, then as after power-up."""
+    def _supply_off(self, t: float, seconds: float, shift: float, kind: type[_f.Fault]) -> None:
+        """The supply dips (:class:`~akarm.sim.faults.Brownout`, :class:`~akarm.sim.faults.PowerCycle`): off
+        (limp, deaf and mute) from ``t`` for ``seconds``, then as after power-up (out of motor mode), its
+        reading ``shift`` rad off (a power cycle loses the multi-turn count; a brown-out, 0)."""
         self._unplugged = True
         self._powered = False
         self._power_off()
-        self._back_at = t + seconds
+        self._off = (t + seconds, shift, kind)
         self._reschedule(t)
 
-    def _powered_again(self, t: float) -> None:
-        """A brown-out ends: the driver starts as after power-up (out of motor mode) and answers again."""
-        self._back_at = _INF
+    def _supply_on(self) -> None:
+        """The supply is back: the driver starts as after power-up and answers again."""
+        assert self._off is not None
+        _, shift, kind = self._off
+        self._off = None
         self._unplugged = False
         self._powered = True
-        self._faults = [f for f in self._faults if not isinstance(f, _f.Brownout)]
+        self._faults = [f for f in self._faults if not isinstance(f, kind)]
         self._power_on()
+        if shift:
+            self._lose_turns(shift)
 
     def _forged_frame(self, position: float) -> tuple[int, bytes, bool]:
         """A reply (or status frame) in this driver's name at motor ``position`` (rad): (ID, data, extended)."""
@@ -295,8 +299,6 @@ class SimulatedDriver:
 
     def _reschedule(self, t: float) -> None:
         self._next_timer = min(self._timer_deadlines(), default=_INF)
-        if self._cycle is not None:
-            self._next_timer = min(self._next_timer, self._cycle[0])
 
     def tick(self, t: float) -> None:
         """Run the driver's timers due at time ``t`` (s): status frames, timeouts, delayed faults."""
@@ -314,23 +316,6 @@ class SimulatedDriver:
 
     def _power_on(self) -> None:
         """Power back: the driver's state as after power-up."""
-
-    def _power_cycle(self, t: float, fault: _f.PowerCycle) -> None:
-        """Off (limp, deaf and mute) from ``t`` for ``fault.seconds``; then :meth:`_power_back`."""
-        self._unplugged = True
-        self._powered = False
-        self._power_off()
-        self._cycle = (t + fault.seconds, fault.turns * 2.0 * math.pi / self.motor.gear_ratio)
-        self._reschedule(t)
-
-    def _power_back(self, shift: float) -> None:
-        """A power cycle ends: the driver starts as after power-up, its reading ``shift`` rad off."""
-        self._cycle = None
-        self._unplugged = False
-        self._powered = True
-        self._faults = [f for f in self._faults if not isinstance(f, _f.PowerCycle)]
-        self._power_on()
-        self._lose_turns(shift)
 
     def _lose_turns(self, shift: float) -> None:
         """From now on report the position ``shift`` rad (motor side) higher: the multi-turn count is lost."""

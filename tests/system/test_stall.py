@@ -126,6 +126,9 @@ def test_sigstop_of_akarm_serve_holding_and_moving(channel, tmp_path) -> None:
             stops = served.stops()
             assert len(stops) == 1 and "the control loop did not run for" in stops[0], stops
             assert "no reply" not in stops[0] and "FeedbackTimeout" not in stops[0]
+            deadline = time.monotonic() + 10.0  # (the stop damps the arm first, then disables it)
+            while any(d.enabled for d in sim.control.state()) and time.monotonic() < deadline:
+                time.sleep(0.1)
             assert not any(d.enabled for d in sim.control.state())
         finally:
             served.close()

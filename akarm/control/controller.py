@@ -53,7 +53,7 @@ from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
-from akarm.control.turns import PositionMemory
+from akarm.control.turns import PositionMemory, stays_put
 from akarm.dynamics.model import RobotModel
 from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, LoopStall, SafetyStop, StateError
 from akarm.motion.trajectory import Plan, Planner
@@ -119,6 +119,7 @@ class Controller:
         self._t_max = [j.motor.t_max * 0.999 if j.answers_commands else math.inf for j in joints]
         self._saturated = [False] * n
         fr = [j.friction_model() for j in config.joints]
+        self._coulomb = [f.coulomb for f in fr]  # what holds a limp joint (the turn memory asks)
         on = 1.0 if options.friction_compensated else 0.0
         self.ff = FeedForward(model, options.feedforward, [f.coulomb * on for f in fr], [f.viscous * on for f in fr],
                               self.torque_limit, options.hold_integral, self._mit)
@@ -839,10 +840,13 @@ class Controller:
             return
         self._positions_known = False
         named = self.fault.joint if self.fault is not None else None  # the joint a stop named: its reading then
+        q = [self._stop_q[i] if self._stop_stale[i] or j.name == named else j.state.position
+             for i, j in enumerate(self.joints)]
+        g = self.model.gravity([x if math.isfinite(x) else 0.0 for x in q]).tolist()
         out = {}
-        for i, j in enumerate(self.joints):
-            if j.state.stamp != -math.inf:
-                out[j.name] = self._stop_q[i] if self._stop_stale[i] or j.name == named else j.state.position
+        for i, j in enumerate(self.joints):  # a joint gravity moves while limp is not remembered (turns.stays_put)
+            if j.state.stamp != -math.inf and stays_put(g[i], self._coulomb[i], float(self.torque_limit[i])):
+                out[j.name] = q[i]
         try:
             mem.save(out)
         except AkarmError as e:  # the loop must go on: the arm is disabled, the next enable compares nothing new

@@ -228,7 +228,7 @@ class Enabler:
             first = en.first_reply[i]
             plausible = j.frames_received - en.received0[i] - (j.rejected - en.rejected0[i])
             error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first,
-                                 self.lag)
+                                 self.lag, polled=self._buses[j.bus].interface == "akarm_uart")
             if error is not None:
                 error.at = now
                 return Refusal(error, release=en.entered)
@@ -303,7 +303,8 @@ class Enabler:
         return Refusal(silent)
 
 
-def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag: float = 0.0) -> WiringError | None:
+def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag: float = 0.0, *,
+                 polled: bool = False) -> WiringError | None:
     """What contact shows of a wiring mistake on joint ``j``: ``heard`` plausible frames from it (the
     gate's rejects are implausible traffic, the supervisor's) and ``sent`` to it since the enable
     began, the first heard ``since_first`` s ago (``None``: none yet).
@@ -314,6 +315,8 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag
       two periods of the configured rate have passed, fewer than a third of them
       (:class:`~akarm.errors.StatusRateLow`, naming the measured rate). ``lag``: s a reading may
       trail on this machine (the timing profile's): frames that late may come in one burst.
+    - ``polled``: a servo motor on a serial port (one per port), whose status frames answer our polls:
+      their rate is the loop's, not the motor's, and no second motor can share the port: not judged.
     """
     c = j.config
     where = f"CAN ID {c.can_id} on bus {c.bus!r}"
@@ -330,7 +333,7 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag
                                   fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
         return None
     rate = float(c.status_rate_hz)
-    if since_first is None or rate <= 0:
+    if since_first is None or rate <= 0 or polled:
         return None
     expected = since_first * rate + 1  # frames one motor sends from its first one to now
     if heard > 1.5 * expected + 1 + lag * rate:

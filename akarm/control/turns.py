@@ -43,6 +43,19 @@ MAX_STATE_BYTES = 64 * 1024
 _SEARCH = 64
 
 
+#: share of a joint's torque limit its own friction and cogging hold limp, when its friction is not
+#: known (an AK drive's gearbox is backdrivable: a limp joint under more load than that moves).
+LIMP_HOLD_SHARE = 0.02
+
+
+def stays_put(gravity: float, coulomb: float, torque_limit: float) -> bool:
+    """True when a limp joint with ``gravity`` N·m on it stays where it is (its Coulomb friction, or
+    :data:`LIMP_HOLD_SHARE` of its torque limit, holds it): only such a joint's position is remembered.
+    One that gravity moves may lie anywhere at the next enable, a whole number of turns away too (a
+    limp elbow that fell 40° reads as an AK80-9 that lost a turn): it is not compared."""
+    return abs(gravity) <= max(coulomb, LIMP_HOLD_SHARE * torque_limit)
+
+
 def turn_step(joint: JointConfig) -> float:
     """rad at the joint of one rotor turn: ``2π / gear ratio``."""
     return 2.0 * math.pi / float(joint.motor.gear_ratio)

@@ -3,6 +3,7 @@ remembers where each joint stopped and refuses an enable that reads turns from i
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -104,6 +105,26 @@ def test_no_turns_lost_enables_normally_and_the_state_file_says_where_it_stopped
         arm.sleep(0.1)
         arm.enable()
         assert arm.enabled and arm.state().q[5] == pytest.approx(0.5, abs=5e-3)
+
+
+def test_a_joint_gravity_moves_while_limp_is_not_remembered_so_its_fall_is_no_lost_turn(channel: str) -> None:
+    """Held where gravity loads shoulder_lift and elbow, then limp: they fall, by any angle (a whole
+    turn step too), so only the joints that stay put are remembered and compared."""
+    with lockstep_arm("arm6", channel, q0=Q0) as (arm, sim):
+        arm.enable()
+        arm.move_to({"shoulder_lift": 0.8, "elbow": 0.7})
+        g = arm.model.gravity(arm.state().q)
+        assert abs(g[1]) > 1.0 and abs(g[2]) > 1.0 and abs(g[0]) < 1e-6  # (the pose loads those two only)
+        arm.disable()
+        files = [p for p in state_dir().iterdir() if p.name.startswith("lockstep-")]
+        assert len(files) == 1
+        remembered = json.loads(files[0].read_text())["positions"]
+        assert set(remembered) == {"shoulder_pan", "forearm_roll", "wrist_roll"}, remembered  # (wrist_pitch loaded too)
+        q = sim.q.copy()
+        q[2] += 2 * math.pi / 9  # the elbow (AK80-9) lies exactly one rotor turn from where it stopped
+        sim.set_state(q, np.zeros(6))
+        arm.enable()
+        assert arm.enabled
 
 
 def test_a_joint_moved_by_hand_while_limp_is_not_a_lost_turn(channel: str) -> None:

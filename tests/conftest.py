@@ -8,8 +8,9 @@ The tests are in three folders, one per tier, and each test gets its folder's ma
   loop runs (SteppedClock): nothing waits on the wall clock for more than a few milliseconds.
 - ``tests/system``: other processes (``akarm sim``, the CLI as a command, scripts), real-time loops
   and simulators, akarm_local across processes, ROS 2 over DDS, SocketCAN (``vcan``); and the few
-  end-to-end lock-step runs that take many seconds each (the whole demo, init then a move on every
-  example robot), which would take the README's test command past its 90 s.
+  lock-step files whose runs take seconds each (the whole demo, init then a move on every example
+  robot, teach and replay, Cartesian moves, teleoperation), which would take the README's test
+  command past its 90 s.
 
 ``python -m pytest`` runs unit and sim (pyproject's testpaths); ``python -m pytest tests/system``
 runs the system tier. The helpers below are imported by the tests as ``from .conftest import ...``:

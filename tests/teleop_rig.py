@@ -1,5 +1,5 @@
 """A leader and a follower in lock step on one clock, and a hand that pushes the leader: the rig of
-the teleoperation tests (tests/sim/test_teleop.py, tests/system/test_teleop.py)."""
+the teleoperation tests (tests/system/test_teleop_lockstep.py, tests/system/test_teleop.py)."""
 
 from __future__ import annotations
 

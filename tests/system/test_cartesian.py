@@ -15,8 +15,8 @@ import akarm
 from akarm.cli import main
 from akarm.sim import SimulatedRobot
 
-from ..sim.test_cartesian import PLANAR2, sim_pose
 from .conftest import ROBOTS, relaxed_robot, wait_until
+from .test_cartesian_lockstep import PLANAR2, sim_pose
 
 BENT = [-0.5, 1.2]  # planar2, elbow bent (stretched out straight, it is at a singularity)
 

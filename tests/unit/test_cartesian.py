@@ -1,5 +1,5 @@
 """Cartesian poses and inverse kinematics on their own: pose conventions, IK accuracy and choice of
-solution, refusals with the reason (the arm moving in them: tests/sim/test_cartesian.py)."""
+solution, refusals with the reason (the arm moving in them: tests/system/test_cartesian_lockstep.py)."""
 
 from __future__ import annotations
 

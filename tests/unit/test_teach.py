@@ -1,6 +1,6 @@
 """Recordings on their own: keyframe and path files round trip, bad files get clear errors, the
 recorder keeps its grid through a stall (teach and replay on the simulator:
-tests/sim/test_teach.py)."""
+tests/system/test_teach_lockstep.py)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 from akarm import RecordingError
 from akarm.motion import recording as rec
 
-from ..sim.test_teach import NAMES, sweep
+from ..system.test_teach_lockstep import NAMES, sweep
 
 
 def test_keyframes_round_trip_and_are_readable(tmp_path) -> None:

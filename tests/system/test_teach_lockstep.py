@@ -12,7 +12,7 @@ import akarm
 from akarm import LimitError, Mode
 from akarm.motion import recording as rec
 
-from .test_arm import rig
+from ..sim.test_arm import rig
 
 NAMES = ("shoulder", "elbow")
 

@@ -101,6 +101,18 @@ def _no_python_can_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
 os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="akarm-test-state-")
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _module_state_in_tmp(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The same for each module's module-scoped fixtures (a server or simulator a module shares): they
+    start before the per-test directory below, and must not see what an earlier module's arm of the
+    same name remembered (another simulator, started at another pose)."""
+    previous = os.environ.get("XDG_STATE_HOME")
+    os.environ["XDG_STATE_HOME"] = str(tmp_path_factory.mktemp("module-state"))
+    yield
+    if previous is not None:
+        os.environ["XDG_STATE_HOME"] = previous
+
+
 @pytest.fixture(autouse=True)
 def _state_in_tmp(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
     """The joints' remembered positions (akarm.control.turns) go to a state directory of each test's

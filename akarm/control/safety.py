@@ -29,7 +29,9 @@ Checks, per joint, in order (the first that fires is the stop):
 5. **A driver reset** (a brown-out): a MIT driver that answers, but reports less than a quarter of
    the torque the law it was sent asks for, where that is at least a tenth of the joint's torque
    limit, :data:`RESET_REPLIES` replies in a row (a driver out of motor mode reports no torque). →
-   :class:`~akarm.DriverReset`.
+   :class:`~akarm.DriverReset`. On a machine whose replies trail the commands (a timing profile's
+   ``lag``: a slow simulator answers an older command than the last), a reply is judged against every
+   law it may answer, the last ``ceil(lag / period) + 1`` sent: it counts only if it fits none of them.
 6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
    minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
@@ -153,19 +155,24 @@ class Supervisor:
         joints: the controller's joints, in config order.
         guards: one :class:`Guard` per joint.
         implausible_limit: rejected replies in a row that stop the arm.
+        period: s, the loop's period.
+        lag: s a reply may trail the commands (the timing profile's ``lag``; 0: a reply answers the
+            last command sent).
 
     Attributes:
         armed_at: clock time (s) from which foreign frames stop the arm (:meth:`arm`).
     """
 
     def __init__(self, joints: Sequence[Joint], guards: Sequence[Guard], *, period: float,
-                 implausible_limit: int = 3) -> None:
+                 implausible_limit: int = 3, lag: float = 0.0) -> None:
         if len(joints) != len(guards):
             raise ValueError("one guard per joint")
         if implausible_limit < 1:
             raise ValueError("implausible_limit must be at least 1")
         if not period > 0:
             raise ValueError("period must be positive")
+        if not lag >= 0.0:
+            raise ValueError("lag must be at least 0")
         self.joints = list(joints)
         self.guards = list(guards)
         self.implausible_limit = implausible_limit
@@ -187,6 +194,11 @@ class Supervisor:
         self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
         self._no_torque = [0] * n
         self._reset: DriverReset | None = None
+        # with a lag, the laws a reply may answer: per joint the last `_laws_kept` sent (position,
+        # velocity, kp, kd, torque), newest last, and the frames sent when the newest was taken
+        self._laws_kept = math.ceil(lag / period - 1e-9) + 1 if lag > 0.0 else 1
+        self._laws: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n)]
+        self._laws_sent = [-1] * n
         self._over = [0] * n
         self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
@@ -303,6 +315,8 @@ class Supervisor:
                     value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
+            if self._laws_kept > 1 and j.frames_sent != self._laws_sent[i]:
+                self._keep_law(i, j)
             r = j.frames_received
             if r != received[i]:  # it answered since the last check
                 received[i] = r
@@ -319,7 +333,8 @@ class Supervisor:
                     tau = t_max if tau > t_max else -t_max if tau < -t_max else tau
                     mag = tau if tau >= 0.0 else -tau
                     got = s.torque if s.torque >= 0.0 else -s.torque
-                    if mag >= self._ask[i] and not (got >= RESET_SHARE * mag or got > self._none[i]):
+                    if mag >= self._ask[i] and not (got >= RESET_SHARE * mag or got > self._none[i]) and (
+                            self._laws_kept == 1 or self._fits_no_older_law(i, s.position, s.velocity, got)):
                         no_torque[i] += 1
                         if no_torque[i] >= RESET_REPLIES and reset is None:
                             reset = self._reset_stop(j, tau, s.torque)
@@ -338,6 +353,28 @@ class Supervisor:
                     fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML")
         self._reset = reset
         return None
+
+    def _keep_law(self, i: int, j: Joint) -> None:
+        """Keep joint ``i``'s last law sent (a lagging machine's replies may answer it later)."""
+        self._laws_sent[i] = j.frames_sent
+        laws = self._laws[i]
+        laws.append((j.cmd_position, j.cmd_velocity, j.cmd_kp, j.cmd_kd, j.cmd_torque))
+        if len(laws) > self._laws_kept:
+            del laws[0]
+
+    def _fits_no_older_law(self, i: int, position: float, velocity: float, got: float) -> bool:
+        """Whether a reply of torque magnitude ``got`` at ``position``, ``velocity`` fits none of the
+        laws joint ``i`` was sent lately (each asks for torque it lacks): a reply that trails the
+        commands answers one of them, not necessarily the last."""
+        t_max, ask, none = self._t_max[i], self._ask[i], self._none[i]
+        for p, v, kp, kd, t in self._laws[i]:
+            tau = kd * (v - velocity) + t
+            if kp:
+                tau += kp * (p - position)
+            mag = min(abs(tau), t_max)
+            if mag < ask or got >= RESET_SHARE * mag or got > none:
+                return False
+        return True
 
     def _silent_stop(self, i: int, now: float) -> FeedbackTimeout:
         """The stop for joint ``i``, silent: the likelier cause first (the motor when others on its bus

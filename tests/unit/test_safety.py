@@ -190,6 +190,53 @@ def test_a_driver_that_reports_no_torque_where_its_law_asks_for_some_was_reset(r
     assert "brown-out" in str(e) and str(e).index("out of motor mode") < str(e).index("another program")
 
 
+def lagging_cycles(sup: Supervisor, js: list[MitJoint], asks: list[float], reported: list[float]) -> list:
+    """Cycles in which the elbow is sent a law asking ``asks[k]`` N·m and reports ``reported[k]`` N·m
+    (the shoulder: what it is asked); the supervisor's answer per cycle."""
+    out = []
+    for k, (ask, got) in enumerate(zip(asks, reported, strict=True)):
+        t = (k + 1) * DT
+        js[0].handle_reply(js[0].codec.encode_reply(js[0].can_id, 0.0, 0.0, ask, 30.0, 0), t)
+        js[1].handle_reply(js[1].codec.encode_reply(js[1].can_id, 0.0, 0.0, got, 30.0, 0), t)
+        out.append(sup.check(t))
+        for j in js:
+            j.command(0.0, 0.0, 40.0, 1.0, ask)
+            j.sent()
+    return out
+
+
+@pytest.mark.parametrize("allowed", [0, 4])
+def test_replies_that_trail_the_commands_answer_an_older_law(planar2: RobotConfig, allowed: int) -> None:
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.2, 80.0)] * 2, period=DT, lag=allowed * DT)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    big = 0.5 * js[1].config.limits.torque
+    # the law steps from nothing to half the limit; the replies trail it by four commands (a slow
+    # machine): they report nothing for four replies more than the law's step allows
+    asks = [0.0] * 5 + [big] * 20
+    reported = [0.0] * (5 + 1 + 4) + [big] * 15
+    stops = lagging_cycles(sup, js, asks, reported)
+    if allowed:
+        assert stops == [None] * len(asks)  # each reply fits a law it may answer
+    else:  # no lag allowed (a normal machine): the third reply without the torque is a reset
+        assert stops[:8] == [None] * 8 and isinstance(stops[8], DriverReset)
+
+
+def test_a_reset_is_still_found_on_a_lagging_machine_once_every_law_it_may_answer_asks(
+        planar2: RobotConfig) -> None:
+    js = joints_of(planar2)
+    lag = 4
+    sup = Supervisor(js, [Guard(0.2, 80.0)] * 2, period=DT, lag=lag * DT)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    big = 0.5 * js[1].config.limits.torque
+    stops = lagging_cycles(sup, js, [big] * 30, [big] * 10 + [0.0] * 20)  # the driver resets at the 11th
+    first = next(k for k, e in enumerate(stops) if e is not None)
+    assert isinstance(stops[first], DriverReset) and stops[first].joint == "elbow"
+    assert first == 10 + 2  # every kept law asks for the torque: the third reply without it stops
+
+
 def test_a_motor_error_code_and_a_temperature_stop(rig) -> None:
     js, sup = rig
     reply(js[1], 0.0, 0.002, error=7)

@@ -10,7 +10,9 @@ Checks, per joint, in order (the first that fires is the stop):
 
 1. **Foreign traffic**: another node sent one of our joints a command, ENTER, EXIT or ZERO since the
    arm was enabled (a second controller, a forgotten script, the upper computer), or a joint answers
-   more frames than it was sent (a second motor with the same CAN ID, a forger). →
+   more frames than it was sent (a second motor with the same CAN ID, a forger): in a
+   :data:`REPLY_WINDOW`, more replies than the commands sent in it plus those still owed at its start
+   (a driver that fell behind answers them late, in a burst), with a margin of 5 %. →
    :class:`~akarm.ForeignTraffic`.
 2. **Motor error code** reported by the driver. → :class:`~akarm.MotorFault`.
 3. **Implausible feedback**: the joint rejects a reply whose position it cannot have reached since
@@ -78,6 +80,9 @@ __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_trav
 FOLLOWING_CYCLES = 3
 #: s between the comparisons of replies received with frames sent (the duplicate-responder check).
 REPLY_WINDOW = 1.0
+#: s of commands whose replies may still be on their way when a REPLY_WINDOW starts (at least the
+#: watchdog's limit): a driver or simulator that fell behind answers them in the next window.
+REPLIES_IN_FLIGHT = 0.1
 #: Rejected replies of one joint within a REPLY_WINDOW that stop the arm, even between good ones.
 IMPLAUSIBLE_PER_WINDOW = 10
 #: s a joint's command may stay at the motor's torque range while the joint is off its target (a move
@@ -510,12 +515,21 @@ class Supervisor:
         self._start_window(now)
         return None
 
+    def _in_flight(self, i: int) -> int:
+        """The replies joint ``i`` may still owe: the commands sent to it that no reply answered yet (one
+        reply a command), at most :data:`REPLIES_IN_FLIGHT` s of commands or its watchdog's limit (the
+        replies that never came, lost on the bus over hours, cannot hide a second motor)."""
+        j = self.joints[i]
+        owed = j.frames_sent - j.frames_received
+        cap = max(self._unanswered[i], round(REPLIES_IN_FLIGHT / self.period))
+        return 0 if owed < 0 else cap if owed > cap else owed
+
     def _start_window(self, now: float) -> None:
         """The counts a REPLY_WINDOW starts from: per answering joint, the replies and commands so far and the
-        commands still unanswered (their replies may come in this window: a driver or simulator that paused,
-        then answers what it was sent meanwhile)."""
+        replies still owed (they may come in this window: a driver or simulator that fell behind or paused,
+        then answers what it was sent meanwhile, replies that trail the commands on a slow machine)."""
         self._window_end = now + REPLY_WINDOW
-        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent, self.unanswered(i))
+        self._window_start = [(self.joints[i].frames_received, self.joints[i].frames_sent, self._in_flight(i))
                               for i in self._answering]
         self._rejected_start = [j.rejected for j in self.joints]
 

@@ -460,6 +460,39 @@ def test_replies_owed_from_before_a_window_are_not_a_second_motor(planar2: Robot
     assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
 
 
+def test_replies_that_trail_the_commands_then_catch_up_are_not_a_second_motor(planar2: RobotConfig) -> None:
+    """A simulator on a busy machine: its replies trail the commands by 40 (80 ms at 500 Hz) for
+    a while, across a window's start, then it catches up in one burst."""
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.02, 80.0)] * 2, period=DT)  # the watchdog: 10 commands unanswered
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    trail = 40
+    k, owed, stops = 1, 0, []
+    while k * DT < 3 * REPLY_WINDOW:
+        t = k * DT
+        lagging = 0.8 * REPLY_WINDOW < t < 1.6 * REPLY_WINDOW
+        if lagging and owed < trail and k % 2:  # falling behind: a reply every other cycle
+            owed += 1
+            answer = False
+        elif not lagging and owed:  # caught up: every reply owed at once
+            for _ in range(owed):
+                reply(js[1], 0.0, t)
+            owed, answer = 0, True
+        else:  # one reply a command, `owed` behind
+            answer = True
+        stops.append(cycle(js, sup, t, [True, answer]))
+        k += 1
+    assert stops == [None] * len(stops)
+    # and a twin answering beside it is still found, within two windows
+    e, end = None, k * DT + 2 * REPLY_WINDOW
+    while e is None and k * DT < end:
+        reply(js[1], 0.0, k * DT)
+        e = cycle(js, sup, k * DT, [True, True])
+        k += 1
+    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+
+
 def test_default_following_errors(planar2: RobotConfig) -> None:
     sh, el = planar2.joints
     assert default_following_error(sh, 40.0) == pytest.approx(sh.limits.torque / 40.0)  # PD alone saturates

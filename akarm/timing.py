@@ -88,7 +88,10 @@ class TimingProfile:
 #: needs 74-93 % of a CPU and falls behind when the host is busy (feedback up to 758 ms old, the
 #: plant 2 s behind in 30 s); with a 25 Hz loop 44-54 %, feedback at most 177 ms old, the plant
 #: 0.07 s behind at most. The watchdog of 1 s is more than five times the worst gap seen at 25 Hz;
-#: a reading may trail by 0.25 s (more than the worst gap): the tracking checks allow for that. Such a
+#: a reading was seen to trail by up to 0.25 s then; in later runs (Nov 26, the guest alone on the host)
+#: the controller and the simulator sharing the guest left readings up to 0.9 s behind the commands
+#: while the simulator worked through its backlog, so a reading may trail by up to the watchdog's
+#: 1 s: the tracking checks allow for that. Such a
 #: machine also stalls the controller itself for longer: its loop may miss up to 1 s (the watchdog's
 #: time) before a LoopStall, where a normal one gets 0.2 s.
 PROFILES: dict[str, TimingProfile] = {
@@ -99,7 +102,7 @@ PROFILES: dict[str, TimingProfile] = {
     "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 1 s "
                                   "watchdog and stall limit, simulator at 250 Hz",
                           max_rate_hz=25.0, feedback_timeout=1.0, min_feedback_timeout=1.0, enable_timeout=5.0,
-                          sim_rate_hz=250.0, lag=0.25, stall_limit=1.0),
+                          sim_rate_hz=250.0, lag=1.0, stall_limit=1.0),
 }
 
 

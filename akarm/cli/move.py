@@ -57,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",
                         help="fraction of the joint limits, 0 < F <= 1 (default 1)")
     parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
-                        "disabling (default 0)")
+                        "disabling (default 0; at least the timing profile's lag: slow holds 1 s)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv, .npz or .mcap) for akarm plot")
     add_profile_argument(parser)
 
@@ -258,8 +258,10 @@ def _session(args: argparse.Namespace, config: RobotConfig, start: Callable[[Arm
         try:
             arm.enable()
             start(arm).wait()
-            if args.hold > 0:
-                arm.sleep(args.hold)
+            # a reading may trail the commands by the timing profile's lag (a slow machine's simulator):
+            # hold that long before saying where the arm arrived
+            if max(args.hold, arm.timing.lag) > 0:
+                arm.sleep(max(args.hold, arm.timing.lag))
         except KeyboardInterrupt as e:
             stop_smoothly(arm)
             print("interrupted: stopped and disabled", file=sys.stderr)

@@ -5,6 +5,7 @@ two simulators in processes of their own, keys on stdin, a LeRobot dataset and a
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -173,8 +174,22 @@ class _Lines:
         self.lines: list[str] = []
         self.seen = 0  # lines before this one were matched already
         assert proc.stderr is not None
+        self.proc = proc
         stream = proc.stderr
-        threading.Thread(target=lambda: self.lines.extend(iter(stream.readline, "")), daemon=True).start()
+        self.reader = threading.Thread(target=lambda: self.lines.extend(iter(stream.readline, "")), daemon=True)
+        self.reader.start()
+
+    def finish(self, timeout: float = 30.0) -> str:
+        """Wait for the process to end; its stdout, and every stderr line read (the reader is the only
+        one to read stderr: ``communicate()`` would race it for the last lines)."""
+        proc = self.proc
+        assert proc.stdin is not None and proc.stdout is not None
+        with contextlib.suppress(OSError):
+            proc.stdin.close()
+        proc.wait(timeout)
+        out = proc.stdout.read()
+        self.reader.join(timeout)
+        return out
 
     def wait_for(self, text: str, timeout: float = 30.0) -> bool:
         """Wait for a line with ``text`` after the last one matched."""
@@ -221,7 +236,7 @@ def test_akarm_teleop_records_three_episodes_and_logs_both_arms(tmp_path: Path) 
                 proc.stdin.write(keys)
                 proc.stdin.flush()
                 assert err.wait_for(then), err
-            out, _ = proc.communicate(timeout=30)
+            out = err.finish()
         finally:
             if proc.poll() is None:
                 proc.kill()
@@ -256,7 +271,7 @@ def test_akarm_teleop_records_three_episodes_and_logs_both_arms(tmp_path: Path) 
             lead.control.push([0.4, 0.15])
             time.sleep(0.5)
             proc.terminate()
-            out, _ = proc.communicate(timeout=30)
+            out = lines.finish()
         finally:
             if proc.poll() is None:
                 proc.kill()

@@ -36,7 +36,7 @@ from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
 from akarm.control.motions import Motion, State
 from akarm.control.options import ControllerOptions
-from akarm.control.turns import state_file
+from akarm.control.turns import simulated, state_file
 from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
@@ -189,8 +189,10 @@ class Arm:
             in the robot's state file (:func:`akarm.control.turns.state_file`:
             ``$XDG_STATE_HOME/akarm/positions/NAME.json``), and refuse an enable where a joint reads
             whole rotor turns from it (:class:`~akarm.TurnCountLost`, a driver that lost its turn
-            count in a power cycle; see :meth:`enable`'s ``accept_position``). A path: that state
-            file. ``False``: nothing is remembered or checked.
+            count in a power cycle; see :meth:`enable`'s ``accept_position``); on buses only a
+            simulator answers on (``virtual``, ``akarm_local``, ``vcan*``), ``NAME.sim.json``: a
+            simulated arm never touches the real one's. A path: that state file. ``False``: nothing is
+            remembered or checked.
 
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
@@ -212,7 +214,8 @@ class Arm:
                  remember_positions: bool | str | PathLike[str] = True) -> None:
         self.timing = get_profile(timing)
         if remember_positions is True:
-            position_file: str | PathLike[str] | None = state_file(config.name)
+            position_file: str | PathLike[str] | None = state_file(config.name,
+                                                                    simulator=simulated(config.buses.values()))
         elif remember_positions is False:
             position_file = None
         elif isinstance(remember_positions, str | PathLike) and str(remember_positions):

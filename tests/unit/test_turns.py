@@ -123,3 +123,16 @@ def test_power_cycle_from_the_command_line(spec: str, fault: faults.Fault) -> No
 def test_bad_power_cycles_are_refused(spec: str) -> None:
     with pytest.raises(AkarmError, match=r"(?i)power.?cycle"):
         faults.parse(spec)
+
+
+def test_a_simulated_arm_keeps_its_positions_apart_from_the_real_one(tmp_path: Path) -> None:
+    from akarm.config import BusConfig
+    from akarm.control.turns import simulated
+
+    env = {"XDG_STATE_HOME": str(tmp_path)}
+    assert state_file("arm6", env) == tmp_path / "akarm" / "positions" / "arm6.json"
+    assert state_file("arm6", env, simulator=True) == tmp_path / "akarm" / "positions" / "arm6.sim.json"
+    sim = [BusConfig("arm", "virtual", "x"), BusConfig("aux", "socketcan", "vcan1")]
+    assert simulated(sim) and simulated([BusConfig("arm", "akarm_local", "c")])
+    assert not simulated([*sim, BusConfig("real", "socketcan", "can0")])
+    assert not simulated([BusConfig("arm", "pcan", "PCAN_USBBUS1")])

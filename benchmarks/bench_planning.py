@@ -78,7 +78,8 @@ def main() -> None:
     config = akarm.load_robot(PLANAR2).with_bus(interface="akarm_local", channel=channel)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores", flush=True)
     path_rec = hour_path(tuple(config.joint_names))
-    with SimulatorProcess(PLANAR2, channel=channel, pose="down"), akarm.Arm(config, feedback_timeout=0.5) as arm:
+    with SimulatorProcess(PLANAR2, channel=channel, pose="down"), \
+            akarm.Arm(config, feedback_timeout=0.5, remember_positions=False) as arm:  # a fresh simulator
         arm.enable()
         names = tuple(arm.names)
         arm.move_to(path_rec.q[0])

@@ -148,7 +148,7 @@ def main() -> None:
     extras: list[dict[str, float]] = []
     head = (f"{'round':>5} {'view':>6} {'rate Hz':>8} {'cycles':>7} {'missed':>7} {'late p99':>9} "
             f"{'compute':>8} {'c. p99':>8} {'CPU %':>6} {'stops':>5}   view: draws/s, ms per snapshot")
-    with SimulatorProcess(ARM6, channel=channel), akarm.Arm(config) as arm:
+    with SimulatorProcess(ARM6, channel=channel), akarm.Arm(config, remember_positions=False) as arm:
         arm.enable()
         moves(arm, 2.0)  # warm up
         print(head)

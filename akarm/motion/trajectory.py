@@ -27,8 +27,8 @@ import ruckig
 
 from akarm.errors import ArgumentError, LimitError, TrajectoryError
 
-__all__ = ["Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted", "State", "Timed", "Vector",
-           "position_extrema"]
+__all__ = ["RELEASE_CHUNK", "Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted", "State", "Timed", "Vector",
+           "position_extrema", "release"]
 
 #: Joint values in config order: a list or an array.
 Vector = Sequence[float] | np.ndarray
@@ -187,6 +187,32 @@ class Shifted(Timed):
 
     def shifted(self, dt: float) -> Timed:
         return self if dt == 0.0 else Shifted(self.plan, self.dt + dt)
+
+
+def _pass_velocities(nodes: list[np.ndarray], legs: list[float], factor: float,
+                     v_max: np.ndarray) -> list[np.ndarray]:
+    """The velocity through each intermediate node: the central difference over the two legs'
+    rest-to-rest durations, zero where a joint reverses, times ``factor``, within ``v_max``."""
+    out = []
+    for k in range(1, len(nodes) - 1):
+        before, after = nodes[k] - nodes[k - 1], nodes[k + 1] - nodes[k]
+        span = legs[k - 1] + legs[k]
+        v = (nodes[k + 1] - nodes[k - 1]) / span if span > 0 else np.zeros(len(nodes[k]))
+        v[np.sign(before) != np.sign(after)] = 0.0
+        out.append(np.clip(v * factor, -v_max, v_max))
+    return out
+
+
+#: list items freed at a time by :func:`release`
+RELEASE_CHUNK = 200
+
+
+def release(items: list[Any]) -> None:
+    """Empty a long list (segments, arrays) a chunk at a time: freeing thousands of ruckig trajectories
+    in one go is one C loop that holds the interpreter lock (13 ms for a 5000-keyframe path here), and
+    the control loop's thread waits for it; between chunks it gets its turn."""
+    while items:
+        del items[-RELEASE_CHUNK:]
 
 
 class Plan(Timed):
@@ -463,14 +489,10 @@ class Planner:
         limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
         best: Plan | None = None
         errors: list[Exception] = []
+        vias: list[np.ndarray] = []
         for factor in (1.0, 0.75, 0.5, 0.25, 0.0):
-            vias = []
-            for k in range(1, len(nodes) - 1):
-                before, after = nodes[k] - nodes[k - 1], nodes[k + 1] - nodes[k]
-                span = legs[k - 1] + legs[k]
-                v = (nodes[k + 1] - nodes[k - 1]) / span if span > 0 else np.zeros(self.dofs)
-                v[np.sign(before) != np.sign(after)] = 0.0
-                vias.append(np.clip(v * factor, -limits.velocity, limits.velocity))
+            release(vias)
+            vias = _pass_velocities(nodes, legs, factor, limits.velocity)
             try:
                 segs = [] if first is None else [first]
                 state: tuple = start
@@ -484,9 +506,13 @@ class Planner:
                 plan = Plan(segs, waypoints=len(pts))
             except LimitError as e:
                 errors.append(e)
+                release(segs)
                 continue
             if best is None or plan.duration < best.duration:
-                best = plan
+                best, plan = plan, best
+            if plan is not None:
+                release(plan.segments)
+        release(vias)
         if best is None:
             raise errors[-1]
         return best

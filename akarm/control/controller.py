@@ -48,7 +48,7 @@ from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Ref
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
 from akarm.control.joints import Joint, make_joint
-from akarm.control.loop import ControlLoop, StatsSummary
+from akarm.control.loop import ControlLoop, StatsSummary, collector_paused
 from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
@@ -56,7 +56,7 @@ from akarm.control.safety import Guard, Supervisor, default_following_error, def
 from akarm.control.turns import PositionMemory, stays_put
 from akarm.dynamics.model import RobotModel
 from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, LoopStall, SafetyStop, StateError
-from akarm.motion.trajectory import Plan, Planner
+from akarm.motion.trajectory import Plan, Planner, release
 from akarm.telemetry.log import Telemetry, TelemetryLog
 
 if TYPE_CHECKING:
@@ -410,7 +410,8 @@ class Controller:
                 self._require_active()
                 ticket = self.motions.ticket(self.plan_now() + ahead)
             began, began_clock = time.perf_counter(), self.clock.now()
-            plan = make_plan(ticket.state, ticket.t)
+            with collector_paused(freeze=not self.clock.stepped):  # (see collector_paused: the loop waits for one)
+                plan = make_plan(ticket.state, ticket.t)
             # the time it took on the loop's clock too: on a stepped clock the loop runs on its own time
             took = max(time.perf_counter() - began, self.clock.now() - began_clock)
             with self.lock:
@@ -418,6 +419,9 @@ class Controller:
                 motion = self.motions.take(ticket, plan)
             if motion is not None:
                 return motion
+            segments = getattr(plan, "segments", None)
+            if isinstance(segments, list):  # a fresh plan, shared with nothing: freed a chunk at a time
+                release(segments)
             ahead = max(2.0 * ahead, 2.0 * took + 2.0 * self.period)
         raise StateError(f"the motion could not take over from the one in force after {PLAN_ATTEMPTS} plans (the "
                          f"last took {took:.3f} s to make)",

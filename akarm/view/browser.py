@@ -27,8 +27,8 @@ import numpy as np
 if TYPE_CHECKING:
     from playwright.sync_api import Locator, Page
 
-__all__ = ["CHROMIUM_FLAGS", "canvas_image", "chromium", "drawn_fraction", "headless_page", "jog_box", "joint_values",
-           "page_text", "unavailable", "wait_for_view"]
+__all__ = ["CHROMIUM_FLAGS", "canvas_image", "chromium", "drawn_fraction", "headless_page", "jog_box", "jog_to",
+           "joint_values", "page_text", "unavailable", "wait_for_view"]
 
 #: how Chromium runs here: no sandbox (root in a container), software WebGL, nothing fetched in the background
 CHROMIUM_FLAGS = ("--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-dev-shm-usage",
@@ -125,6 +125,17 @@ def jog_box(page: Page, joint: str) -> Locator:
     """The number box beside ``joint``'s jog slider (typing a value there and pressing Enter jogs)."""
     return page.locator(f"xpath=//label[normalize-space()='{joint}']/ancestor::div[contains(@class,"
                         "'mantine-Flex-root')][1]//input[not(@type='hidden')]").first
+
+
+def jog_to(page: Page, joint: str, value: str) -> None:
+    """Jog as a user does with a typed angle: choose ``joint``, type ``value`` (as typed) in the
+    "jog to" box, press Jog."""
+    page.get_by_label("jog joint").first.click()
+    page.get_by_role("option", name=joint, exact=True).click()
+    box = page.get_by_label("jog to [rad]").first
+    box.fill(value)
+    box.press("Tab")  # the box hands its value over when it loses the focus
+    page.get_by_role("button", name="Jog", exact=True).click()
 
 
 def canvas_image(page: Page) -> np.ndarray:

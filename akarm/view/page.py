@@ -9,8 +9,9 @@
   and commanded position, error, torque, temperature and feedback age (:mod:`akarm.view.panel`);
 - **plots** per joint over the last 10 s: position (desired, measured), tracking error, torque;
 - **controls** when the source has them (a server): enable, hold, disable, and a jog slider per
-  joint, limited to its range and disabled while the arm is not enabled; a jog past the range is
-  refused (the page's number box lets one be typed) and said on the page;
+  joint, limited to its range and disabled while the arm is not enabled; and "jog to": a joint, an
+  angle typed in a box that takes any number, and a Jog button: a target past the joint's range is
+  refused there, and said on the page, before anything is sent;
 - **playback** for a recording: a time slider, play/pause and the speed.
 
 Threads: viser's own (its web server, and a pool that runs the page's callbacks); ``akarm-view``,
@@ -268,6 +269,11 @@ class ViewServer:
                                                initial_value=round(min(max(0.0, lo), hi), 4), disabled=True)
                 slider.on_update(self._slider_callback(jc.name))
                 self._sliders[jc.name] = slider
+            server.gui.add_markdown("Jog to a typed angle (rad; refused past the joint's range):")
+            self._gui["jog_joint"] = server.gui.add_dropdown("jog joint", options=tuple(self.names),
+                                                             initial_value=self.names[0])
+            self._gui["jog_to"] = server.gui.add_number("jog to [rad]", initial_value=0.0, step=0.001)  # no range
+            server.gui.add_button("Jog").on_click(self._on_jog_button)
 
     def _build_playback(self, server: viser.ViserServer, rec: RecordedSource) -> None:
         with server.gui.add_folder("Playback"):
@@ -448,7 +454,7 @@ class ViewServer:
         self.refusals += 1
         self._say(f"refused: {error}")
         self.log(f"akarm view: refused: {error}")
-        if joint is not None:
+        if joint in self._touched:
             self._touched[joint] = 0.0
 
     def _command(self, op: str) -> None:
@@ -471,12 +477,19 @@ class ViewServer:
     def _on_slider(self, joint: str, event: Any) -> None:
         if event.client is None:  # the view moved it to follow the arm
             return
+        self._touched[joint] = time.monotonic()
+        self.request_jog(joint, float(self._sliders[joint].value))
+
+    def _on_jog_button(self, event: Any) -> None:
+        self.request_jog(str(self._gui["jog_joint"].value), self._gui["jog_to"].value)
+
+    def request_jog(self, joint: str, value: Any) -> None:
+        """A jog the page asked for (a slider, or Jog with a typed angle): checked here (the joint's
+        range, the arm enabled) and refused on the page, or handed to ``akarm-view-jog``."""
         controls = self.source.controls
         assert controls is not None
-        self._touched[joint] = time.monotonic()
-        value = float(self._sliders[joint].value)
         try:
-            controls.check_jog(joint, value)
+            value = controls.check_jog(joint, value)
             if self.last is None or not self.last.enabled:
                 raise StateError("the arm is not enabled", joint=joint, fix="press Enable first")
         except AkarmError as e:

@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 
     from akarm.config import BusConfig
 
-__all__ = ["close_buses", "drain", "how_to_create", "no_answer_hint", "open_bus", "open_error"]
+__all__ = ["close_buses", "drain", "how_to_create", "no_answer_hint", "open_bus", "open_error", "polled"]
 
 
 def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str:
@@ -101,6 +101,12 @@ def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusAB
         raise  # already says which port and what to check (akarm_uart)
     except (OSError, can.CanError, ValueError, ImportError, NotImplementedError, TypeError) as e:
         raise open_error(bus, e) from None
+
+
+def polled(bus: BusConfig) -> bool:
+    """Whether ``bus``'s status frames answer our own polls (``akarm_uart``: one motor on a serial port,
+    asked once a cycle), so their rate and their count are ours to set, not the motor's to show."""
+    return bus.interface == "akarm_uart"
 
 
 def no_answer_hint(bus: BusConfig) -> str:

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from akarm.buses.bus import no_answer_hint
+from akarm.buses.bus import no_answer_hint, polled
 from akarm.config import BusConfig
 from akarm.control.joints import Joint
 from akarm.control.safety import Supervisor, contact_delay
@@ -228,7 +228,7 @@ class Enabler:
             first = en.first_reply[i]
             plausible = j.frames_received - en.received0[i] - (j.rejected - en.rejected0[i])
             error = wiring_error(j, plausible, j.frames_sent - en.sent0[i], None if first is None else now - first,
-                                 self.lag, polled=self._buses[j.bus].interface == "akarm_uart")
+                                 self.lag, polled=polled(self._buses[j.bus]))
             if error is not None:
                 error.at = now
                 return Refusal(error, release=en.entered)

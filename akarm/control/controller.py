@@ -48,7 +48,7 @@ from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Ref
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
 from akarm.control.joints import Joint, make_joint
-from akarm.control.loop import ControlLoop, StatsSummary, collector_paused
+from akarm.control.loop import ControlLoop, StatsSummary, collector_paused, keep_from_collections
 from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
@@ -70,6 +70,9 @@ STAGES = ("receive", "trajectory", "safety", "feedforward", "send", "telemetry")
 #: Plans made for one motion at most before it is refused: each one that comes too late to take over
 #: from a moving arm is made again to start twice as far ahead (the first starts where the arm is now).
 PLAN_ATTEMPTS = 6
+#: segments from which a plan is left out of later garbage collections while its loop runs
+#: (akarm.control.loop.keep_from_collections): each full collection would scan its objects again
+BIG_PLAN = 1000
 
 
 def _feedback_timeout(j: JointConfig, default: float) -> float:
@@ -410,8 +413,10 @@ class Controller:
                 self._require_active()
                 ticket = self.motions.ticket(self.plan_now() + ahead)
             began, began_clock = time.perf_counter(), self.clock.now()
-            with collector_paused(freeze=not self.clock.stepped):  # (see collector_paused: the loop waits for one)
+            with collector_paused():  # a collection due meanwhile would hold up the loop (see collector_paused)
                 plan = make_plan(ticket.state, ticket.t)
+                if not self.clock.stepped and len(getattr(plan, "segments", ())) >= BIG_PLAN:
+                    keep_from_collections()
             # the time it took on the loop's clock too: on a stepped clock the loop runs on its own time
             took = max(time.perf_counter() - began, self.clock.now() - began_clock)
             with self.lock:

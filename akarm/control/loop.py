@@ -26,7 +26,8 @@ import numpy as np
 
 from akarm.clock import Clock, SteppedClock
 
-__all__ = ["ControlLoop", "LoopStats", "StatsSummary", "collector_paused", "pin_thread", "request_realtime"]
+__all__ = ["ControlLoop", "LoopStats", "StatsSummary", "collector_paused", "keep_from_collections", "pin_thread",
+           "request_realtime"]
 
 log = logging.getLogger(__name__)
 
@@ -73,14 +74,13 @@ _collector_paused = [0, True]  # the threads inside collector_paused(), and whet
 
 
 @contextlib.contextmanager
-def collector_paused(freeze: bool = False) -> Iterator[None]:
+def collector_paused() -> Iterator[None]:
     """No garbage collection while inside (in any thread: several may be inside at once).
 
     A full collection runs in whichever thread allocates when it is due and holds the interpreter
     lock throughout: over a 5000-keyframe plan's objects it took 33 ms here, and the control loop's
-    thread waited for it (30 slots missed). With ``freeze``, what exists when the last thread leaves
-    is frozen (``gc.freeze``: later collections do not re-scan a plan that lives as long as its
-    motion; :meth:`ControlLoop.stop` unfreezes). Objects are still freed by their reference counts.
+    thread waited for it (30 slots missed). Objects are still freed by their reference counts; the
+    collection that was due runs after. See :func:`keep_from_collections` for a big plan.
     """
     with _collector_lock:
         if _collector_paused[0] == 0:
@@ -92,11 +92,16 @@ def collector_paused(freeze: bool = False) -> Iterator[None]:
     finally:
         with _collector_lock:
             _collector_paused[0] -= 1
-            if _collector_paused[0] == 0:
-                if freeze:
-                    gc.freeze()
-                if _collector_paused[1]:
-                    gc.enable()
+            if _collector_paused[0] == 0 and _collector_paused[1]:
+                gc.enable()
+
+
+def keep_from_collections() -> None:
+    """Leave what exists now out of later collections (``gc.freeze``) until the loop stops
+    (:meth:`ControlLoop.stop` unfreezes): for a big plan, which lives as long as its motion and which
+    each full collection would otherwise scan again. Any garbage cycle that exists at this moment is
+    kept until then too, so it is called for big plans only (rare), never for every move."""
+    gc.freeze()
 
 
 def pin_thread(cpu: int) -> str:
@@ -359,6 +364,11 @@ class ControlLoop:
         if self.realtime_priority:
             reports.append(request_realtime())
             reports.append(f"switch interval {sys.getswitchinterval() * 1e6:.0f} µs")
+        else:
+            # what exists now (the model, numpy, the modules) lives as long as the loop: later full
+            # collections need not scan it again (one took 33-61 ms here, and the loop waited for it)
+            gc.collect()
+            keep_from_collections()
         if reports:
             self.realtime_report = "; ".join(reports)
         self._next = None
@@ -392,7 +402,7 @@ class ControlLoop:
         if t is not None and t is not threading.current_thread():
             t.join(timeout)
         if t is not None:
-            gc.unfreeze()  # what request_realtime or collector_paused froze may be collected again
+            gc.unfreeze()  # what request_realtime or keep_from_collections froze may be collected again
         self._thread = None
         self._next = None
 

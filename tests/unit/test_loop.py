@@ -91,3 +91,24 @@ def test_loops_sharing_a_stepped_clock_each_keep_their_own_grid_whoever_advances
     b.stop()                 # a stopped loop leaves the clock
     a.step(2)
     assert len(seen["b"]) == 6 and seen["a"][-1] == pytest.approx(0.018)
+
+
+def test_no_collection_while_any_thread_plans_and_the_setting_comes_back() -> None:
+    import gc
+
+    from akarm.control.loop import collector_paused
+
+    assert gc.isenabled()
+    with collector_paused():
+        assert not gc.isenabled()
+        with collector_paused():  # a second planner meanwhile
+            assert not gc.isenabled()
+        assert not gc.isenabled()  # the first one still plans
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with collector_paused():
+            pass
+        assert not gc.isenabled()  # off before: left off
+    finally:
+        gc.enable()

@@ -31,9 +31,10 @@ Checks, per joint, in order (the first that fires is the stop):
 5. **A driver reset** (a brown-out): a MIT driver that answers, but reports less than a quarter of
    the torque the law it was sent asks for, where that is at least a tenth of the joint's torque
    limit, :data:`RESET_REPLIES` replies in a row (a driver out of motor mode reports no torque). →
-   :class:`~akarm.DriverReset`. On a machine whose replies trail the commands (a timing profile's
-   ``lag``: a slow simulator answers an older command than the last), a reply is judged against every
-   law it may answer, the last ``ceil(lag / period) + 1`` sent: it counts only if it fits none of them.
+   :class:`~akarm.DriverReset`. Where replies trail the commands (a busy machine's simulator, a
+   timing profile's ``lag``), a reply is judged against every law it may answer: the commands still
+   in flight (sent and not answered), at least the last ``ceil(lag / period) + 1``; it counts only if
+   it fits none of them.
 6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
    minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
@@ -199,9 +200,11 @@ class Supervisor:
         self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
         self._no_torque = [0] * n
         self._reset: DriverReset | None = None
-        # with a lag, the laws a reply may answer: per joint the last `_laws_kept` sent (position,
-        # velocity, kp, kd, torque), newest last, and the frames sent when the newest was taken
-        self._laws_kept = math.ceil(lag / period - 1e-9) + 1 if lag > 0.0 else 1
+        # the laws a reply may answer (it trails the commands on a slow or busy machine): per MIT joint
+        # the last ones sent (position, velocity, kp, kd, torque), newest last, and the frames sent
+        # when the newest was taken; a reply is judged against as many as are in flight, at least the
+        # profile's lag in commands
+        self._lag_laws = math.ceil(lag / period - 1e-9) + 1 if lag > 0.0 else 1
         self._laws: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n)]
         self._laws_sent = [-1] * n
         self._over = [0] * n
@@ -320,7 +323,7 @@ class Supervisor:
                     value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
-            if self._laws_kept > 1 and j.frames_sent != self._laws_sent[i]:
+            if self._mit[i] and j.frames_sent != self._laws_sent[i]:
                 self._keep_law(i, j)
             r = j.frames_received
             if r != received[i]:  # it answered since the last check
@@ -339,7 +342,7 @@ class Supervisor:
                     mag = tau if tau >= 0.0 else -tau
                     got = s.torque if s.torque >= 0.0 else -s.torque
                     if mag >= self._ask[i] and not (got >= RESET_SHARE * mag or got > self._none[i]) and (
-                            self._laws_kept == 1 or self._fits_no_older_law(i, s.position, s.velocity, got)):
+                            self._fits_no_older_law(i, s.position, s.velocity, got)):
                         no_torque[i] += 1
                         if no_torque[i] >= RESET_REPLIES and reset is None:
                             reset = self._reset_stop(j, tau, s.torque)
@@ -364,15 +367,17 @@ class Supervisor:
         self._laws_sent[i] = j.frames_sent
         laws = self._laws[i]
         laws.append((j.cmd_position, j.cmd_velocity, j.cmd_kp, j.cmd_kd, j.cmd_torque))
-        if len(laws) > self._laws_kept:
+        if len(laws) > max(self._lag_laws, self._unanswered[i] + 1):
             del laws[0]
 
     def _fits_no_older_law(self, i: int, position: float, velocity: float, got: float) -> bool:
         """Whether a reply of torque magnitude ``got`` at ``position``, ``velocity`` fits none of the
-        laws joint ``i`` was sent lately (each asks for torque it lacks): a reply that trails the
-        commands answers one of them, not necessarily the last."""
+        laws joint ``i`` was sent lately, those still in flight (each asks for torque it lacks): a
+        reply that trails the commands answers one of them, not necessarily the last."""
         t_max, ask, none = self._t_max[i], self._ask[i], self._none[i]
-        for p, v, kp, kd, t in self._laws[i]:
+        laws = self._laws[i]
+        k = max(self._lag_laws, self._in_flight(i) + 1)
+        for p, v, kp, kd, t in laws[-k:] if k < len(laws) else laws:
             tau = kd * (v - velocity) + t
             if kp:
                 tau += kp * (p - position)

@@ -7,7 +7,9 @@ control loop asks it every cycle, and each check must fire exactly when its limi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import pytest
 
@@ -221,6 +223,42 @@ def test_replies_that_trail_the_commands_answer_an_older_law(planar2: RobotConfi
         assert stops == [None] * len(asks)  # each reply fits a law it may answer
     else:  # no lag allowed (a normal machine): the third reply without the torque is a reset
         assert stops[:8] == [None] * 8 and isinstance(stops[8], DriverReset)
+
+
+def test_a_busy_machine_s_late_replies_are_judged_against_the_laws_still_in_flight(planar2: RobotConfig) -> None:
+    """No timing profile: the elbow's simulator, starved for four cycles, then answers its backlog one
+    reply a cycle, in order: three replies without torque answer commands sent before the law asked
+    for any, while the last law sent asks for half the torque limit."""
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.2, 80.0)] * 2, period=DT)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    big = 0.5 * js[1].config.limits.torque
+    owed: list[float] = []  # the torque each unanswered command to the elbow asks for, oldest first
+
+    def run(cycles: range, ask: Callable[[int], float], starved: Callable[[int], bool],
+            reset: bool = False) -> list[Any]:
+        stops = []
+        for k in cycles:
+            t = (k + 1) * DT
+            js[0].handle_reply(js[0].codec.encode_reply(js[0].can_id, 0.0, 0.0, ask(k), 30.0, 0), t)
+            if owed and not starved(k):
+                torque = owed.pop(0)
+                js[1].handle_reply(js[1].codec.encode_reply(js[1].can_id, 0.0, 0.0, 0.0 if reset else torque,
+                                                            30.0, 0), t)
+            stops.append(sup.check(t))
+            for j in js:
+                j.command(0.0, 0.0, 40.0, 1.0, ask(k))
+                j.sent()
+            owed.append(ask(k))
+        return stops
+
+    stops = run(range(30), lambda k: 0.0 if k < 6 else big, lambda k: 4 <= k < 8)
+    assert stops == [None] * 30  # each reply fits a law it may answer
+    # the driver resets: its replies (still late) report no torque; every law in flight asks for some
+    stops = run(range(30, 40), lambda k: big, lambda k: False, reset=True)
+    first = next(k for k, e in enumerate(stops) if e is not None)
+    assert isinstance(stops[first], DriverReset) and stops[first].joint == "elbow" and first == 2
 
 
 def test_a_reset_is_still_found_on_a_lagging_machine_once_every_law_it_may_answer_asks(

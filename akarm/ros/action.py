@@ -413,7 +413,7 @@ class ActionServer:
                 self._end(goal, ABORTED, INVALID_GOAL,
                           "another command replaced the goal's motion (joint_trajectory, akarm move, a hold)")
             return
-        t = arm.clock.now()
+        t = arm.clock.now() - arm.observe.plan_lag  # the plan's time: it trails the clock by the slots the loop missed
         plan = motion.plan
         q_d, dq_d, ddq_d = plan.sample(t)
         state = arm.state()

@@ -103,6 +103,13 @@ class Rig:
         with SocketClient(str(info["socket"]), timeout=30) as c:
             return c.call("status").get("stop") is not None
 
+    def missed_slots(self) -> int:
+        """The slots the server's loop missed so far (each one delays the plan's time by a period)."""
+        info = find_server(self.config)
+        assert info is not None, "akarm serve is not running"
+        with SocketClient(str(info["socket"]), timeout=30) as c:
+            return int(c.call("status").get("missed_slots", 0))
+
     def mark(self) -> int:
         """The index of the next frame the simulator logs (the frames a test looks at start there)."""
         return int(self.ctl.request(cmd="frames", since=1 << 62)["next"])
@@ -197,6 +204,7 @@ def test_a_goal_moves_a_subset_of_the_joints_through_its_points_with_feedback(ri
     c = rig.client
     start = rig.q()
     since = rig.mark()
+    missed = rig.missed_slots()
     points = [(1.0, [0.5, 0.3]), (2.0, [0.8, -0.2])]  # elbow, shoulder_pan: a subset, in another order
     gid = uuid.uuid4().bytes
     _, _, reply = c.send(gid, c.goal(["elbow", "shoulder_pan"], points))
@@ -219,11 +227,15 @@ def test_a_goal_moves_a_subset_of_the_joints_through_its_points_with_feedback(ri
     assert max(np.diff(t)) < 0.25, "no long gap in the feedback"
     stamps = np.array([m.feedback.header.stamp.sec + m.feedback.header.stamp.nanosec * 1e-9 for _, m in fb])
     accepted = reply.stamp.sec + reply.stamp.nanosec * 1e-9
+    # (a slot the loop misses delays the plan by a period: the motors are not asked to jump; on a
+    # loaded machine the points come that much later)
+    late = max(0, rig.missed_slots() - missed) / rig.config.rate_hz
+    desired = np.array([m.feedback.desired.positions for _, m in fb])
     for tk, (elbow, pan) in points:
-        k = int(np.argmin(np.abs(stamps - (accepted + tk))))
-        assert abs(stamps[k] - (accepted + tk)) < 0.05
-        desired = fb[k][1].feedback.desired.positions
-        assert abs(desired[i_elbow] - elbow) < 0.02 and abs(desired[i_pan] - pan) < 0.02
+        near = (stamps > accepted + tk - 0.05) & (stamps < accepted + tk + 0.05 + late)
+        assert near.any(), (tk, late, stamps - accepted)
+        off = np.abs(desired[near][:, i_elbow] - elbow) + np.abs(desired[near][:, i_pan] - pan)
+        assert off.min() < 0.02, (tk, late, off.min())
     for _, m in fb:
         f = m.feedback
         assert list(f.joint_names) == NAMES

@@ -90,6 +90,7 @@ class MomentumObserver:
         self.viscous = np.asarray(viscous, dtype=float)
         self.offset = np.asarray(offset, dtype=float)
         self.deadband = np.zeros(len(self.coulomb)) if deadband is None else np.asarray(deadband, dtype=float)
+        self._half_deadband = 0.5 * self.deadband
         #: N·m per joint: a reported torque this large is the motor at its limit
         self.saturation = np.full(len(self.coulomb), np.inf) if saturation is None else \
             0.999 * np.asarray(saturation, dtype=float)
@@ -118,30 +119,35 @@ class MomentumObserver:
         if self._lag is None:  # from the command: the first reading is off by up to half a step
             self._lag = np.zeros(len(dq))
         self._lag += min(1.0, dt / _LAG_SMOOTHING) * ((dq - v_des) - self._lag)
-        half = 0.5 * self.deadband
-        return np.clip(v_des + self._lag, dq - half, dq + half)
+        half = self._half_deadband
+        return np.minimum(np.maximum(v_des + self._lag, dq - half), dq + half)  # (np.clip costs twice this)
 
-    def _smooth(self, q: np.ndarray, v: np.ndarray, dq: np.ndarray, v_des: np.ndarray | None) -> np.ndarray:
-        """``τ_f - Cᵀq̇ + g`` at (q, v): what the model and friction take from the momentum's rate of
-        change. The friction's speed: the commanded one where the joint tracks it (within two steps of
-        the feedback: slow motions, whose feedback flips between "at rest" and "moving", follow the
-        smooth command, as the feed-forward does); else the measured one, a speed within one step of
-        it counting as at rest for the Coulomb friction (at rest it is anywhere within ±coulomb, and
-        the smooth model says 0)."""
-        model = self.model
-        beta = model.gravity(q) - model.coriolis_matrix(q, v).T @ v
-        tracks = np.zeros(len(dq), bool) if v_des is None else np.abs(v_des - dq) <= 2.0 * self.deadband
-        v_f = np.where(tracks, v_des, dq) if v_des is not None else dq
-        coulomb = np.where(~tracks & (np.abs(dq) <= self.deadband), 0.0, self.coulomb)
+    def _smooth(self, beta: np.ndarray, dq: np.ndarray, v_des: np.ndarray | None) -> np.ndarray:
+        """``τ_f - Cᵀq̇ + g`` at (q, v), given ``beta = g - Cᵀq̇`` there
+        (:meth:`~akarm.dynamics.model.RobotModel.momentum_terms`): what the model and friction take
+        from the momentum's rate of change. The friction's speed: the commanded one where the joint
+        tracks it (within two steps of the feedback: slow motions, whose feedback flips between "at
+        rest" and "moving", follow the smooth command, as the feed-forward does); else the measured
+        one, a speed within one step of it counting as at rest for the Coulomb friction (at rest it is
+        anywhere within ±coulomb, and the smooth model says 0)."""
+        at_rest = np.abs(dq) <= self.deadband
+        if v_des is None:
+            v_f = dq
+        else:
+            tracks = np.abs(v_des - dq) <= 2.0 * self.deadband
+            v_f = np.where(tracks, v_des, dq)
+            at_rest &= ~tracks
+        coulomb = np.where(at_rest, 0.0, self.coulomb)
         return friction_torque(v_f, coulomb, self.viscous, self.offset) + beta
 
     def reset(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, v_des: np.ndarray | None = None) -> None:
         """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
         self._lag = None
         v = self.velocity(dq, v_des)
-        self._p0 = self.model.mass_matrix(q) @ v
+        m, beta = self.model.momentum_terms(q, v)
+        self._p0 = m @ v
         self._integral[:] = 0.0
-        self._last = (np.array(tau, dtype=float), v, self._smooth(q, v, dq, v_des))
+        self._last = (np.array(tau, dtype=float), v, self._smooth(beta, dq, v_des))
         self.estimate = np.zeros_like(self.estimate)
         self.started = True
 
@@ -160,14 +166,15 @@ class MomentumObserver:
         (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)"""
         tau_prev, v_prev, smooth_prev = self._last
         v = self.velocity(dq, v_des, dt)
-        smooth = self._smooth(q, v, dq, v_des)
+        m, beta = self.model.momentum_terms(q, v)
+        smooth = self._smooth(beta, dq, v_des)
         torque = tau_prev
         if kp is not None:  # (a saturated motor holds its limit: no decay)
             decay = 0.5 * (kp * v_prev * dt + (kd if kd is not None else 0.0) * (v - v_prev))
             torque = np.where(np.abs(tau_prev) >= self.saturation, tau_prev, tau_prev - decay)
         self._integral += (torque - 0.5 * (smooth + smooth_prev) + self.estimate) * dt
         self._last = (np.array(tau, dtype=float), v, smooth)
-        self.estimate = self.gain * (self.model.mass_matrix(q) @ v - self._p0 - self._integral)
+        self.estimate = self.gain * (m @ v - self._p0 - self._integral)
         return self.estimate
 
 
@@ -267,9 +274,10 @@ class CollisionReflex:
         ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with
         ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
         mode) the reflex disarms."""
-        qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
-        if not (np.all(np.isfinite(qa)) and np.all(np.isfinite(va)) and np.all(np.isfinite(ta))):
+        isfinite = math.isfinite  # (per element: a seventh of np.all(np.isfinite(...)) for a few joints)
+        if not (all(map(isfinite, q)) and all(map(isfinite, dq)) and all(map(isfinite, tau))):
             return None  # no feedback yet: the supervisor deals with missing feedback
+        qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
         sample, self._cycle = self._cycle, now
         v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))

@@ -132,7 +132,8 @@ class Controller:
         for j in joints:  # a reply the motor cannot have reached since the last one is rejected
             j.set_gate(1.5 * j.motor.v_max, self.period)
         self.supervisor = Supervisor(joints, self._guards(), period=self.period,
-                                     implausible_limit=options.implausible_limit, lag=options.timing.lag)
+                                     implausible_limit=options.implausible_limit, lag=options.timing.lag,
+                                     driver_resets=options.timing.lag == 0)
         self.stall_limit = options.loop_stall_limit
         self._gains_changed()
 

@@ -34,7 +34,9 @@ Checks, per joint, in order (the first that fires is the stop):
    :class:`~akarm.DriverReset`. Where replies trail the commands (a busy machine's simulator, a
    timing profile's ``lag``), a reply is judged against every law it may answer: the commands still
    in flight (sent and not answered), at least the last ``ceil(lag / period) + 1``; it counts only if
-   it fits none of them.
+   it fits none of them. Under a timing profile with a lag (``slow``) the controller leaves this check
+   off, as it leaves the collision reflex watching only: in vcan-vm a simulator working through a
+   backlog reported no torque where every law in flight asked for some.
 6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
    minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
@@ -164,13 +166,15 @@ class Supervisor:
         period: s, the loop's period.
         lag: s a reply may trail the commands (the timing profile's ``lag``; 0: a reply answers the
             last command sent).
+        driver_resets: whether to judge replies for a driver reset (check 5); the controller turns
+            it off under a timing profile for machines that cannot keep time (see the check).
 
     Attributes:
         armed_at: clock time (s) from which foreign frames stop the arm (:meth:`arm`).
     """
 
     def __init__(self, joints: Sequence[Joint], guards: Sequence[Guard], *, period: float,
-                 implausible_limit: int = 3, lag: float = 0.0) -> None:
+                 implausible_limit: int = 3, lag: float = 0.0, driver_resets: bool = True) -> None:
         if len(joints) != len(guards):
             raise ValueError("one guard per joint")
         if implausible_limit < 1:
@@ -195,7 +199,7 @@ class Supervisor:
         self._ran_then = [0.0] * n
         self._last_check = math.inf
         # the brown-out check: the torque a law must ask for before a reply without it counts, N·m
-        self._ask = [RESET_ASK * j.config.limits.torque for j in self.joints]
+        self._ask = [RESET_ASK * j.config.limits.torque if driver_resets else math.inf for j in self.joints]
         self._t_max = [j.motor.t_max for j in self.joints]
         self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
         self._no_torque = [0] * n

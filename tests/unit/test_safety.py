@@ -554,3 +554,13 @@ def test_the_mode_machine_refuses_what_its_table_does_not_allow() -> None:
         m.go(Mode.DISABLED)                        # a lost bus is only left by closing
     m.go(Mode.CLOSED)
     assert [x for x in Mode if x.powered] == [Mode.ENABLING, Mode.ACTIVE, Mode.TEACH, Mode.STOPPING, Mode.FAULT]
+
+
+def test_a_profile_that_cannot_keep_time_leaves_the_reset_check_off(planar2: RobotConfig) -> None:
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(0.2, 80.0)] * 2, period=DT, lag=0.04, driver_resets=False)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    big = 0.5 * js[1].config.limits.torque
+    stops = lagging_cycles(sup, js, [big] * 40, [0.0] * 40)  # no torque at all, forty replies
+    assert stops == [None] * 40

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from akarm.buses.bus import simulated
 from akarm.clock import Clock, RealClock
 from akarm.config import RobotConfig
 from akarm.control.collision import DEFAULT_GAIN, Reaction
@@ -36,7 +37,7 @@ from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
 from akarm.control.motions import Motion, State
 from akarm.control.options import ControllerOptions
-from akarm.control.turns import simulated, state_file
+from akarm.control.turns import state_file
 from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
@@ -214,8 +215,8 @@ class Arm:
                  remember_positions: bool | str | PathLike[str] = True) -> None:
         self.timing = get_profile(timing)
         if remember_positions is True:
-            position_file: str | PathLike[str] | None = state_file(config.name,
-                                                                    simulator=simulated(config.buses.values()))
+            on_simulator = all(map(simulated, config.buses.values()))
+            position_file: str | PathLike[str] | None = state_file(config.name, simulator=on_simulator)
         elif remember_positions is False:
             position_file = None
         elif isinstance(remember_positions, str | PathLike) and str(remember_positions):

@@ -13,7 +13,8 @@ if TYPE_CHECKING:
 
     from akarm.config import BusConfig
 
-__all__ = ["close_buses", "drain", "how_to_create", "no_answer_hint", "open_bus", "open_error", "polled"]
+__all__ = ["close_buses", "drain", "how_to_create", "no_answer_hint", "open_bus", "open_error", "polled",
+           "simulated"]
 
 
 def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str:
@@ -107,6 +108,13 @@ def polled(bus: BusConfig) -> bool:
     """Whether ``bus``'s status frames answer our own polls (``akarm_uart``: one motor on a serial port,
     asked once a cycle), so their rate and their count are ours to set, not the motor's to show."""
     return bus.interface == "akarm_uart"
+
+
+def simulated(bus: BusConfig) -> bool:
+    """Whether only a simulator answers on ``bus``: python-can's ``virtual``, ``akarm_local``, a
+    SocketCAN ``vcan`` channel."""
+    return bus.interface in ("virtual", "akarm_local") or (bus.interface == "socketcan"
+                                                          and str(bus.channel).startswith("vcan"))
 
 
 def no_answer_hint(bus: BusConfig) -> str:

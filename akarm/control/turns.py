@@ -23,16 +23,16 @@ import math
 import os
 import re
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from akarm.config import BusConfig, JointConfig
+from akarm.config import JointConfig
 from akarm.errors import AkarmError, TurnCountLost
 from akarm.files import FileProblem, atomic_write, read_text
 
-__all__ = ["MAX_STATE_BYTES", "SIMULATED_INTERFACES", "TOLERANCE", "PositionMemory", "TurnJump", "find_jump",
-           "simulated", "state_file", "tolerance", "turn_step"]
+__all__ = ["MAX_STATE_BYTES", "TOLERANCE", "PositionMemory", "TurnJump", "find_jump", "state_file", "tolerance",
+           "turn_step"]
 
 #: rad at the joint: how far a limp joint may have moved (sagged, been nudged) between a stop and the
 #: next enable and still count as "where it was"; never more than a quarter of a turn step.
@@ -114,17 +114,6 @@ def find_jump(joint: JointConfig, reading: float, remembered: float) -> TurnJump
             if lo - tol <= reading - kk * step <= hi + tol and abs(reading - kk * step - remembered) <= tol]
     suggested = reading - fits[0] * step if len(fits) == 1 else None
     return TurnJump(joint.name, reading, remembered, k, step, suggested)
-
-
-#: python-can interfaces on which only a simulator answers (and SocketCAN channels named ``vcan*``).
-SIMULATED_INTERFACES = frozenset({"virtual", "akarm_local"})
-
-
-def simulated(buses: Iterable[BusConfig]) -> bool:
-    """Whether every bus is one only a simulator answers on (python-can's ``virtual``, ``akarm_local``,
-    a SocketCAN ``vcan`` channel)."""
-    return all(b.interface in SIMULATED_INTERFACES or (b.interface == "socketcan" and str(b.channel).startswith("vcan"))
-               for b in buses)
 
 
 def state_file(robot: str, environ: Mapping[str, str] | None = None, *, simulator: bool = False) -> Path:

@@ -126,13 +126,14 @@ def test_bad_power_cycles_are_refused(spec: str) -> None:
 
 
 def test_a_simulated_arm_keeps_its_positions_apart_from_the_real_one(tmp_path: Path) -> None:
+    from akarm.buses.bus import simulated
     from akarm.config import BusConfig
-    from akarm.control.turns import simulated
 
     env = {"XDG_STATE_HOME": str(tmp_path)}
     assert state_file("arm6", env) == tmp_path / "akarm" / "positions" / "arm6.json"
     assert state_file("arm6", env, simulator=True) == tmp_path / "akarm" / "positions" / "arm6.sim.json"
     sim = [BusConfig("arm", "virtual", "x"), BusConfig("aux", "socketcan", "vcan1")]
-    assert simulated(sim) and simulated([BusConfig("arm", "akarm_local", "c")])
-    assert not simulated([*sim, BusConfig("real", "socketcan", "can0")])
-    assert not simulated([BusConfig("arm", "pcan", "PCAN_USBBUS1")])
+    assert all(map(simulated, sim)) and simulated(BusConfig("arm", "akarm_local", "c"))
+    assert not simulated(BusConfig("real", "socketcan", "can0"))
+    assert not all(map(simulated, [*sim, BusConfig("real", "socketcan", "can0")]))  # one real bus: the real file
+    assert not simulated(BusConfig("arm", "pcan", "PCAN_USBBUS1"))

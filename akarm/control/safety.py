@@ -227,6 +227,8 @@ class Supervisor:
         self._timeouts = [x.feedback_timeout for x in g]
         # MIT: the commands a joint may leave unanswered, its timeout in loop periods (at least 2)
         self._unanswered = [max(2, round(x.feedback_timeout / self.period)) for x in g]
+        # the laws kept per MIT joint: as many replies as may be in flight, at least the lag's
+        self._laws_kept = [max(self._lag_laws, u + 1) for u in self._unanswered]
         self._max_temp = [x.max_temperature for x in g]
         self._following = [x.following_error for x in g]
         self._stuck = [x.stuck_travel for x in g]
@@ -371,7 +373,7 @@ class Supervisor:
         self._laws_sent[i] = j.frames_sent
         laws = self._laws[i]
         laws.append((j.cmd_position, j.cmd_velocity, j.cmd_kp, j.cmd_kd, j.cmd_torque))
-        if len(laws) > max(self._lag_laws, self._unanswered[i] + 1):
+        if len(laws) > self._laws_kept[i]:
             del laws[0]
 
     def _fits_no_older_law(self, i: int, position: float, velocity: float, got: float) -> bool:

@@ -54,15 +54,24 @@ class JointLimits:
         return JointLimits(self.names, self.lower, self.upper, self.velocity * speed,
                            self.acceleration * speed**2, self.jerk * speed**3)
 
-    def check_position(self, q: Vector, what: str = "target", tol: float = 1e-9) -> None:
-        """Raise :class:`LimitError` naming the first joint of ``q`` outside its position range."""
+    def check_position(self, q: Vector, what: str = "target", tol: float = 1e-9, start: Vector | None = None) -> None:
+        """Raise :class:`LimitError` naming the first joint of ``q`` outside its position range.
+
+        ``start``: where a move to ``q`` starts. A joint that starts outside its range (an arm that
+        sagged past a limit while it was off) may stay where it is or come back, not go further out:
+        its range is widened to take in its start (as :meth:`Planner.bounds_from` does for the path),
+        so a move of the other joints leaves it be."""
         for i, name in enumerate(self.names):
             v = float(q[i])
             if not math.isfinite(v):
                 raise ArgumentError(f"{what} position is {v}", joint=name, fix="give a finite angle in rad")
-            if v < self.lower[i] - tol or v > self.upper[i] + tol:
+            lo, hi = float(self.lower[i]), float(self.upper[i])
+            s0 = lo if start is None else float(start[i])
+            if v < min(lo, s0) - tol or v > max(hi, s0) + tol:
+                beyond = "" if lo <= s0 <= hi else \
+                    f", and further out than its start {s0:.4f} rad (it may stay there or come back)"
                 raise LimitError(
-                    f"{what} {v:.4f} rad is outside the joint's range [{self.lower[i]:.4f}, {self.upper[i]:.4f}] rad",
+                    f"{what} {v:.4f} rad is outside the joint's range [{lo:.4f}, {hi:.4f}] rad" + beyond,
                     joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
 
 
@@ -381,7 +390,7 @@ class Planner:
             LimitError: the target, or a position the path passes through, is outside a joint's range.
             TrajectoryError: ruckig failed.
         """
-        self.limits.check_position(target)
+        self.limits.check_position(target, start=start[0])
         bounds = self.bounds_from(start[0])
         limits = self.limits if speed == 1.0 else self.limits.scaled(speed)
         inp = self._input(limits, *start)
@@ -439,7 +448,7 @@ class Planner:
         Raises:
             LimitError, TrajectoryError: as :meth:`move`; nothing is planned in part.
         """
-        self.limits.check_position(target)
+        self.limits.check_position(target, start=start[0])
         first = self.settle(start, t0, speed)
         if first is None:
             return Plan([self.move(start, target, t0, speed, synchronize=synchronize)])

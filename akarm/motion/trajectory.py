@@ -36,6 +36,11 @@ Vector = Sequence[float] | np.ndarray
 State = tuple[Vector, Vector, Vector]
 
 
+#: rad a target may differ from its joint's start and still count as staying there (a joint outside
+#: its range may stay where it is: :meth:`JointLimits.check_position`)
+STAY = 1e-6
+
+
 @dataclass(frozen=True)
 class JointLimits:
     """Per-joint limits as arrays in config order (rad, rad/s, rad/s², rad/s³)."""
@@ -58,21 +63,21 @@ class JointLimits:
         """Raise :class:`LimitError` naming the first joint of ``q`` outside its position range.
 
         ``start``: where a move to ``q`` starts. A joint that starts outside its range (an arm that
-        sagged past a limit while it was off) may stay where it is or come back, not go further out:
-        its range is widened to take in its start (as :meth:`Planner.bounds_from` does for the path),
-        so a move of the other joints leaves it be."""
+        sagged past a limit while it was off) may stay exactly where it is (within :data:`STAY`), so
+        that a move of the other joints (a jog of one) is not refused for it; any other target of
+        it must be inside the range (the path back in is checked by :meth:`Planner.bounds_from`)."""
         for i, name in enumerate(self.names):
             v = float(q[i])
             if not math.isfinite(v):
                 raise ArgumentError(f"{what} position is {v}", joint=name, fix="give a finite angle in rad")
             lo, hi = float(self.lower[i]), float(self.upper[i])
-            s0 = lo if start is None else float(start[i])
-            if v < min(lo, s0) - tol or v > max(hi, s0) + tol:
-                beyond = "" if lo <= s0 <= hi else \
-                    f", and further out than its start {s0:.4f} rad (it may stay there or come back)"
-                raise LimitError(
-                    f"{what} {v:.4f} rad is outside the joint's range [{lo:.4f}, {hi:.4f}] rad" + beyond,
-                    joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
+            if lo - tol <= v <= hi + tol or (start is not None and abs(v - float(start[i])) <= STAY):
+                continue
+            raise LimitError(
+                f"{what} {v:.4f} rad is outside the joint's range [{lo:.4f}, {hi:.4f}] rad"
+                + ("" if start is None or lo <= float(start[i]) <= hi else
+                   f" (it starts at {float(start[i]):.4f} rad: it may stay there, or move into the range)"),
+                joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
 
 
 def _phase_extrema(t: float, p: float, v: float, a: float, j: float, t_off: float,

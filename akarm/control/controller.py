@@ -64,7 +64,7 @@ if TYPE_CHECKING:
 
     from akarm.motion.trajectory import Timed
 
-__all__ = ["PLAN_ATTEMPTS", "STAGES", "Controller"]
+__all__ = ["PLAN_ATTEMPTS", "RELEASES", "STAGES", "Controller"]
 
 STAGES = ("receive", "trajectory", "safety", "feedforward", "send", "telemetry")
 #: Plans made for one motion at most before it is refused: each one that comes too late to take over
@@ -73,6 +73,10 @@ PLAN_ATTEMPTS = 6
 #: segments from which a plan is left out of later garbage collections while its loop runs
 #: (akarm.control.loop.keep_from_collections): each full collection would scan its objects again
 BIG_PLAN = 1000
+#: cycles in a row a stop sends the exit (MIT: zero-gain command, EXIT) or release frames on: the
+#: frames are idempotent, and one lost frame (a driver's full receive queue, a reader that fell
+#: behind) must not leave a motor in motor mode, powered, after its program has let go of it
+RELEASES = 3
 
 
 def _feedback_timeout(j: JointConfig, default: float) -> float:
@@ -169,6 +173,7 @@ class Controller:
         self._remembered: dict[str, float] | None = None  # what this enable compares with (None: accepted)
         self._positions_known = False  # the readings passed the turn check: a stop may remember them
         self._stop_q = [0.0] * n  # each joint's reading when the stop began
+        self._releases = 0  # the cycles the exit frames were sent on, this stop
         self._stop_stale = [False] * n  # its feedback went silent during the stop: remember _stop_q
 
     def _make_reflex(self) -> CollisionReflex:
@@ -384,6 +389,7 @@ class Controller:
         self._stop_q = [j.state.position for j in self.joints]
         self._stop_stale = [now - j.state.stamp > t for j, t in zip(self.joints, self._timeouts, strict=True)]
         self._stop_from = np.asarray(self.tau_ff, dtype=float).copy()
+        self._releases = 0
         self.enabler.abandon()
         self.motions.cancel()
 
@@ -795,7 +801,8 @@ class Controller:
         self.modes.go(Mode.DISABLED)
 
     def _cycle_stopping(self, now: float) -> None:
-        """Damping (kp = 0, feed-forward fading out) for stop_damping_time (of plan time), then exit."""
+        """Damping (kp = 0, feed-forward fading out) for stop_damping_time (of plan time), then the
+        exit frames, on :data:`RELEASES` cycles in a row."""
         T = self.options.stop_damping_time
         s = (self._t_plan - self._t_stop) / T if T > 0 else 1.0
         stale = self._stop_stale
@@ -811,6 +818,9 @@ class Controller:
             self._record(now, self.des[0], np.zeros(self.n), tau)
             return
         self.bus.release_all()
+        self._releases += 1
+        if self._releases < RELEASES:
+            return
         self.ramp.zero()
         self.supervisor.disarm()
         self.recorder = None

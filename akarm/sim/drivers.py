@@ -94,6 +94,7 @@ class SimulatedDriver:
         self._rng = random.Random(0)
         self._delay = 0.0
         self._unplugged = False
+        self._miss = 0  # frames addressed to it still to be missed (MissedFrames)
         self._powered = True
         self._error = 0
         # the supply is off (a Brownout, a PowerCycle): (time back on, the reading's shift then (rad), the fault's type)
@@ -131,6 +132,8 @@ class SimulatedDriver:
             self._rng = random.Random(fault.seed)
         elif isinstance(fault, _f.DelayReplies):
             self._delay = fault.delay
+        elif isinstance(fault, _f.MissedFrames):
+            self._miss += fault.count
         elif isinstance(fault, _f.Unplugged):
             self._unplugged = True
             if fault.power_lost:
@@ -150,9 +153,9 @@ class SimulatedDriver:
             self._serial_fault(fault)
         elif not self._start_timed(fault, t):
             raise AkarmError(f"unknown fault {fault!r}", joint=self.name,
-                             fix="use one of akarm.sim.faults: DropReplies, DelayReplies, Unplugged, ErrorCode, "
-                                 "FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked, Brownout, PowerCycle, "
-                                 "Twin; on a serial port CorruptBytes, PartialFrame, BadCrc, SilentPort")
+                             fix="use one of akarm.sim.faults: DropReplies, DelayReplies, MissedFrames, Unplugged, "
+                                 "ErrorCode, FrozenEncoder, FaultAfter, ForgedReply, RogueExit, Blocked, Brownout, "
+                                 "PowerCycle, Twin; on a serial port CorruptBytes, PartialFrame, BadCrc, SilentPort")
         self._faults.append(fault)
 
     def _start_timed(self, fault: _f.Fault, t: float) -> bool:
@@ -192,6 +195,7 @@ class SimulatedDriver:
         self._drop = 0.0
         self._delay = 0.0
         self._unplugged = False
+        self._miss = 0
         self._powered = True
         self._error = 0
         self._fault_after.clear()
@@ -209,6 +213,9 @@ class SimulatedDriver:
     def receive(self, arbitration_id: int, is_extended: bool, data: bytes, t: float) -> None:
         """A frame addressed to this driver arrived at time ``t`` (s). An unplugged driver never sees it."""
         if self._unplugged:
+            return
+        if self._miss:
+            self._miss -= 1
             return
         self.frames_received += 1
         self._handle(arbitration_id, is_extended, data, t)

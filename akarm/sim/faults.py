@@ -35,6 +35,7 @@ __all__ = [
     "FaultAfter",
     "ForgedReply",
     "FrozenEncoder",
+    "MissedFrames",
     "PartialFrame",
     "PowerCycle",
     "RogueExit",
@@ -65,6 +66,23 @@ class DropReplies(Fault):
         if not 0.0 <= self.fraction <= 1.0:
             raise AkarmError(f"DropReplies fraction {self.fraction!r} is outside 0..1",
                              fix="give the share of frames to drop, e.g. 0.3")
+
+
+@dataclass(frozen=True)
+class MissedFrames(Fault):
+    """The driver misses the next ``count`` frames addressed to it (its CAN controller's receive
+    queue was full: a bus loaded past what it takes, a burst of frames); the ones after arrive.
+
+    Attributes:
+        count: frames missed, at least 1.
+    """
+
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.count, int) and self.count >= 1):
+            raise AkarmError(f"MissedFrames count {self.count!r} is not a whole number, count ≥ 1",
+                             fix="give how many frames the driver misses, e.g. 2")
 
 
 @dataclass(frozen=True)
@@ -320,6 +338,7 @@ SERIAL = (CorruptBytes, PartialFrame, BadCrc, SilentPort)
 KINDS: dict[str, str] = {
     "drop": "drop:FRACTION[,SEED]   lose that share of the replies (e.g. drop:0.3)",
     "delay": "delay:SECONDS          send every reply that late (e.g. delay:0.005)",
+    "missed": "missed[:COUNT]         the next COUNT frames to the motor (default 1) never reach it",
     "unplugged": "unplugged[:power]      no frames in or out; ':power' makes the output limp too",
     "power-cycle": "power-cycle:TURNS[,SECONDS]   off (default 0.1 s), back out of motor mode, TURNS rotor turns off",
     "twin": "twin[:POS]             a second motor on the same CAN ID, its shaft at POS rad (default 0)",
@@ -350,7 +369,7 @@ def _bad(spec: str, why: str) -> AkarmError:
 def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
     """Parse a command-line fault ``JOINT:KIND[:ARG]`` into ``(joint name, fault)``.
 
-    Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:unplugged``,
+    Examples: ``elbow:drop:0.3``, ``elbow:drop:0.3,7``, ``elbow:delay:0.005``, ``elbow:missed:2``, ``elbow:unplugged``,
     ``elbow:unplugged:power``, ``elbow:error:1``, ``elbow:frozen``, ``elbow:fault-after:2.0,5``,
     ``elbow:forged:12.45``, ``elbow:forged:12.45,5,0.01``, ``elbow:rogue-exit``, ``elbow:blocked``,
     ``elbow:brownout:0.01``; on a serial port ``elbow:corrupt``, ``elbow:partial:0.5``, ``elbow:bad-crc:1,3``,
@@ -374,6 +393,10 @@ def parse(spec: str) -> tuple[str, Fault]:  # noqa: C901
             if not args:
                 raise _bad(spec, "delay needs a time in seconds")
             return joint, DelayReplies(float(args[0]))
+        if kind == "missed":
+            if len(args) > 1:
+                raise _bad(spec, "missed takes at most a count")
+            return joint, MissedFrames(int(args[0]) if args else 1)
         if kind == "unplugged":
             if args and args[0] not in ("power", "power_lost", "power-lost"):
                 raise _bad(spec, f"unplugged takes nothing or 'power', not {args[0]!r}")

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import akarm
+import akarm.control.controller
 from akarm import Arm, FeedbackTimeout, LimitError, MotorFault, OverTemperature, StateError
 from akarm.protocol.mit import MitCommand
 from akarm.sim import SimulatedRobot, faults
@@ -259,6 +260,25 @@ def test_disable_damps_then_exits(channel) -> None:
         assert not any(sim.joint(n).enabled for n in ("shoulder", "elbow"))
         with pytest.raises(StateError, match="not enabled"):
             arm.move_to("home")
+
+
+@pytest.mark.parametrize("releases", [1, 3])
+def test_an_exit_the_driver_misses_does_not_leave_it_powered(channel, monkeypatch, releases: int) -> None:
+    """The elbow's driver misses the first exit frames of a disable (its receive queue was full): the
+    exit goes out on RELEASES cycles in a row, so it leaves motor mode all the same. Sent once (as
+    before), the motor stayed powered, holding its last damping command, after its program let go."""
+    monkeypatch.setattr(akarm.control.controller, "RELEASES", releases)
+    with rig("planar2", channel, q0=[0.0, 0.0]) as (arm, sim):
+        arm.enable()
+        period = 1.0 / arm.config.rate_hz
+        arm.disable(wait=False)
+        arm.sleep(0.3 - 1.5 * period)  # one cycle of the damping (stop_damping_time: 0.3 s) to go
+        assert sim.joint("elbow").enabled and arm.mode is akarm.Mode.STOPPING
+        sim.inject("elbow", faults.MissedFrames(3))  # that damping command, the neutral one and EXIT
+        arm.sleep(0.1)
+        assert arm.mode is akarm.Mode.DISABLED
+        assert not sim.joint("shoulder").enabled
+        assert sim.joint("elbow").enabled is (releases == 1)
 
 
 def test_exception_inside_with_block_leaves_the_arm_disabled(channel) -> None:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import can
 
 from akarm.config import JointConfig, RobotConfig
+from akarm.control.controller import RELEASES
 from akarm.protocol import mit, servo
 
 
@@ -109,7 +110,8 @@ class Wire:
 def damping_then_exit(wire: Wire, config: RobotConfig, damping_time: float = 0.3) -> dict[str, int]:
     """Assert that every joint's last frames were damping (MIT: kp = 0, kd > 0; servo: a braking
     current) for about ``damping_time`` s, then the exit frames (MIT: a zero-gain, zero-torque
-    command, then EXIT; servo: zero current), and nothing after them. Returns the damping frames
+    command, then EXIT; servo: zero current) on :data:`~akarm.control.controller.RELEASES` cycles, and
+    nothing after them. Returns the damping frames
     per joint.
 
     In lock step the damping is counted in frames (one per cycle); in real time it is timed from the
@@ -119,21 +121,27 @@ def damping_then_exit(wire: Wire, config: RobotConfig, damping_time: float = 0.3
     for j in config.joints:
         sent = wire.sent_to(j)
         assert sent, f"nothing was sent to {j.name}"
+        # the exit (MIT: a zero-gain, zero-torque command, then EXIT; servo: zero current), on RELEASES cycles
+        end = len(sent)
         if j.mode == "mit":
-            assert sent[-1].kind == "exit", (j.name, sent[-3:])
-            neutral, lsb = sent[-2], 2.0 * j.motor.t_max / 4095  # zero torque, to the 12-bit field's step
-            assert (neutral.kind, neutral.kp, neutral.kd, abs(neutral.torque) <= lsb) == ("command", 0.0, 0.0, True), \
-                (j.name, neutral)
-            k = len(sent) - 3
+            lsb = 2.0 * j.motor.t_max / 4095  # zero torque, to the 12-bit field's step
+            for _ in range(RELEASES):
+                neutral = sent[end - 2]
+                assert sent[end - 1].kind == "exit", (j.name, sent[-3 * RELEASES:])
+                assert (neutral.kind, neutral.kp, neutral.kd, abs(neutral.torque) <= lsb) == \
+                    ("command", 0.0, 0.0, True), (j.name, neutral)
+                end -= 2
+            k = end - 1
             while k >= 0 and sent[k].kind == "command" and sent[k].kp == 0.0 and sent[k].kd > 0.0:
                 k -= 1
-            damped = len(sent) - 3 - k
         else:
-            assert (sent[-1].kind, sent[-1].value) == ("SET_CURRENT", 0.0), (j.name, sent[-3:])
-            k = len(sent) - 2
+            for _ in range(RELEASES):
+                assert (sent[end - 1].kind, sent[end - 1].value) == ("SET_CURRENT", 0.0), (j.name, sent[-3:])
+                end -= 1
+            k = end - 1
             while k >= 0 and sent[k].kind == "SET_CURRENT_BRAKE":
                 k -= 1
-            damped = len(sent) - 2 - k
+        damped = end - 1 - k
         if wire.realtime:
             first, last = sent[k + 1].t, sent[k + damped].t
             assert damped >= 2 and last - first >= damping_time - 3.0 / config.rate_hz - 0.005, \

@@ -13,6 +13,8 @@ from akarm.sim import faults
     ("elbow:drop:0.3", ("elbow", faults.DropReplies(0.3))),
     ("elbow:drop:0.3,7", ("elbow", faults.DropReplies(0.3, seed=7))),
     ("wrist_roll:delay:0.005", ("wrist_roll", faults.DelayReplies(0.005))),
+    ("elbow:missed", ("elbow", faults.MissedFrames(1))),
+    ("elbow:missed:3", ("elbow", faults.MissedFrames(3))),
     ("elbow:unplugged", ("elbow", faults.Unplugged())),
     ("elbow:unplugged:power", ("elbow", faults.Unplugged(power_lost=True))),
     ("elbow:error:1", ("elbow", faults.ErrorCode(1))),
@@ -33,7 +35,8 @@ def test_parse_command_line_faults(spec: str, expected: tuple[str, faults.Fault]
 @pytest.mark.parametrize("spec", ["elbow", "elbow:melt", "elbow:drop", "elbow:drop:1.5", "elbow:delay:-1",
                                   "elbow:error:x", ":drop:0.1", "elbow:unplugged:maybe", "elbow:forged",
                                   "elbow:forged:1,0", "elbow:forged:nan", "elbow:forged:-inf",
-                                  "elbow:forged:1,2,inf", "elbow:rogue-exit:loud", "elbow:blocked:1"])
+                                  "elbow:forged:1,2,inf", "elbow:rogue-exit:loud", "elbow:blocked:1",
+                                  "elbow:missed:0", "elbow:missed:2.5", "elbow:missed:1,2"])
 def test_parse_rejects_bad_faults_with_the_kinds_listed(spec: str) -> None:
     with pytest.raises(AkarmError) as info:
         faults.parse(spec)

@@ -13,8 +13,8 @@ if TYPE_CHECKING:
 
     from akarm.config import BusConfig
 
-__all__ = ["close_buses", "drain", "how_to_create", "no_answer_hint", "open_bus", "open_error", "polled",
-           "simulated"]
+__all__ = ["RECEIVE_BUFFER", "close_buses", "drain", "grow_receive_buffer", "how_to_create", "no_answer_hint",
+           "open_bus", "open_error", "polled", "simulated"]
 
 
 def how_to_create(interface: str, channel: str, bitrate: int = 1_000_000) -> str:
@@ -84,8 +84,35 @@ def open_error(bus: BusConfig, error: BaseException) -> BusError:
     return BusError(f"{what}: {text}", fix=how_to_create(bus.interface, bus.channel, bus.bitrate))
 
 
+#: bytes asked for a SocketCAN socket's receive queue (the kernel doubles it, and counts each frame
+#: at about 1 kB, its buffer's whole size): about 2000 frames, a third of a second of six joints
+#: answering at 1 kHz, or seconds at a slow machine's 25 Hz. The default (rmem_default, 208 kB:
+#: about 200 frames, 33 ms at 6 kHz) loses replies to a process that paused for longer (a garbage
+#: collection, a busy machine), and the watchdog then stops the arm for a motor that did answer.
+RECEIVE_BUFFER = 1 << 20
+_SO_RCVBUFFORCE = 33  # Linux: SO_RCVBUF past net.core.rmem_max, for a process with CAP_NET_ADMIN
+
+
+def grow_receive_buffer(bus: object, size: int = RECEIVE_BUFFER) -> int:
+    """Ask for a receive queue of ``size`` bytes on a SocketCAN bus's socket (past ``rmem_max`` where
+    this process may, else up to it); the size the kernel granted, 0 for a bus without a socket."""
+    import socket
+
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket):
+        return 0
+    for option in (_SO_RCVBUFFORCE, socket.SO_RCVBUF):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, option, size)
+            break
+        except OSError:  # not permitted (no CAP_NET_ADMIN), or not Linux
+            continue
+    return int(sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF))
+
+
 def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusABC:
     """Open the python-can bus ``bus`` describes, with its keyword arguments (``bus.options``).
+    A SocketCAN bus gets a receive queue of :data:`RECEIVE_BUFFER` bytes (:func:`grow_receive_buffer`).
 
     Raises:
         BusError: the bus cannot be opened; the message says which bus, why, and what to do.
@@ -97,7 +124,9 @@ def open_bus(bus: BusConfig, *, receive_own_messages: bool = False) -> can.BusAB
     if bus.interface not in ("virtual", "socketcan", "akarm_local", "akarm_uart"):
         kwargs["bitrate"] = bus.bitrate  # socketcan takes the bit rate from `ip link`, not from us
     try:
-        return can.Bus(**kwargs)  # type: ignore[arg-type]
+        opened = can.Bus(**kwargs)  # type: ignore[arg-type]
+        grow_receive_buffer(opened)
+        return opened
     except BusError:
         raise  # already says which port and what to check (akarm_uart)
     except (OSError, can.CanError, ValueError, ImportError, NotImplementedError, TypeError) as e:

@@ -4,6 +4,9 @@ configuration sources honoured (the YAML first), and errors specific to the caus
 from __future__ import annotations
 
 import errno
+import os
+import sys
+import types
 from pathlib import Path
 
 import can
@@ -158,3 +161,24 @@ def test_no_answer_on_virtual_and_on_hardware() -> None:
     assert "only reaches buses of this same process" in no_answer_hint(BusConfig("arm", "virtual", "x"))
     hw = no_answer_hint(BusConfig("arm", "socketcan", "can0"))
     assert "powered" in hw and "akarm scan -i socketcan -c can0" in hw
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="SO_RCVBUF's doubling and limits are Linux's")
+def test_a_socketcan_bus_gets_a_receive_queue_of_seconds_not_milliseconds() -> None:
+    """grow_receive_buffer on a bus's socket (an AF_UNIX pair stands in for a CAN socket: the option is
+    the same): the kernel grants twice the size asked, capped at rmem_max without CAP_NET_ADMIN."""
+    import socket
+
+    from akarm.buses.bus import RECEIVE_BUFFER, grow_receive_buffer
+
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
+    with a, b:
+        bus = types.SimpleNamespace(socket=a)
+        before = a.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        granted = grow_receive_buffer(bus)
+        assert granted == a.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
+        privileged = os.geteuid() == 0
+        assert granted == 2 * (RECEIVE_BUFFER if privileged else min(RECEIVE_BUFFER, rmem_max)), (before, granted)
+        assert granted > before or not privileged
+    assert grow_receive_buffer(types.SimpleNamespace()) == 0  # a bus without a socket (virtual, a USB adapter)

@@ -24,6 +24,8 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
 - ``{"cmd": "push", "tau": [0, 0, 0.5]}`` (N·m per joint, config order) or ``{"cmd": "push", "tau": null}``:
   push the arm from outside, as a hand would, until changed (:meth:`~akarm.sim.SimulatedRobot.set_external_torque`);
 - ``{"cmd": "state"}`` → ``{"ok": true, "t": ..., "slip": ..., "joints": [{"name": ..., "enabled": ...}, ...]}``;
+- ``{"cmd": "late"}`` → ``{"ok": true, "late": s}``: the longest a frame waited before the simulator took
+  it in, since the last such request (:meth:`~akarm.sim.SimulatedRobot.take_late`);
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
   data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
@@ -120,6 +122,8 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
     if cmd == "push":
         sim.set_external_torque(req.get("tau"))  # the plant says what is wrong with a bad one
         return {}
+    if cmd == "late":
+        return {"late": sim.take_late()}
     if cmd in ("state", "disable", "frames"):
         sim.wait_received(10.0)  # what was sent to the drivers before the request counts
         if cmd == "state":
@@ -130,7 +134,7 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
                                                  f.to_motor] for f in frames]}
     raise AkarmError(f"unknown request {req!r}",
-                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "disable" | "frames", ...}')
+                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "late" | "disable" | "frames", ...}')
 
 
 class ChannelServer:
@@ -246,6 +250,11 @@ class SimulatorControl:
     def state(self) -> list[DriverState]:
         """Every driver as it is now, config order."""
         return [DriverState(**{**j, "faults": tuple(j["faults"])}) for j in self.request(cmd="state")["joints"]]
+
+    def late(self) -> float:
+        """The longest a frame waited before the simulator took it in, s, since the last call
+        (:meth:`SimulatedRobot.take_late <akarm.sim.SimulatedRobot.take_late>`)."""
+        return float(self.request(cmd="late")["late"])
 
     def disable_drivers(self) -> list[str]:
         """Every driver's output off now (see :meth:`~akarm.sim.SimulatedRobot.disable_drivers`); the

@@ -219,6 +219,7 @@ class SimulatedRobot:
         #: this late; frames received are answered at once regardless): 2 ms, or one step if longer
         self.tick_interval = max(0.002, self.dt)
         self.slip = 0.0
+        self._late = 0.0
         self.send_errors = 0
         self.thread_error: BaseException | None = None
         for name, fs in (faults or {}).items():
@@ -412,6 +413,15 @@ class SimulatedRobot:
             return [DriverState(d.name, _driving(d), q[i], dq[i], tau[i], float(d.temperature), int(d.error),
                                 tuple(repr(f) for f in d.faults), d.frames_received, d.frames_sent)
                     for i, d in enumerate(self.drivers)]
+
+    def take_late(self) -> float:
+        """Real time: the longest a frame waited, s, from its arrival on this machine's bus (its
+        python-can timestamp) until the simulator took it in, since the last call (0 in lock step).
+        A machine that cannot run the simulator in real time makes frames wait: the drivers then take a
+        backlog of commands in a burst, and the arm does not move as they asked."""
+        with self._lock:
+            late, self._late = self._late, 0.0
+        return late
 
     def disable_drivers(self) -> list[str]:
         """Take every driver out of motor mode (MIT) or release it (servo) at once, as if it had received
@@ -647,7 +657,10 @@ class SimulatedRobot:
                 try:
                     msg = bus.recv(timeout=0.02)
                     while msg is not None:  # every frame waiting, then note that the queue was empty
+                        late = time.time() - msg.timestamp  # (python-can stamps a frame in wall-clock time)
                         with self._lock:
+                            if late > self._late and msg.timestamp > 0.0:
+                                self._late = late
                             self._integrate_to(self._wall())
                             self._dispatch(name, routes, msg)
                         msg = bus.recv(timeout=0.0)

@@ -166,6 +166,12 @@ class SimulatedArm:
         """Every simulated driver as it is now (enabled, position, torque, error, faults), config order."""
         raise NotImplementedError
 
+    def late(self) -> float:
+        """The longest a frame waited before the simulator took it in, s, since the last call (0 in lock
+        step): on a machine that cannot run the simulator in real time, frames wait, the drivers take a
+        backlog of commands in a burst, and the arm does not move as they asked."""
+        raise NotImplementedError
+
     def enabled_joints(self) -> list[str]:
         """The joints whose simulated driver drives its output now (MIT: motor mode; servo: not released)."""
         return [s.name for s in self.state() if s.enabled]
@@ -264,6 +270,9 @@ class _InProcess(SimulatedArm):
         self.sim.wait_received()
         return self.sim.driver_states()
 
+    def late(self) -> float:
+        return self.sim.take_late()
+
     def disable_drivers(self) -> list[str]:
         self.sim.wait_received()
         return self.sim.disable_drivers()
@@ -308,6 +317,9 @@ class _OwnProcess(SimulatedArm):
 
     def state(self) -> list[DriverState]:
         return self.control.state()
+
+    def late(self) -> float:
+        return self.control.late()
 
     def disable_drivers(self) -> list[str]:
         return self.control.disable_drivers()

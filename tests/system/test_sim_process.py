@@ -41,3 +41,31 @@ def test_a_simulator_that_cannot_start_says_why(tmp_path, channel):
     with pytest.raises(StateError, match="did not start") as e, SimulatorProcess(bad, channel=channel):
         pass
     assert "broken.yaml" in str(e.value)
+
+
+def test_the_simulator_says_how_late_it_took_frames_in(channel):
+    """Frames sent while the simulator's process is stopped (SIGSTOP: as a machine that cannot run it)
+    wait for it: it reports the longest wait, through its control channel, once."""
+    import signal
+    import time
+
+    import can
+
+    from akarm.protocol import mit
+
+    robot = ROBOTS / "planar2.yaml"
+    with SimulatorProcess(robot, channel=channel, control=True) as sim, \
+            can.Bus(interface="akarm_local", channel=channel) as bus:
+        assert sim.control is not None
+        bus.send(can.Message(arbitration_id=1, data=mit.EXIT, is_extended_id=False))
+        time.sleep(0.3)
+        assert 0.0 <= sim.control.late() < 0.25  # taken in at once (at most a busy machine's delay)
+        os.kill(sim.pid, signal.SIGSTOP)
+        try:
+            bus.send(can.Message(arbitration_id=1, data=mit.EXIT, is_extended_id=False))
+            time.sleep(0.6)
+        finally:
+            os.kill(sim.pid, signal.SIGCONT)
+        time.sleep(0.3)
+        assert sim.control.late() >= 0.55  # it waited while the simulator was stopped
+        assert sim.control.late() == 0.0   # and that was reported once: no frame since

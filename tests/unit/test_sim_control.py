@@ -17,7 +17,7 @@ EVERY_FAULT = [faults.DropReplies(0.3, seed=7), faults.DelayReplies(0.005), faul
                faults.ErrorCode(5), faults.FrozenEncoder(affects_control=True), faults.FaultAfter(1.5, code=2),
                faults.ForgedReply(12.45, count=3, interval=0.01), faults.RogueExit(on_bus=False), faults.Blocked(),
                faults.CorruptBytes(0.5, seed=2), faults.PartialFrame(0.25), faults.BadCrc(seed=3), faults.SilentPort(),
-               faults.Brownout(0.01), faults.PowerCycle(-2, seconds=0.5), faults.Twin(0.7)]
+               faults.Brownout(0.01), faults.PowerCycle(-2, seconds=0.5), faults.Twin(0.7), faults.MissedFrames(2)]
 
 
 @pytest.mark.parametrize("fault", EVERY_FAULT, ids=lambda f: type(f).__name__)

@@ -200,6 +200,8 @@ class Supervisor:
         self._last_check = math.inf
         # the brown-out check: the torque a law must ask for before a reply without it counts, N·m
         self._ask = [RESET_ASK * j.config.limits.torque if driver_resets else math.inf for j in self.joints]
+        # the MIT joints whose laws are kept for it (none while the check is off: nothing would read them)
+        self._keeps_laws = [m and driver_resets for m in self._mit]
         self._t_max = [j.motor.t_max for j in self.joints]
         self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
         self._no_torque = [0] * n
@@ -329,7 +331,7 @@ class Supervisor:
                     value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
-            if self._mit[i] and j.frames_sent != self._laws_sent[i]:
+            if self._keeps_laws[i] and j.frames_sent != self._laws_sent[i]:
                 self._keep_law(i, j)
             r = j.frames_received
             if r != received[i]:  # it answered since the last check

@@ -307,6 +307,12 @@ class SimulatedDriver:
     def _reschedule(self, t: float) -> None:
         self._next_timer = min(self._timer_deadlines(), default=_INF)
 
+    @property
+    def next_timer(self) -> float:
+        """Simulated time, s, of the driver's next timer (a status frame, a timeout, a fault's step;
+        ``inf``: none): :meth:`tick` before it has nothing to do."""
+        return self._next_timer
+
     def tick(self, t: float) -> None:
         """Run the driver's timers due at time ``t`` (s): status frames, timeouts, delayed faults."""
         if t + 1e-9 >= self._next_timer:

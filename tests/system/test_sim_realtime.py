@@ -1,0 +1,79 @@
+"""The simulator in real time: its ticker sleeps until something is due, so an idle simulator costs
+little CPU (on a slow machine, one that ticked every plant step took most of a CPU and fell seconds
+behind the frames sent to it), and nothing due comes late for that.
+
+Real time on a python-can virtual bus in this process; the bounds are generous (a busy machine), and
+each fails by far if the ticker kept sleeping through what is due.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import can
+import pytest
+
+from akarm import load_robot
+from akarm.protocol import mit
+from akarm.sim import SimulatedRobot, faults
+
+from .conftest import ROBOTS
+
+_channels = itertools.count()
+
+
+def channel() -> str:
+    return f"sim-realtime-{next(_channels)}"
+
+
+def test_an_idle_simulator_wakes_about_once_per_idle_interval_and_keeps_time() -> None:
+    config = load_robot(ROBOTS / "arm6.yaml")
+    with SimulatedRobot(config, "virtual", channel()) as sim:
+        assert sim.idle_interval == pytest.approx(0.02)
+        sim.driver_states()
+        t0, ticks0, wall0 = sim.t, sim.ticks, time.monotonic()
+        time.sleep(1.0)
+        states = sim.driver_states()
+        ticks, wall = sim.ticks - ticks0, time.monotonic() - wall0
+    # 2 kHz plant: ticking every 2 ms was 500 wakes a second; one per idle interval is 50
+    assert 10 <= ticks <= 120, ticks
+    assert sim.t - t0 == pytest.approx(wall, abs=0.06)  # the plant followed the wall clock all the same
+    assert not any(s.enabled for s in states)
+
+
+def test_servo_status_frames_come_at_their_rate_though_it_is_longer_than_the_idle_interval() -> None:
+    config = load_robot(ROBOTS / "servo3.yaml")
+    with SimulatedRobot(config, "virtual", (ch := channel()), max_lag=2.0) as sim, \
+            can.Bus(interface="virtual", channel=ch) as bus:
+        sim.idle_interval = 1.0  # the ticker would sleep 1 s with nothing due
+        ticks0 = sim.ticks
+        start, stamps = time.monotonic(), []
+        while time.monotonic() - start < 1.0:
+            msg = bus.recv(timeout=0.2)
+            if msg is not None and msg.is_extended_id and msg.arbitration_id == 0x2901:
+                stamps.append(time.monotonic())
+        assert sim.ticks - ticks0 >= len(stamps) // 3  # it woke for them (three joints, one wake may send several)
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
+    assert len(stamps) > 100, len(stamps)  # 200 Hz configured
+    assert max(gaps) < 0.25, max(gaps)
+
+
+def test_a_delayed_reply_goes_out_at_its_time_not_at_the_next_idle_wake() -> None:
+    config = load_robot(ROBOTS / "planar2.yaml")
+    joint = config.joints[0]
+    with SimulatedRobot(config, "virtual", (ch := channel()), max_lag=2.0) as sim, \
+            can.Bus(interface="virtual", channel=ch) as bus:
+        sim.idle_interval = 1.0
+        time.sleep(0.05)  # the ticker is asleep for 1 s now
+        sim.inject(joint.name, faults.DelayReplies(0.02))
+        sent = time.monotonic()
+        bus.send(can.Message(arbitration_id=joint.can_id, data=mit.ENTER, is_extended_id=False))
+        reply = None
+        while reply is None and time.monotonic() - sent < 2.0:
+            msg = bus.recv(timeout=0.1)
+            if msg is not None and not msg.is_extended_id and msg.data[:1] == bytes([joint.can_id]):
+                reply = time.monotonic() - sent
+    assert reply is not None
+    assert 0.015 < reply < 0.5, reply  # 20 ms late as asked; the ticker's next idle wake was ~1 s away
+

@@ -52,10 +52,14 @@ from akarm.errors import AkarmError, StateError
 from akarm.sim import faults as _faults
 from akarm.sim.records import DriverState, Frame
 
+#: s a request that reads the drivers waits for the simulator to take in every frame sent before it
+#: (less than :class:`SimulatorControl`'s 30 s, so the refusal arrives, not a time-out)
+CATCH_UP = 20.0
+
 if TYPE_CHECKING:
     from akarm.sim.robot import SimulatedRobot
 
-__all__ = ["ChannelServer", "SimulatorControl", "fault_from_json", "fault_to_json"]
+__all__ = ["CATCH_UP", "ChannelServer", "SimulatorControl", "fault_from_json", "fault_to_json"]
 
 
 def fault_to_json(fault: _faults.Fault) -> dict[str, Any]:
@@ -125,7 +129,12 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
     if cmd == "late":
         return {"late": sim.take_late()}
     if cmd in ("state", "disable", "frames"):
-        sim.wait_received(10.0)  # what was sent to the drivers before the request counts
+        # what was sent to the drivers before the request counts: an answer without it would be stale
+        # (drivers still on whose EXIT waits in the queue), so none then, but why
+        if not sim.wait_received(CATCH_UP):
+            raise StateError(f"the simulator has not taken in the frames sent to it within {CATCH_UP:g} s: "
+                             "it cannot keep up in real time on this machine",
+                             fix="run it with the slow timing profile (--profile slow), or on a less busy machine")
         if cmd == "state":
             return {"t": sim.t, "slip": sim.slip, "joints": [dataclasses.asdict(s) for s in sim.driver_states()]}
         if cmd == "disable":

@@ -16,7 +16,7 @@ import pytest
 
 from akarm import AkarmError, StateError, load_robot
 from akarm.sim import SimulatedRobot, faults
-from akarm.sim.channel import ChannelServer, SimulatorControl
+from akarm.sim.channel import CATCH_UP, ChannelServer, SimulatorControl
 
 from .conftest import ROBOTS
 
@@ -58,6 +58,21 @@ def test_a_refused_request_says_why_and_changes_nothing(served: tuple[SimulatedR
     with pytest.raises(AkarmError, match="unknown request"):
         ctl.request(cmd="explode")
     assert all(d.faults == () for d in sim.drivers)
+
+
+def test_a_simulator_behind_its_frames_refuses_to_read_the_drivers_rather_than_answer_stale(
+        served: tuple[SimulatedRobot, SimulatorControl], monkeypatch: pytest.MonkeyPatch) -> None:
+    # in real time a backlog of frames (EXITs among them) may wait in the bus's queue: the drivers'
+    # state before them would say "still enabled" of a motor that was told to stop
+    sim, ctl = served
+    sim.joint("shoulder").enabled = True
+    waited: list[float] = []
+    monkeypatch.setattr(sim, "wait_received", lambda timeout: waited.append(timeout) or False)
+    for request in (ctl.state, ctl.disable_drivers, lambda: ctl.frames()):
+        with pytest.raises(AkarmError, match="has not taken in the frames sent to it within 20 s: it cannot keep up"):
+            request()
+    assert waited == [CATCH_UP] * 3 and ctl.timeout > CATCH_UP
+    assert sim.joint("shoulder").enabled  # the refused disable changed nothing
 
 
 def test_garbage_on_the_socket_is_answered_and_the_channel_keeps_working(

@@ -91,7 +91,9 @@ class TimingProfile:
 #: a reading was seen to trail by up to 0.25 s then; in later runs (Nov 26, the guest alone on the host)
 #: the controller and the simulator sharing the guest left readings up to 0.9 s behind the commands
 #: while the simulator worked through its backlog, so a reading may trail by up to the watchdog's
-#: 1 s: the tracking checks allow for that. Such a
+#: 1 s: the tracking checks allow for that. (Those figures are from a simulator whose ticker woke at
+#: every plant step; since it sleeps until something is due, Nov 26, the arm6 vcan test's frames waited
+#: 0.06-0.14 s at most, where one run of it before saw 4-29 s.) Such a
 #: machine also stalls the controller itself for longer: its loop may miss up to 1 s (the watchdog's
 #: time) before a LoopStall, where a normal one gets 0.2 s.
 PROFILES: dict[str, TimingProfile] = {

@@ -21,8 +21,10 @@ pair) is opened at the baud rate instead (point the controller at the line's oth
 joint the robot file already puts on a serial port needs one.
 
 Real time (default, and what ``akarm sim`` uses): a thread per bus blocks on ``recv`` and answers each
-frame at once (after bringing the plant up to the wall clock), and a ticker thread keeps the plant
-at the wall clock between frames. When the machine cannot keep up, simulated time slips (it runs
+frame at once (after bringing the plant up to the wall clock), and a ticker thread brings it there
+for whatever comes due between frames (a status frame, a delayed reply, a driver's timeout, a fault's
+next step) and at least every :attr:`SimulatedRobot.idle_interval` (20 ms): it sleeps in between, so an
+idle simulator costs little CPU (a ticker that woke at every step took most of a CPU in vcan-vm). When the machine cannot keep up, simulated time slips (it runs
 slower than the wall clock) rather than bursting: :attr:`SimulatedRobot.slip` says by how much.
 """
 

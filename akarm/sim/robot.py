@@ -24,8 +24,9 @@ Real time (default, and what ``akarm sim`` uses): a thread per bus blocks on ``r
 frame at once (after bringing the plant up to the wall clock), and a ticker thread brings it there
 for whatever comes due between frames (a status frame, a delayed reply, a driver's timeout, a fault's
 next step) and at least every :attr:`SimulatedRobot.idle_interval` (20 ms): it sleeps in between, so an
-idle simulator costs little CPU (a ticker that woke at every step took most of a CPU in vcan-vm). When the machine cannot keep up, simulated time slips (it runs
-slower than the wall clock) rather than bursting: :attr:`SimulatedRobot.slip` says by how much.
+idle simulator costs little CPU (a ticker that woke at every step took most of a CPU in vcan-vm).
+When the machine cannot keep up, simulated time slips (it runs slower than the wall clock) rather
+than bursting: :attr:`SimulatedRobot.slip` says by how much.
 """
 
 from __future__ import annotations

@@ -204,6 +204,7 @@ class CollisionReflex:
         self.names = tuple(names)
         self.reset_gap = RESET_GAP * period
         self.late = 1.5 * period
+        self.early = 0.5 * period
         self._q_last = np.zeros(len(self.names))
         self._v_last = np.zeros(len(self.names))
         self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
@@ -283,6 +284,10 @@ class CollisionReflex:
         v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))
         if now - sample > self.late:  # a late cycle: when the feedback was taken is not known
             self.observer.started = False
+        elif now - sample < self.early:
+            # a cycle soon after a late one (the loop catching up): its feedback may still be the last
+            # cycle's reply, or one taken at any time since; not used (the next step spans the gap)
+            return None
         if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
             return None  # a joint without new feedback: wait for a complete set (the next step spans the gap)
         obs = self.observer

@@ -12,15 +12,17 @@ import pytest
 
 import akarm
 from akarm.arm import Arm
-from akarm.control.collision import DEFAULT_GAIN, MomentumObserver
+from akarm.control.collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ArgumentError, CollisionError, ConfigError
+from akarm.telemetry.log import load as load_telemetry
 
 from .conftest import ROBOTS
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
 
 PLANAR2 = akarm.load_robot(ROBOTS / "planar2.yaml")
+DATA = Path(__file__).parent / "data"
 
 
 def test_the_observer_follows_an_external_torque_step_with_its_time_constant() -> None:
@@ -106,3 +108,50 @@ def test_the_gravity_check_follows_the_payload_set_at_run_time() -> None:
         arm.set_payload(5.0, (0.0, 0.0, 0.05))
     arm.clear_payload()
     assert {p.joint: p.torque for p in arm.gravity_check()} == empty
+
+
+def arm6_reflex() -> CollisionReflex:
+    """arm6's reflex as the controller builds it (its friction, gain, thresholds, 480 Hz)."""
+    fr = [j.friction_model() for j in ARM6.joints]
+    observer = MomentumObserver(RobotModel(ARM6, armature=True), [f.coulomb for f in fr], [f.viscous for f in fr],
+                                [f.offset for f in fr], DEFAULT_GAIN, [velocity_resolution(j) for j in ARM6.joints],
+                                [j.motor.t_max for j in ARM6.joints])
+    return CollisionReflex(ARM6.joint_names, observer, [j.collision_threshold for j in ARM6.joints],
+                           period=1.0 / ARM6.rate_hz)
+
+
+def test_a_cycle_soon_after_a_late_one_is_not_taken_for_a_push() -> None:
+    # six cycles of `akarm serve` recorded in a soak with two cores burnt (benchmarks/soak_serve.py
+    # --save-stops): a cycle 3.3 ms late, the loop catching up 0.8 ms later, then on time. The
+    # early cycle's feedback was taken for a sample 0.8 ms after the last: shoulder_lift's measured
+    # velocity had moved two steps (0.049 rad/s), K·M·Δv = 2.95 N·m, and the arm was stopped for a
+    # collision (threshold 2.10) with nothing touching it
+    log = load_telemetry(DATA / "late-then-early-cycle.csv")
+    assert np.diff(log.t) * 1e3 == pytest.approx([2.09, 2.08, 3.32, 0.83, 2.09], abs=0.01)
+    reflex = arm6_reflex()
+    kp, kd = [j.gains.kp for j in ARM6.joints], [j.gains.kd for j in ARM6.joints]
+    errors = [reflex.step(float(log.t[i]), log.q[i], log.dq[i], log.tau[i], True, kp, kd, None, log.dq_des[i])
+              for i in range(len(log.t))]
+    assert errors == [None] * len(log.t) and reflex.armed  # armed: a push would have stopped it
+    assert abs(reflex.estimate[1]) < 0.6 * reflex.thresholds[1]
+
+
+def test_the_early_cycle_s_feedback_is_left_out_and_the_next_step_spans_it() -> None:
+    # at rest under gravity, then an early cycle whose reading is wrong by a velocity step: a reflex
+    # that used it would see K·M·step; left out, the next on-time cycle sees nothing
+    reflex, period = arm6_reflex(), 1.0 / ARM6.rate_hz
+    model = reflex.observer.model
+    q = np.array(ARM6.pose("home"))
+    tau = model.gravity(q)
+    zero = np.zeros(len(q))
+    for k in range(20):
+        assert reflex.step(k * period, q, zero, tau, True) is None
+    bad = zero.copy()
+    bad[1] = 2 * velocity_resolution(ARM6.joints[1])
+    assert reflex.step(19.4 * period, q, bad, tau, True) is None  # 0.4 periods after the last: early
+    assert np.max(np.abs(reflex.estimate)) < 0.05
+    assert reflex.step(20 * period, q, zero, tau, True) is None
+    assert np.max(np.abs(reflex.estimate)) < 0.05
+    reflex.early = 0.0  # the same reading taken as a sample: the step this test is about
+    reflex.step(20.4 * period, q, bad, tau, True)
+    assert abs(reflex.estimate[1]) > 0.5

@@ -73,6 +73,8 @@ def main() -> None:
     ap.add_argument("--every", type=float, default=3.0, help="s from one move's start to the next's")
     ap.add_argument("--burn", type=int, default=1, help="processes spinning meanwhile (default 1: a core)")
     ap.add_argument("--robot", default=str(ROOT / "robots" / "arm6.yaml"))
+    ap.add_argument("--save-stops", metavar="DIR",
+                    help="at each stop, save the server's telemetry (the external torque estimate included) here")
     args = ap.parse_args()
     robot = Path(args.robot)
     channel = f"soak-serve-{os.getpid()}"
@@ -106,6 +108,11 @@ def main() -> None:
                         except AkarmError as e:
                             stops.append(f"{time.strftime('%H:%M:%S')} {type(e).__name__}: {e}")
                             print(f"  stop: {stops[-1]}", flush=True)
+                            if args.save_stops:
+                                saved = Path(args.save_stops) / f"stop-{len(stops)}.npz"
+                                saved.parent.mkdir(parents=True, exist_ok=True)
+                                with contextlib.suppress(AkarmError):
+                                    print(f"  telemetry: {c.call('telemetry', since=0.0, save=str(saved))['path']}")
                             with contextlib.suppress(AkarmError):
                                 c.call("enable")  # acknowledge, and go on
                         time.sleep(max(0.0, args.every - (time.monotonic() - began)))

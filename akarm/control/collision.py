@@ -205,6 +205,7 @@ class CollisionReflex:
         self.reset_gap = RESET_GAP * period
         self.late = 1.5 * period
         self.early = 0.5 * period
+        self._after_late = False  # a late cycle came last: start over again at the next that keeps time
         self._q_last = np.zeros(len(self.names))
         self._v_last = np.zeros(len(self.names))
         self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
@@ -282,12 +283,19 @@ class CollisionReflex:
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
         sample, self._cycle = self._cycle, now
         v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))
-        if now - sample > self.late:  # a late cycle: when the feedback was taken is not known
+        # A late cycle: when the feedback was taken is not known, nor, on a machine that stalled as a
+        # whole, when the drivers acted on the commands around it. The observer starts over there and
+        # again at the next cycle that keeps time, so that no step integrates across the late one. A
+        # cycle soon after a late one (the loop catching up): its feedback may still be the last
+        # cycle's reply, or one taken at any time since; it is not used at all.
+        if now - sample > self.late:
             self.observer.started = False
+            self._after_late = True
         elif now - sample < self.early:
-            # a cycle soon after a late one (the loop catching up): its feedback may still be the last
-            # cycle's reply, or one taken at any time since; not used (the next step spans the gap)
             return None
+        elif self._after_late:
+            self.observer.started = False
+            self._after_late = False
         if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
             return None  # a joint without new feedback: wait for a complete set (the next step spans the gap)
         obs = self.observer

@@ -120,14 +120,23 @@ def arm6_reflex() -> CollisionReflex:
                            period=1.0 / ARM6.rate_hz)
 
 
-def test_a_cycle_soon_after_a_late_one_is_not_taken_for_a_push() -> None:
-    # six cycles of `akarm serve` recorded in a soak with two cores burnt (benchmarks/soak_serve.py
-    # --save-stops): a cycle 3.3 ms late, the loop catching up 0.8 ms later, then on time. The
-    # early cycle's feedback was taken for a sample 0.8 ms after the last: shoulder_lift's measured
-    # velocity had moved two steps (0.049 rad/s), K·M·Δv = 2.95 N·m, and the arm was stopped for a
-    # collision (threshold 2.10) with nothing touching it
-    log = load_telemetry(DATA / "late-then-early-cycle.csv")
-    assert np.diff(log.t) * 1e3 == pytest.approx([2.09, 2.08, 3.32, 0.83, 2.09], abs=0.01)
+@pytest.mark.parametrize(("trace", "intervals_ms", "stopped_at"), [
+    # a cycle 3.3 ms late, the loop catching up 0.8 ms later: that early cycle's feedback was taken for
+    # a sample 0.8 ms after the last; shoulder_lift's velocity reading two steps apart put
+    # K·M·Δv = 2.95 N·m into the estimate in one step
+    ("late-then-early-cycle.csv", [2.09, 2.08, 3.32, 0.83, 2.09], 2.95),
+    # a cycle 7.1 ms late, then 1.7 ms: the observer started over at the late cycle and its next step
+    # integrated across the late interval (the drivers' timing in it unknown): 2.16 N·m
+    ("late-then-spanning-cycle.csv", [2.07, 2.10, 2.08, 7.12, 1.65], 2.16),
+])
+def test_cycles_around_a_late_one_are_not_taken_for_a_push(trace: str, intervals_ms: list[float],
+                                                             stopped_at: float) -> None:
+    # six cycles of `akarm serve` each, recorded in soaks under load (benchmarks/soak_serve.py
+    # --save-stops) where the arm was stopped for a collision on shoulder_lift (threshold 2.10 N·m)
+    # with nothing touching it: both traces stop a reflex that takes every cycle's feedback as it comes
+    log = load_telemetry(DATA / trace)
+    assert np.diff(log.t) * 1e3 == pytest.approx(intervals_ms, abs=0.01)
+    assert abs(log.tau_ext[-1, 1]) == pytest.approx(stopped_at, abs=0.01)  # what the server estimated then
     reflex = arm6_reflex()
     kp, kd = [j.gains.kp for j in ARM6.joints], [j.gains.kd for j in ARM6.joints]
     errors = [reflex.step(float(log.t[i]), log.q[i], log.dq[i], log.tau[i], True, kp, kd, None, log.dq_des[i])

@@ -63,7 +63,7 @@ def watch(path: str, stop: threading.Event, seen: dict[str, Any]) -> None:
         while not stop.wait(0.1):
             with contextlib.suppress(AkarmError, OSError):
                 s = c.call("status")
-                seen["age_ms"] = max(seen.get("age_ms", 0.0), float(s.get("feedback_age_max_ms", 0.0)))
+                seen["age_ms"] = max(seen.get("age_ms", 0.0), float(s.get("feedback_age_max_ms") or 0.0))
                 seen["last"] = s
 
 

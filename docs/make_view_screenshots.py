@@ -13,10 +13,12 @@ way through, with the time slider there.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -30,6 +32,15 @@ from akarm.view.sources import ArmSource  # noqa: E402
 
 DOCS = ROOT / "docs"
 PATH = ROOT / "akarm" / "data" / "demo_path.csv"
+SHOT_AT = 4.6  # s into the path: the arm out on the figure eight, away from where it began
+
+
+def dismiss_notices(page: Any) -> None:
+    """Close the browser's notices (headless Chromium draws WebGL in software, and viser says so)."""
+    for button in page.locator(".mantine-Notification-closeButton").all():
+        with contextlib.suppress(Exception):
+            button.click(timeout=1000)
+    time.sleep(0.5)
 
 
 def main() -> None:
@@ -46,9 +57,15 @@ def main() -> None:
         with ViewServer(config, ArmSource(arm, title="live: arm6, simulated"), port=0, log=lambda text: None) as view, \
                 browser.headless_page(view.url, width=1400, height=900) as page:
             start = arm.state().time
+            arm.sleep(2.0)  # two seconds held at ready, then the 7 s path (it ends where it began)
             motion = arm.replay(PATH, wait=False)
-            arm.sleep(11.0)  # mid-path: ten seconds of plots, the arm away from ready (in lock step: then it waits)
-            time.sleep(5.0)  # for the page to draw it
+            # mid-path, paced at about the wall clock's rate, so the view's 30 Hz snapshots fill its plots
+            # (in lock step the arm waits between the steps; unpaced, 7 s of path pass in a moment)
+            for _ in range(int(SHOT_AT / 0.05)):
+                arm.sleep(0.05)
+                time.sleep(0.05)
+            time.sleep(2.0)  # for the page to draw the last of it
+            dismiss_notices(page)
             page.screenshot(path=str(DOCS / "view-arm6-live.png"))
             motion.wait()
             run = arm.telemetry(since=start).save(Path(d) / "run.csv")
@@ -57,6 +74,7 @@ def main() -> None:
     with ViewServer(config, rec, port=0, log=lambda text: None) as view, \
             browser.headless_page(view.url, width=1400, height=900) as page:
         time.sleep(3.0)
+        dismiss_notices(page)
         page.screenshot(path=str(DOCS / "view-recorded.png"))
     print("wrote docs/view-arm6-live.png, docs/view-recorded.png")
 

@@ -104,12 +104,15 @@ def measure(arm: akarm.Arm, seconds: float) -> dict[str, float]:
             "cpu": 100.0 * cpu / wall, "stops": stops}
 
 
-def open_round(arm: akarm.Arm, seconds: float) -> tuple[dict[str, float], dict[str, float]]:
+def open_round(arm: akarm.Arm, seconds: float, nice: int = 0) -> tuple[dict[str, float], dict[str, float]]:
     from akarm.view import ArmSource, ViewServer
 
     with ViewServer(arm.config, ArmSource(arm), port=0, log=lambda text: None) as view:
+        # nice: the browser (Chromium, drawing WebGL in software) yields the CPU to everything else, as a
+        # browser on another computer, the way a user watches, takes none of this one's
         shown = subprocess.Popen([sys.executable, "-c", BROWSER, view.url], stdin=subprocess.PIPE,
-                                 stdout=subprocess.PIPE, text=True)
+                                 stdout=subprocess.PIPE, text=True,
+                                 preexec_fn=(lambda: os.nice(nice)) if nice else None)
         try:
             assert shown.stdout is not None
             if shown.stdout.readline().strip() != "shown":
@@ -134,11 +137,15 @@ def main() -> None:
     ap.add_argument("--strict", action="store_true",
                     help="arm6's own supervisor (default: a relaxed one, as the system tests use: on a shared, "
                          "loaded machine the simulator's process is starved at times, and a stop ends the run)")
+    ap.add_argument("--browser-nice", type=int, default=0, metavar="N",
+                    help="run the browser at this niceness (19: it takes only CPU nothing else wants, as a "
+                         "browser on another computer takes none of this one's)")
     args = ap.parse_args()
 
     why_not = browser.unavailable()
     print(f"akarm {akarm.__version__} view benchmark: arm6 at 500 Hz in real time, {os.cpu_count()} CPUs, "
-          f"load average {os.getloadavg()[0]:.1f} at the start")
+          f"load average {os.getloadavg()[0]:.1f} at the start"
+          + (f"; the browser at niceness {args.browser_nice}" if args.browser_nice else ""))
     if why_not:
         print(f"!!! {why_not}: only the closed rounds run")
     channel = f"bench-view-{os.getpid()}"
@@ -159,7 +166,7 @@ def main() -> None:
                 if way == "closed":
                     row, note = measure(arm, args.seconds), ""
                 else:
-                    row, extra = open_round(arm, args.seconds)
+                    row, extra = open_round(arm, args.seconds, args.browser_nice)
                     extras.append(extra)
                     note = f"{extra['draws_hz']:.1f}/s, {extra['snapshot_ms']:.2f} ms ({extra['clients']:.0f} browser)"
                 rows[way].append(row)

@@ -530,11 +530,14 @@ class Supervisor:
 
     def _in_flight(self, i: int) -> int:
         """The replies joint ``i`` may still owe: the commands sent to it that no reply answered yet (one
-        reply a command), at most :data:`REPLIES_IN_FLIGHT` s of commands or its watchdog's limit (the
-        replies that never came, lost on the bus over hours, cannot hide a second motor)."""
+        reply a command), at most :data:`REPLIES_IN_FLIGHT` s of commands or its watchdog's limit, and
+        the timing profile's lag on top (its replies may trail the commands by that much more: a
+        simulator that fell behind answers slower than the commands come while its replies keep the
+        watchdog fed, then catches up in a burst); the replies that never came, lost on the bus over
+        hours, cannot hide a second motor."""
         j = self.joints[i]
         owed = j.frames_sent - j.frames_received
-        cap = max(self._unanswered[i], round(REPLIES_IN_FLIGHT / self.period))
+        cap = max(self._unanswered[i], round(REPLIES_IN_FLIGHT / self.period)) + self._lag_laws - 1
         return 0 if owed < 0 else cap if owed > cap else owed
 
     def _start_window(self, now: float) -> None:

@@ -564,3 +564,44 @@ def test_a_profile_that_cannot_keep_time_leaves_the_reset_check_off(planar2: Rob
     big = 0.5 * js[1].config.limits.torque
     stops = lagging_cycles(sup, js, [big] * 40, [0.0] * 40)  # no torque at all, forty replies
     assert stops == [None] * 40
+
+
+@pytest.mark.parametrize("lag", [0.0, 1.0])
+def test_a_lagging_profile_s_burst_of_late_replies_is_not_a_second_motor(planar2: RobotConfig, lag: float) -> None:
+    """The slow profile (25 Hz, a 1 s watchdog, readings that may trail by 1 s), as CI's vcan test saw
+    it: the simulator answers one command in two for 2.6 s (the backlog grows past 30 commands, more
+    than the watchdog's 25, while its replies keep the watchdog fed), then catches up in one burst.
+    Without the lag allowed for, the burst reads as a second motor on the ID (61 replies to 26 frames
+    and 25 owed, in CI)."""
+    period = 0.04
+    js = joints_of(planar2)
+    sup = Supervisor(js, [Guard(1.0, 80.0)] * 2, period=period, lag=lag, driver_resets=False)
+    fresh(js, 0.0)
+    sup.arm(0.0)
+    k, owed, stops = 1, 0, []
+    while k * period < 5 * REPLY_WINDOW:
+        t = k * period
+        lagging = 0.5 * REPLY_WINDOW < t < 3.1 * REPLY_WINDOW
+        if lagging and k % 2:  # falling behind: a reply every other cycle
+            owed += 1
+            answer = False
+        elif not lagging and owed:  # caught up: every reply owed at once
+            for _ in range(owed):
+                reply(js[1], 0.0, t)
+            owed, answer = 0, True
+        else:
+            answer = True
+        stops.append(cycle(js, sup, t, [True, answer]))
+        k += 1
+    found = [e for e in stops if e is not None]
+    if lag:
+        assert found == []
+        # and a twin answering beside it is still found, within three windows
+        e, end = None, k * period + 3 * REPLY_WINDOW
+        while e is None and k * period < end:
+            reply(js[1], 0.0, k * period)
+            e = cycle(js, sup, k * period, [True, True])
+            k += 1
+        assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+    else:
+        assert isinstance(found[0], ForeignTraffic) and found[0].kind == "replies"

@@ -4,7 +4,7 @@ SocketCAN (vcan0, vcan1), in real time; and the README's SocketCAN recipe, word 
 CI runs these inside ``../shared/tools/vcan-vm``, an emulated guest about 15x slower than our machines,
 so everything runs with the slow timing profile (25 Hz loop, 1 s watchdog, simulator at 250 Hz)
 and the bounds are on what the arm did (where it went, how it stopped), not on how fast: a busy
-host can make the simulated plant fall behind the wall clock, so a test waits (up to 10 s) for the
+host can make the simulated plant fall behind the wall clock, so a test waits (up to 30 s) for the
 arm to arrive rather than expecting it there when the motion's time is up. The fault
 test runs on akarm_local (outside the VM) and in lock step too: the same fault gives the same named
 stop on every transport.
@@ -37,8 +37,10 @@ VCAN = [pytest.mark.vcan, pytest.mark.skipif(not has_vcan(), reason="no vcan0 on
 TOLERANCE = 0.03  # rad: a pose is reached
 
 
-def arrive(arm, target, timeout: float = 10.0) -> np.ndarray:
-    """Hold until every joint is within TOLERANCE of ``target`` (at most ``timeout`` s); the errors then."""
+def arrive(arm, target, timeout: float = 30.0) -> np.ndarray:
+    """Hold until every joint is within TOLERANCE of ``target`` (at most ``timeout`` s); the errors then.
+    (30 s: in CI's emulated guest a simulator that fell behind was seen 0.08 rad short after 10 s,
+    the arm held and unstopped, its commands still in the simulator's queue.)"""
     end = time.monotonic() + timeout
     err = np.abs(arm.state().q - np.asarray(target))
     while err.max() >= TOLERANCE and time.monotonic() < end:
@@ -73,7 +75,7 @@ def test_arm6_over_vcan0_enables_moves_through_three_poses_replays_and_disables(
             for pose in ("ready", "left", "home"):
                 arm.move_to(pose)
                 err = arrive(arm, rig.config.pose(pose))
-                assert err.max() < TOLERANCE, (pose, err)
+                assert err.max() < TOLERANCE, (pose, err, f"frames waited up to {rig.late():.2f} s in the simulator")
             recording = wiggle(arm.names, np.array(rig.config.pose("home"))).save(tmp_path / "wiggle.csv")
             t0, _ = arm.clock.now(), rig.late()
             motion = arm.replay(recording)
@@ -104,7 +106,7 @@ def test_biarm_over_vcan0_and_vcan1_drives_both_arms_at_once() -> None:
             for pose in ("out", "wave", "home"):       # the arms apart: wave raises the left one only
                 arm.move_to(pose)
                 err = arrive(arm, rig.config.pose(pose))
-                assert err.max() < TOLERANCE, (pose, err)
+                assert err.max() < TOLERANCE, (pose, err, f"frames waited up to {rig.late():.2f} s in the simulator")
             arm.disable()
         assert_ended_disabled(rig, arm.names)
         frames = rig.frames()

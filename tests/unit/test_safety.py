@@ -20,6 +20,7 @@ from akarm import (
     ImplausibleFeedback,
     MotorFault,
     OverTemperature,
+    SafetyStop,
     StateError,
     TrackingError,
 )
@@ -505,12 +506,23 @@ def test_replies_that_trail_the_commands_then_catch_up_are_not_a_second_motor(pl
     sup = Supervisor(js, [Guard(0.02, 80.0)] * 2, period=DT)  # the watchdog: 10 commands unanswered
     fresh(js, 0.0)
     sup.arm(0.0)
-    trail = 40
+    stops, k = fall_behind_then_catch_up(js, sup, DT, (0.8, 1.6, 3.0), trail=40)
+    assert stops == [None] * len(stops)
+    e = twin_found_within(js, sup, DT, k, 2)  # and a twin answering beside it is still found
+    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+
+
+def fall_behind_then_catch_up(js: list[MitJoint], sup: Supervisor, period: float, windows: tuple[float, float, float],
+                              trail: int | None = None) -> tuple[list[SafetyStop | None], int]:
+    """The elbow's replies fall behind (one every other cycle, at most ``trail`` owed) from the first
+    to the second of ``windows`` (in REPLY_WINDOWs), then come all at once; cycles until the third.
+    Each cycle's stop, and the next cycle's number."""
+    start, stop, end = (w * REPLY_WINDOW for w in windows)
     k, owed, stops = 1, 0, []
-    while k * DT < 3 * REPLY_WINDOW:
-        t = k * DT
-        lagging = 0.8 * REPLY_WINDOW < t < 1.6 * REPLY_WINDOW
-        if lagging and owed < trail and k % 2:  # falling behind: a reply every other cycle
+    while k * period < end:
+        t = k * period
+        lagging = start < t < stop
+        if lagging and (trail is None or owed < trail) and k % 2:  # falling behind: a reply every other cycle
             owed += 1
             answer = False
         elif not lagging and owed:  # caught up: every reply owed at once
@@ -521,14 +533,17 @@ def test_replies_that_trail_the_commands_then_catch_up_are_not_a_second_motor(pl
             answer = True
         stops.append(cycle(js, sup, t, [True, answer]))
         k += 1
-    assert stops == [None] * len(stops)
-    # and a twin answering beside it is still found, within two windows
-    e, end = None, k * DT + 2 * REPLY_WINDOW
-    while e is None and k * DT < end:
-        reply(js[1], 0.0, k * DT)
-        e = cycle(js, sup, k * DT, [True, True])
+    return stops, k
+
+
+def twin_found_within(js: list[MitJoint], sup: Supervisor, period: float, k: int, windows: int) -> SafetyStop | None:
+    """A twin answers beside the elbow from cycle ``k`` on: the stop within ``windows`` REPLY_WINDOWs."""
+    e, end = None, k * period + windows * REPLY_WINDOW
+    while e is None and k * period < end:
+        reply(js[1], 0.0, k * period)
+        e = cycle(js, sup, k * period, [True, True])
         k += 1
-    assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
+    return e
 
 
 def test_default_following_errors(planar2: RobotConfig) -> None:
@@ -578,30 +593,11 @@ def test_a_lagging_profile_s_burst_of_late_replies_is_not_a_second_motor(planar2
     sup = Supervisor(js, [Guard(1.0, 80.0)] * 2, period=period, lag=lag, driver_resets=False)
     fresh(js, 0.0)
     sup.arm(0.0)
-    k, owed, stops = 1, 0, []
-    while k * period < 5 * REPLY_WINDOW:
-        t = k * period
-        lagging = 0.5 * REPLY_WINDOW < t < 3.1 * REPLY_WINDOW
-        if lagging and k % 2:  # falling behind: a reply every other cycle
-            owed += 1
-            answer = False
-        elif not lagging and owed:  # caught up: every reply owed at once
-            for _ in range(owed):
-                reply(js[1], 0.0, t)
-            owed, answer = 0, True
-        else:
-            answer = True
-        stops.append(cycle(js, sup, t, [True, answer]))
-        k += 1
+    stops, k = fall_behind_then_catch_up(js, sup, period, (0.5, 3.1, 5.0))
     found = [e for e in stops if e is not None]
     if lag:
         assert found == []
-        # and a twin answering beside it is still found, within three windows
-        e, end = None, k * period + 3 * REPLY_WINDOW
-        while e is None and k * period < end:
-            reply(js[1], 0.0, k * period)
-            e = cycle(js, sup, k * period, [True, True])
-            k += 1
+        e = twin_found_within(js, sup, period, k, 3)  # and a twin answering beside it is still found
         assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
     else:
         assert isinstance(found[0], ForeignTraffic) and found[0].kind == "replies"

@@ -20,16 +20,10 @@ from akarm.sim import SimulatedRobot, faults
 
 from .conftest import ROBOTS
 
-_channels = itertools.count()
 
-
-def channel() -> str:
-    return f"sim-realtime-{next(_channels)}"
-
-
-def test_an_idle_simulator_wakes_about_once_per_idle_interval_and_keeps_time() -> None:
+def test_an_idle_simulator_wakes_about_once_per_idle_interval_and_keeps_time(channel: str) -> None:
     config = load_robot(ROBOTS / "arm6.yaml")
-    with SimulatedRobot(config, "virtual", channel()) as sim:
+    with SimulatedRobot(config, "virtual", channel) as sim:
         assert sim.idle_interval == pytest.approx(0.02)
         sim.driver_states()
         t0, ticks0, wall0 = sim.t, sim.ticks, time.monotonic()
@@ -42,10 +36,10 @@ def test_an_idle_simulator_wakes_about_once_per_idle_interval_and_keeps_time() -
     assert not any(s.enabled for s in states)
 
 
-def test_servo_status_frames_come_at_their_rate_though_it_is_longer_than_the_idle_interval() -> None:
+def test_servo_status_frames_come_at_their_rate_though_it_is_longer_than_the_idle_interval(channel: str) -> None:
     config = load_robot(ROBOTS / "servo3.yaml")
-    with SimulatedRobot(config, "virtual", (ch := channel()), max_lag=2.0) as sim, \
-            can.Bus(interface="virtual", channel=ch) as bus:
+    with SimulatedRobot(config, "virtual", channel, max_lag=2.0) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
         sim.idle_interval = 1.0  # the ticker would sleep 1 s with nothing due
         ticks0 = sim.ticks
         start, stamps = time.monotonic(), []
@@ -59,11 +53,11 @@ def test_servo_status_frames_come_at_their_rate_though_it_is_longer_than_the_idl
     assert max(gaps) < 0.25, max(gaps)
 
 
-def test_a_delayed_reply_goes_out_at_its_time_not_at_the_next_idle_wake() -> None:
+def test_a_delayed_reply_goes_out_at_its_time_not_at_the_next_idle_wake(channel: str) -> None:
     config = load_robot(ROBOTS / "planar2.yaml")
     joint = config.joints[0]
-    with SimulatedRobot(config, "virtual", (ch := channel()), max_lag=2.0) as sim, \
-            can.Bus(interface="virtual", channel=ch) as bus:
+    with SimulatedRobot(config, "virtual", channel, max_lag=2.0) as sim, \
+            can.Bus(interface="virtual", channel=channel) as bus:
         sim.idle_interval = 1.0
         time.sleep(0.05)  # the ticker is asleep for 1 s now
         sim.inject(joint.name, faults.DelayReplies(0.02))

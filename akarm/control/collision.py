@@ -32,13 +32,13 @@ from typing import Literal
 
 import numpy as np
 
-from akarm.config import JointConfig
+from akarm.config import JointConfig, RobotConfig
 from akarm.dynamics.model import ArrayLike, RobotModel
 from akarm.errors import ArgumentError, CollisionError
 from akarm.protocol import mit
 from akarm.protocol.units import erpm_to_rad_s
 
-__all__ = ["DEFAULT_GAIN", "CollisionReflex", "MomentumObserver", "Reaction", "friction_torque",
+__all__ = ["DEFAULT_GAIN", "CollisionReflex", "MomentumObserver", "Reaction", "friction_torque", "reflex_for",
            "velocity_resolution"]
 
 Reaction = Literal["disable", "hold"]
@@ -336,3 +336,20 @@ class CollisionReflex:
         self.last = err
         self.armed = False
         return err
+
+
+def reflex_for(config: RobotConfig, model: RobotModel, gain: float = DEFAULT_GAIN, reaction: Reaction = "disable",
+               watch_only: bool = False) -> CollisionReflex:
+    """The reflex for ``config`` (its joints' friction and thresholds, its loop rate) on ``model`` (the
+    payload included): the observer's gain ``K`` at most ``gain``, its discrete loop gain ``K·dt`` at
+    most 0.25 (a slow loop gets a slower estimate); ``watch_only``: no joint checked (a timing profile for
+    machines that cannot keep time: the estimate would take the time it does not see for a push)."""
+    fr = [j.friction_model() for j in config.joints]
+    observer = MomentumObserver(model, [f.coulomb for f in fr], [f.viscous for f in fr], [f.offset for f in fr],
+                                min(gain, 0.25 * config.rate_hz), [velocity_resolution(j) for j in config.joints],
+                                [j.motor.t_max for j in config.joints])
+    # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
+    fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
+             for j in config.joints]
+    thresholds = [None if watch_only else j.collision_threshold for j in config.joints]
+    return CollisionReflex(config.joint_names, observer, thresholds, reaction, fresh, 1.0 / config.rate_hz)

@@ -43,7 +43,7 @@ import numpy as np
 from akarm.clock import Clock
 from akarm.config import JointConfig, RobotConfig
 from akarm.control.busset import BusSet
-from akarm.control.collision import CollisionReflex, MomentumObserver, velocity_resolution
+from akarm.control.collision import CollisionReflex, reflex_for
 from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Refusal
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
@@ -177,21 +177,11 @@ class Controller:
         self._stop_stale = [False] * n  # its feedback went silent during the stop: remember _stop_q
 
     def _make_reflex(self) -> CollisionReflex:
-        config, model, options = self.config, self.model, self.options
-        fr = [j.friction_model() for j in config.joints]
-        # the observer's discrete loop gain K·dt stays at most 0.25 (a slow loop gets a slower estimate)
-        observer = MomentumObserver(model, [f.coulomb for f in fr], [f.viscous for f in fr], [f.offset for f in fr],
-                                    min(options.collision_gain, 0.25 * config.rate_hz),
-                                    [velocity_resolution(j) for j in config.joints],
-                                    [j.motor.t_max for j in config.joints])
-        # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
-        fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
-                 for j in config.joints]
+        options = self.options
         # a timing profile for machines that cannot keep time (lag > 0: replies late, then in bursts) leaves
-        # the reflex watching only: the estimate would take the time it does not see for a push
-        thresholds = [None if options.timing.lag > 0 else j.collision_threshold for j in config.joints]
-        return CollisionReflex(config.joint_names, observer, thresholds, options.collision_reaction, fresh,
-                               self.period)
+        # the reflex watching only
+        return reflex_for(self.config, self.model, options.collision_gain, options.collision_reaction,
+                          watch_only=options.timing.lag > 0)
 
     def _guards(self) -> list[Guard]:
         out = []

@@ -12,7 +12,7 @@ import pytest
 
 import akarm
 from akarm.arm import Arm
-from akarm.control.collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, velocity_resolution
+from akarm.control.collision import DEFAULT_GAIN, CollisionReflex, MomentumObserver, reflex_for, velocity_resolution
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ArgumentError, CollisionError, ConfigError
 from akarm.telemetry.log import load as load_telemetry
@@ -112,12 +112,7 @@ def test_the_gravity_check_follows_the_payload_set_at_run_time() -> None:
 
 def arm6_reflex() -> CollisionReflex:
     """arm6's reflex as the controller builds it (its friction, gain, thresholds, 480 Hz)."""
-    fr = [j.friction_model() for j in ARM6.joints]
-    observer = MomentumObserver(RobotModel(ARM6, armature=True), [f.coulomb for f in fr], [f.viscous for f in fr],
-                                [f.offset for f in fr], DEFAULT_GAIN, [velocity_resolution(j) for j in ARM6.joints],
-                                [j.motor.t_max for j in ARM6.joints])
-    return CollisionReflex(ARM6.joint_names, observer, [j.collision_threshold for j in ARM6.joints],
-                           period=1.0 / ARM6.rate_hz)
+    return reflex_for(ARM6, RobotModel(ARM6, armature=True))
 
 
 @pytest.mark.parametrize(("trace", "intervals_ms", "stopped_at"), [

@@ -77,7 +77,8 @@ def import_viser() -> Any:
     return viser
 
 
-def _check_port(host: str, port: int, rate_hz: float, plot_hz: float) -> None:
+def check_options(host: str, port: int, rate_hz: float, plot_hz: float) -> None:
+    """Raise :class:`~akarm.ArgumentError` for a host, port or rate a view cannot serve with."""
     if not isinstance(host, str) or not host:
         raise ArgumentError(f"host {host!r} must be an address to bind", fix="e.g. 127.0.0.1 (this machine only)")
     if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
@@ -85,6 +86,20 @@ def _check_port(host: str, port: int, rate_hz: float, plot_hz: float) -> None:
     for what, hz in (("rate_hz", rate_hz), ("plot_hz", plot_hz)):
         if not (isinstance(hz, int | float) and 0 < hz <= 120):
             raise ArgumentError(f"{what} {hz!r} must be a number of Hz in (0, 120]", fix="the view draws at ~30 Hz")
+
+
+def _check_bindable(host: str) -> None:
+    """Raise :class:`~akarm.StateError` when no port of ``host`` can be bound (not an address of this
+    machine, a name that does not resolve)."""
+    import socket
+
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind, proto) as probe:
+            probe.bind(address)
+    except OSError as e:
+        raise StateError(f"cannot serve the view on {host}: {getattr(e, 'strerror', None) or e}",
+                         fix="choose another --host: an address of this machine (127.0.0.1, 0.0.0.0, ...)") from None
 
 
 class ViewServer:
@@ -106,7 +121,7 @@ class ViewServer:
     def __init__(self, config: RobotConfig, source: Source, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT,
                  rate_hz: float = 30.0, plot_hz: float = 10.0, history: float = 10.0, visuals: bool = True,
                  log: Callable[[str], None] | None = None) -> None:
-        _check_port(host, port, rate_hz, plot_hz)
+        check_options(host, port, rate_hz, plot_hz)
         self.config = config
         self.source = source
         self.host, self.port = host, port
@@ -154,6 +169,7 @@ class ViewServer:
     def start(self) -> ViewServer:
         """Serve the page and start drawing. Raises when viser is missing or the port cannot be bound."""
         viser = import_viser()
+        _check_bindable(self.host)  # viser tries the next port forever on any error binding one
         try:
             with _quiet():  # viser's banner: the caller says where the page is
                 self._server = viser.ViserServer(host=self.host, port=self.port, verbose=False)

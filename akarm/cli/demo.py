@@ -14,7 +14,8 @@ recording (``akarm/data/demo_path.csv``, a figure eight), disable. Then it print
 error per joint (mrad) and the control loop's timing, and plots the telemetry
 (:func:`akarm.telemetry.plot.plot_log`).
 
-With ``--view`` the page of :mod:`akarm.cli.view` watches the session live (http://localhost:8080),
+With ``--view`` the page of :mod:`akarm.cli.view`, drawn by a process of its own, watches the session
+live (http://localhost:8080),
 then plays it back with a time slider until Ctrl-C.
 
 With ``--fast`` the arm and the simulator run in lock step (``realtime=False``: the loop's clock
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
     from akarm.telemetry.log import TelemetryLog
-    from akarm.view.page import ViewServer
+    from akarm.view.process import ViewProcess
 
 #: the bundled recording the demo replays (joints of arm6, rad, 100 Hz)
 DEMO_PATH = Path(__file__).resolve().parent.parent / "data" / "demo_path.csv"
@@ -239,14 +240,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _live_view(args: argparse.Namespace, config: RobotConfig, arm: Arm) -> ViewServer | None:
-    """With ``--view``: the page watching the session's arm (made, not started)."""
+def _live_view(args: argparse.Namespace, config: RobotConfig, arm: Arm) -> ViewProcess | None:
+    """With ``--view``: the page watching the session's arm, drawn by a process of its own (made,
+    not started)."""
     if not args.view:
         return None
-    from akarm.cli.view import make_view
+    from akarm.cli.view import make_view_process
     from akarm.view.sources import ArmSource
 
-    return make_view(args, config, ArmSource(arm, title="live: the demo session"))
+    return make_view_process(args, config, ArmSource(arm, title="live: the demo session"))
 
 
 def _play_back(args: argparse.Namespace, config: RobotConfig, log: TelemetryLog, port: int) -> int:

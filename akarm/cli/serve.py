@@ -84,10 +84,10 @@ def run(args: argparse.Namespace) -> int:
                        controller=args.controller, ros_distro=args.ros_distro)
     view = None
     if args.view:  # made first: a missing view extra is said before anything is enabled
-        from akarm.cli.view import make_view
+        from akarm.cli.view import make_view_process
         from akarm.view.sources import ServerSource
 
-        view = make_view(args, config, ServerSource(server))
+        view = make_view_process(args, config, ServerSource(server))
     # from here on a signal only asks the server to stop: it cannot cut enabling or disabling short
     previous = {s: signal.signal(s, lambda signum, frame: server.request_stop()) for s in (signal.SIGINT,
                                                                                            signal.SIGTERM)}

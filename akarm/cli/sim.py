@@ -143,10 +143,10 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
                          log_frames=bool(args.control), serial=serial, baudrate=args.baudrate)
     view = None
     if args.view:  # made first: a missing view extra is said before the simulator starts
-        from akarm.cli.view import make_view
+        from akarm.cli.view import make_view_process
         from akarm.view.sources import SimSource
 
-        view = make_view(args, sim.config, SimSource(sim))
+        view = make_view_process(args, sim.config, SimSource(sim))
 
     stop = threading.Event()
     previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}

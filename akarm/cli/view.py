@@ -20,14 +20,17 @@ from __future__ import annotations
 
 import argparse
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from akarm.cli.common import add_robot_arguments, load_from_args
 
 if TYPE_CHECKING:
     from akarm.config import RobotConfig
     from akarm.view.page import ViewServer
+    from akarm.view.process import ViewProcess
     from akarm.view.sources import Source
+
+_View = TypeVar("_View", "ViewServer", "ViewProcess")
 
 #: s the watched server may stay unreachable before akarm view gives up
 LOST_AFTER = 3.0
@@ -36,10 +39,11 @@ HOST, PORT = "127.0.0.1", 8080
 
 
 def add_view_options(parser: argparse.ArgumentParser, prefix: str = "--view") -> None:
-    """``--view`` (open the page in this process) with ``--view-host`` and ``--view-port``, for verbs
-    that drive or simulate an arm themselves."""
+    """``--view`` (open the page, served by a process of its own that this one feeds) with
+    ``--view-host`` and ``--view-port``, for verbs that drive or simulate an arm themselves."""
     parser.add_argument(prefix, action="store_true",
-                        help="also serve the live view (3D, plots, state) in this process; see akarm view")
+                        help="also serve the live view (3D, plots, state), drawn by a process of its own so that it "
+                             "takes nothing from the loop; see akarm view")
     parser.add_argument(f"{prefix}-host", default=HOST, metavar="HOST",
                         help=f"address the view binds (default {HOST}: this machine only; anyone who reaches it can "
                              "press its controls)")
@@ -49,8 +53,8 @@ def add_view_options(parser: argparse.ArgumentParser, prefix: str = "--view") ->
 
 def make_view(args: argparse.Namespace, config: RobotConfig, source: Source, host: str | None = None,
               port: int | None = None) -> ViewServer:
-    """A :class:`~akarm.view.page.ViewServer` for the verb's options, not started yet: made before the
-    verb enables anything, so that a missing ``view`` extra or a bad option is said first."""
+    """A :class:`~akarm.view.page.ViewServer` in this process for the verb's options, not started yet:
+    made first, so that a missing ``view`` extra or a bad option is said first."""
     from akarm.view.page import ViewServer, import_viser
 
     import_viser()
@@ -58,7 +62,17 @@ def make_view(args: argparse.Namespace, config: RobotConfig, source: Source, hos
                       port=port if port is not None else args.view_port, visuals=not getattr(args, "kinematics", False))
 
 
-def show_view(view: ViewServer) -> ViewServer:
+def make_view_process(args: argparse.Namespace, config: RobotConfig, source: Source) -> ViewProcess:
+    """A :class:`~akarm.view.process.ViewProcess` for ``--view``: the page drawn by a child process
+    that this one feeds snapshots (the loop's process only takes them). Not started yet: made before
+    the verb enables anything, so that a missing ``view`` extra or a bad option is said first."""
+    from akarm.view.process import ViewProcess
+
+    return ViewProcess(config, source, host=args.view_host, port=args.view_port,
+                       visuals=not getattr(args, "kinematics", False))
+
+
+def show_view(view: _View) -> _View:
     """Start ``view`` and print where it is."""
     view.start()
     print(f"view: {view.url} ({view.source.title}; {_exposure(view.host)})", flush=True)

@@ -65,6 +65,33 @@ class Controls:
         self._call = call
         self.config = config
 
+    #: the server operations the page's controls use, and the only ones :meth:`call` runs
+    OPS = ("enable", "hold", "disable", "move")
+
+    def call(self, op: str, args: dict[str, Any]) -> Any:
+        """Run one of :attr:`OPS` as given (the view's process sends its controls' operations here,
+        :mod:`akarm.view.process`); a ``move`` is checked as :meth:`jog` checks it.
+
+        Raises:
+            ArgumentError: another operation, or a move that is not one joint's jog.
+            LimitError, StateError: as :meth:`jog` and the server's operations.
+        """
+        if op not in self.OPS or not isinstance(args, dict):
+            raise ArgumentError(f"the view's controls do not run {op!r}", fix="one of: " + ", ".join(self.OPS))
+        if op == "move":
+            target, speed = args.get("target"), args.get("speed", 0.3)
+            if not isinstance(speed, int | float) or isinstance(speed, bool):
+                raise ArgumentError(f"jog speed {speed!r} is not a number", fix="a fraction of the joint limits")
+            if not (isinstance(target, dict) and len(target) == 1) or set(args) - {"target", "speed"}:
+                raise ArgumentError("a jog moves one joint: {'target': {joint: angle}, 'speed': s}",
+                                    fix="jog one joint at a time")
+            ((joint, value),) = target.items()
+            self.jog(joint, value, speed)
+            return None
+        if args:
+            raise ArgumentError(f"{op} takes no arguments, got {sorted(args)}", fix=f"call {op} with none")
+        return self._call(op, {})
+
     def enable(self) -> None:
         """Enable the arm without a kick and hold it (as ``akarm enable``)."""
         self._call("enable", {})

@@ -153,6 +153,31 @@ def test_a_jog_is_checked_against_the_joint_range_before_anything_is_sent() -> N
     assert sent == [("move", {"target": {"elbow": upper - 0.1}, "speed": 0.3}), ("disable", {})]
 
 
+def test_the_view_process_commands_run_only_the_controls_operations_checked_as_a_jog() -> None:
+    config = load_robot(ROBOTS / "arm6.yaml")
+    sent: list[tuple[str, dict[str, object]]] = []
+    controls = Controls(lambda op, args: sent.append((op, args)), config)
+    upper = config.joint("elbow").limits.upper
+    with pytest.raises(ArgumentError, match="do not run 'zero'"):
+        controls.call("zero", {})
+    with pytest.raises(ArgumentError, match="do not run 'move'"):
+        controls.call("move", [])  # type: ignore[arg-type]
+    with pytest.raises(ArgumentError, match="one joint"):
+        controls.call("move", {"target": {"elbow": 0.0, "wrist": 0.0}})
+    with pytest.raises(ArgumentError, match="one joint"):
+        controls.call("move", {"target": {"elbow": 0.0}, "pose": "home"})
+    with pytest.raises(ArgumentError, match="not a number"):
+        controls.call("move", {"target": {"elbow": 0.0}, "speed": "fast"})
+    with pytest.raises(LimitError, match="past the upper limit"):
+        controls.call("move", {"target": {"elbow": upper + 0.01}, "speed": 0.5})
+    with pytest.raises(ArgumentError, match="takes no arguments"):
+        controls.call("enable", {"kick": True})
+    assert sent == []
+    controls.call("move", {"target": {"elbow": upper - 0.1}, "speed": 0.5})
+    controls.call("hold", {})
+    assert sent == [("move", {"target": {"elbow": upper - 0.1}, "speed": 0.5}), ("hold", {})]
+
+
 def test_the_snapshot_travels_as_json_and_a_foreign_one_is_refused() -> None:
     import json
 

@@ -6,13 +6,15 @@
 robots/arm6.yaml at its 500 Hz in real time: the simulator in a process of its own (``akarm sim``, on
 the ``akarm_local`` bus), the Arm's loop in this one, moving between poses the whole time. The
 rounds alternate, in one run: **closed** (no view at all) and **open** (a
-:class:`~akarm.view.ViewServer` in this process, as ``akarm serve --view`` and ``akarm demo --view``
-run it: its threads share this interpreter with the loop, taking ~30 snapshots a second and drawing
-them for a headless Chromium, in a process of its own, that shows the page). Each round starts
-from fresh loop statistics once the browser has loaded the page. For each round it prints the
-achieved rate, missed slots, lateness and compute per cycle, and this process's CPU use; then the
-mean of each way with its spread across rounds (the noise), and the view's own numbers (snapshots
-taken, time spent taking them).
+:class:`~akarm.view.process.ViewProcess`, as ``akarm serve --view``, ``akarm sim --view`` and
+``akarm demo --view`` run it: the page drawn by a child process that asks this one for ~30 snapshots
+a second), with a headless Chromium, in a process of its own, showing the page. ``--in-process``
+adds a third way, **in-proc**: a :class:`~akarm.view.ViewServer` drawing in this process, its threads
+sharing this interpreter with the loop (how ``--view`` ran before). Each round starts from fresh loop
+statistics once the browser has loaded the page. For each round it prints the achieved rate, missed
+slots, lateness and compute per cycle, and this process's CPU use (with ``open``, the view's process
+is not counted: it is reported apart); then the mean of each way with its spread across rounds (the
+noise), and the view's own numbers (snapshots a second, time spent taking each).
 
 Needs the ``view-test`` extra and Chromium (see tests/system/test_view.py); without them only the
 closed rounds run.
@@ -21,6 +23,7 @@ closed rounds run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import subprocess
@@ -104,25 +107,62 @@ def measure(arm: akarm.Arm, seconds: float) -> dict[str, float]:
             "cpu": 100.0 * cpu / wall, "stops": stops}
 
 
-def open_round(arm: akarm.Arm, seconds: float, nice: int = 0) -> tuple[dict[str, float], dict[str, float]]:
-    from akarm.view import ArmSource, ViewServer
+def child_cpu_seconds(pid: int | None) -> float:
+    """CPU seconds the view's process has used so far (Linux's /proc; 0 elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
-    with ViewServer(arm.config, ArmSource(arm), port=0, log=lambda text: None) as view:
+
+def pin(pid: int, cpus: set[int] | None) -> None:
+    """Every thread of process ``pid`` on ``cpus`` (threads started later inherit it)."""
+    if not cpus:
+        return
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError):  # a thread that ended meanwhile
+            os.sched_setaffinity(int(task.name), cpus)
+
+
+def open_round(arm: akarm.Arm, seconds: float, nice: int = 0, in_process: bool = False,
+               cpus: set[int] | None = None) -> tuple[dict[str, float], dict[str, float]]:
+    from akarm.view import ArmSource, ViewServer
+    from akarm.view.process import ViewProcess
+
+    view: ViewServer | ViewProcess
+    if in_process:
+        view = ViewServer(arm.config, ArmSource(arm), port=0, log=lambda text: None)
+    else:
+        view = ViewProcess(arm.config, ArmSource(arm), port=0)
+    with view:
+        if isinstance(view, ViewProcess) and view.pid is not None:
+            pin(view.pid, cpus)
         # nice: the browser (Chromium, drawing WebGL in software) yields the CPU to everything else, as a
         # browser on another computer, the way a user watches, takes none of this one's
+        def prepare() -> None:
+            if nice:
+                os.nice(nice)
+            if cpus:
+                os.sched_setaffinity(0, cpus)
+
         shown = subprocess.Popen([sys.executable, "-c", BROWSER, view.url], stdin=subprocess.PIPE,
-                                 stdout=subprocess.PIPE, text=True,
-                                 preexec_fn=(lambda: os.nice(nice)) if nice else None)
+                                 stdout=subprocess.PIPE, text=True, preexec_fn=prepare)
         try:
             assert shown.stdout is not None
             if shown.stdout.readline().strip() != "shown":
                 raise RuntimeError("the headless browser did not show the page")
-            took0, draws0 = view.snapshot_seconds, view.draws
+            def count() -> int:
+                return view.draws if isinstance(view, ViewServer) else view.snapshots
+
+            pid = None if isinstance(view, ViewServer) else view.pid
+            took0, draws0, child0 = view.snapshot_seconds, count(), child_cpu_seconds(pid)
             t0 = time.perf_counter()
             row = measure(arm, seconds)
             wall = time.perf_counter() - t0
-            extra = {"clients": float(view.clients()), "draws_hz": (view.draws - draws0) / wall,
-                     "snapshot_ms": 1e3 * (view.snapshot_seconds - took0) / max(1, view.draws - draws0)}
+            extra = {"draws_hz": (count() - draws0) / wall,
+                     "snapshot_ms": 1e3 * (view.snapshot_seconds - took0) / max(1, count() - draws0),
+                     "child_cpu": 100.0 * (child_cpu_seconds(pid) - child0) / wall}
         finally:
             if shown.stdin is not None:
                 shown.stdin.close()
@@ -140,6 +180,12 @@ def main() -> None:
     ap.add_argument("--browser-nice", type=int, default=0, metavar="N",
                     help="run the browser at this niceness (19: it takes only CPU nothing else wants, as a "
                          "browser on another computer takes none of this one's)")
+    ap.add_argument("--split-cpus", action="store_true",
+                    help="the loop's process and the simulator on the first CPU, the view's process and the browser "
+                         "on the last, in both ways (as a browser on another computer, and a view on a core the "
+                         "loop does not use)")
+    ap.add_argument("--in-process", action="store_true",
+                    help="also rounds with the view drawing in this process (in-proc), as --view ran before")
     args = ap.parse_args()
 
     why_not = browser.unavailable()
@@ -151,24 +197,34 @@ def main() -> None:
     channel = f"bench-view-{os.getpid()}"
     config = akarm.load_robot(ARM6 if args.strict else relaxed(ARM6)).with_bus(interface="akarm_local",
                                                                               channel=channel)
-    rows: dict[str, list[dict[str, float]]] = {"closed": [], "open": []}
+    ways = ("closed", "open", "in-proc") if args.in_process else ("closed", "open")
+    rows: dict[str, list[dict[str, float]]] = {way: [] for way in ways}
     extras: list[dict[str, float]] = []
     head = (f"{'round':>5} {'view':>6} {'rate Hz':>8} {'cycles':>7} {'missed':>7} {'late p99':>9} "
-            f"{'compute':>8} {'c. p99':>8} {'CPU %':>6} {'stops':>5}   view: draws/s, ms per snapshot")
-    with SimulatorProcess(ARM6, channel=channel), akarm.Arm(config, remember_positions=False) as arm:
+            f"{'compute':>8} {'c. p99':>8} {'CPU %':>6} {'stops':>5}   view: snapshots/s, ms each, its process's CPU")
+    loop_cpus = view_cpus = None
+    if args.split_cpus:
+        last = max(os.sched_getaffinity(0))
+        loop_cpus, view_cpus = set(os.sched_getaffinity(0)) - {last}, {last}
+        os.sched_setaffinity(0, loop_cpus)  # the loop's thread, started below, inherits it
+        print(f"the loop's process and the simulator on CPU {sorted(loop_cpus)}, the view and the browser on {last}")
+    with SimulatorProcess(ARM6, channel=channel, cpus=loop_cpus), \
+            akarm.Arm(config, remember_positions=False) as arm:
         arm.enable()
         moves(arm, 2.0)  # warm up
         print(head)
         for k in range(args.rounds):
-            for way in ("closed", "open"):
-                if way == "open" and why_not:
+            for way in ways:
+                if way != "closed" and why_not:
                     continue
                 if way == "closed":
                     row, note = measure(arm, args.seconds), ""
                 else:
-                    row, extra = open_round(arm, args.seconds, args.browser_nice)
+                    row, extra = open_round(arm, args.seconds, args.browser_nice, in_process=way == "in-proc",
+                                            cpus=view_cpus)
                     extras.append(extra)
-                    note = f"{extra['draws_hz']:.1f}/s, {extra['snapshot_ms']:.2f} ms ({extra['clients']:.0f} browser)"
+                    note = f"{extra['draws_hz']:.1f}/s, {extra['snapshot_ms']:.2f} ms" + \
+                        (f", {extra['child_cpu']:.1f} %" if way == "open" else "")
                 rows[way].append(row)
                 print(f"{k + 1:5d} {way:>6} {row['rate']:8.1f} {row['cycles']:7.0f} {row['missed']:7.0f} "
                       f"{row['late_p99']:9.0f} {row['compute_mean']:8.1f} {row['compute_p99']:8.1f} "
@@ -178,7 +234,7 @@ def main() -> None:
                        ("compute_mean", "compute per cycle, mean, µs"), ("compute_p99", "compute per cycle, p99, µs"),
                        ("cpu", "this process's CPU, %")):
         cells = []
-        for way in ("closed", "open"):
+        for way in ways:
             values = np.array([r[key] for r in rows[way]])
             cells.append(f"{way} {values.mean():8.2f} ± {values.std():6.2f}" if len(values) else f"{way}: not run")
         print(f"  {label:30s} " + "   ".join(cells))

@@ -66,6 +66,12 @@ def velocity_resolution(joint: JointConfig) -> float:
     return float(mit.codec(joint.motor).steps.velocity)
 
 
+def _floats(x: ArrayLike) -> list[float]:
+    """``x`` as a list of Python floats (the observer's per-joint arithmetic is scalar: on a few
+    joints a pass of float operations costs a fraction of numpy's per-call overhead)."""
+    return x.tolist() if isinstance(x, np.ndarray) else [float(v) for v in x]
+
+
 class MomentumObserver:
     """The generalized-momentum observer of the module's docstring (config joint order, SI).
 
@@ -77,6 +83,11 @@ class MomentumObserver:
             Coulomb friction goes (one step of the velocity feedback: :func:`velocity_resolution`;
             at rest a joint's friction is anywhere within ±coulomb, and the smooth model says 0).
         saturation: N·m per joint, the motors' torque range (a torque there does not decay).
+
+    Its arithmetic per joint is done in scalar passes over lists of floats (the mass matrix and the
+    momentum terms come from the model as arrays): for six joints that is about a third of the cost
+    of the same steps as numpy calls on six-element arrays, with the same operations in the same
+    order.
     """
 
     def __init__(self, model: RobotModel, coulomb: Sequence[float], viscous: Sequence[float],
@@ -86,19 +97,20 @@ class MomentumObserver:
             raise ArgumentError(f"the collision observer's gain must be a positive number (1/s), got {gain!r}")
         self.model = model
         self.gain = float(gain)
-        self.coulomb = np.asarray(coulomb, dtype=float)
-        self.viscous = np.asarray(viscous, dtype=float)
-        self.offset = np.asarray(offset, dtype=float)
-        self.deadband = np.zeros(len(self.coulomb)) if deadband is None else np.asarray(deadband, dtype=float)
-        self._half_deadband = 0.5 * self.deadband
+        n = len(coulomb)
+        self.n = n
+        self.set_friction(coulomb, viscous, offset)
+        self.deadband = np.zeros(n) if deadband is None else np.asarray(deadband, dtype=float)
+        self._deadband = self.deadband.tolist()
+        self._half_deadband = (0.5 * self.deadband).tolist()
         #: N·m per joint: a reported torque this large is the motor at its limit
-        self.saturation = np.full(len(self.coulomb), np.inf) if saturation is None else \
-            0.999 * np.asarray(saturation, dtype=float)
-        self._lag: np.ndarray | None = None
-        self.estimate = np.zeros(len(self.coulomb))
-        self._p0 = np.zeros_like(self.estimate)
-        self._integral = np.zeros_like(self.estimate)
-        self._last = (self.estimate, self.estimate, self.estimate)
+        self.saturation = np.full(n, np.inf) if saturation is None else 0.999 * np.asarray(saturation, dtype=float)
+        self._saturation = self.saturation.tolist()
+        self._lag: list[float] | None = None
+        self.estimate = np.zeros(n)
+        self._p0 = [0.0] * n
+        self._integral = [0.0] * n
+        self._last: tuple[list[float], list[float], list[float]] = ([0.0] * n, [0.0] * n, [0.0] * n)
         self.started = False
 
     def set_friction(self, coulomb: ArrayLike, viscous: ArrayLike, offset: ArrayLike) -> None:
@@ -106,54 +118,64 @@ class MomentumObserver:
         self.coulomb = np.array(coulomb, dtype=float)
         self.viscous = np.array(viscous, dtype=float)
         self.offset = np.array(offset, dtype=float)
+        self._friction = list(zip(self.coulomb.tolist(), self.viscous.tolist(), self.offset.tolist(), strict=True))
 
-    def velocity(self, dq: np.ndarray, v_des: np.ndarray | None, dt: float = 0.0) -> np.ndarray:
+    def velocity(self, dq: ArrayLike, v_des: ArrayLike | None, dt: float = 0.0) -> list[float]:
         """The velocity the observer works with: the measured one, or, when the arm tracks a command,
         the command plus its (low-passed, 20 ms) difference to the measurement, kept within the
         measurement's quantisation step (the feedback rounds to the nearest step, so the truth is
         within half a step of it). That is smooth where the feedback jumps by whole steps, and each
         jump would pass ``K·M·step`` into the estimate."""
+        d = _floats(dq)
         if v_des is None:
             self._lag = None
-            return dq
-        if self._lag is None:  # from the command: the first reading is off by up to half a step
-            self._lag = np.zeros(len(dq))
-        self._lag += min(1.0, dt / _LAG_SMOOTHING) * ((dq - v_des) - self._lag)
-        half = self._half_deadband
-        return np.minimum(np.maximum(v_des + self._lag, dq - half), dq + half)  # (np.clip costs twice this)
+            return d
+        vd = _floats(v_des)
+        lag = self._lag
+        if lag is None:  # from the command: the first reading is off by up to half a step
+            lag = self._lag = [0.0] * len(d)
+        a = min(1.0, dt / _LAG_SMOOTHING)
+        out = []
+        for i, (x, c, h) in enumerate(zip(d, vd, self._half_deadband, strict=True)):
+            li = lag[i] + a * ((x - c) - lag[i])
+            lag[i] = li
+            out.append(min(max(c + li, x - h), x + h))
+        return out
 
-    def _smooth(self, beta: np.ndarray, dq: np.ndarray, v_des: np.ndarray | None) -> np.ndarray:
+    def _smooth(self, beta: list[float], dq: list[float], v_des: list[float] | None) -> list[float]:
         """``τ_f - Cᵀq̇ + g`` at (q, v), given ``beta = g - Cᵀq̇`` there
         (:meth:`~akarm.dynamics.model.RobotModel.momentum_terms`): what the model and friction take
         from the momentum's rate of change. The friction's speed: the commanded one where the joint
         tracks it (within two steps of the feedback: slow motions, whose feedback flips between "at
         rest" and "moving", follow the smooth command, as the feed-forward does); else the measured
         one, a speed within one step of it counting as at rest for the Coulomb friction (at rest it is
-        anywhere within ±coulomb, and the smooth model says 0)."""
-        at_rest = np.abs(dq) <= self.deadband
-        if v_des is None:
-            v_f = dq
-        else:
-            tracks = np.abs(v_des - dq) <= 2.0 * self.deadband
-            v_f = np.where(tracks, v_des, dq)
-            at_rest &= ~tracks
-        coulomb = np.where(at_rest, 0.0, self.coulomb)
-        return friction_torque(v_f, coulomb, self.viscous, self.offset) + beta
+        anywhere within ±coulomb, and the smooth model says 0). (:func:`friction_torque`, per joint.)"""
+        tanh, s = math.tanh, FRICTION_SMOOTHING
+        out = []
+        for i, (x, db, (c, b, o), be) in enumerate(zip(dq, self._deadband, self._friction, beta, strict=True)):
+            at_rest = abs(x) <= db
+            v_f = x
+            if v_des is not None and abs(v_des[i] - x) <= 2.0 * db:  # tracks the command
+                v_f, at_rest = v_des[i], False
+            out.append((0.0 if at_rest else c) * tanh(v_f / s) + b * v_f + o + be)
+        return out
 
-    def reset(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, v_des: np.ndarray | None = None) -> None:
+    def reset(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, v_des: ArrayLike | None = None) -> None:
         """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
         self._lag = None
-        v = self.velocity(dq, v_des)
+        d = _floats(dq)
+        vd = None if v_des is None else _floats(v_des)
+        v = self.velocity(d, vd)
         m, beta = self.model.momentum_terms(q, v)
-        self._p0 = m @ v
-        self._integral[:] = 0.0
-        self._last = (np.array(tau, dtype=float), v, self._smooth(beta, dq, v_des))
-        self.estimate = np.zeros_like(self.estimate)
+        self._p0 = (m @ np.array(v)).tolist()
+        self._integral = [0.0] * self.n
+        self._last = (_floats(tau), v, self._smooth(beta.tolist(), d, vd))
+        self.estimate = np.zeros(self.n)
         self.started = True
 
-    def update(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, dt: float,
-               kp: np.ndarray | None = None, kd: np.ndarray | None = None,
-               v_des: np.ndarray | None = None) -> np.ndarray:
+    def update(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, dt: float,
+               kp: ArrayLike | None = None, kd: ArrayLike | None = None,
+               v_des: ArrayLike | None = None) -> np.ndarray:
         """One step: positions (rad), velocities (rad/s), motor torques (N·m) measured now, ``dt`` s
         since the last step; ``kp``, ``kd``: the MIT gains in force (N·m/rad, N·m·s/rad; 0 for servo
         joints); ``v_des``: the velocity commanded when the feedback was taken (see :meth:`velocity`).
@@ -165,16 +187,23 @@ class MomentumObserver:
         sample less half that decay. Gravity, Coriolis and friction change smoothly: trapezoidal.
         (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)"""
         tau_prev, v_prev, smooth_prev = self._last
-        v = self.velocity(dq, v_des, dt)
+        d = _floats(dq)
+        vd = None if v_des is None else _floats(v_des)
+        v = self.velocity(d, vd, dt)
         m, beta = self.model.momentum_terms(q, v)
-        smooth = self._smooth(beta, dq, v_des)
+        smooth = self._smooth(beta.tolist(), d, vd)
         torque = tau_prev
         if kp is not None:  # (a saturated motor holds its limit: no decay)
-            decay = 0.5 * (kp * v_prev * dt + (kd if kd is not None else 0.0) * (v - v_prev))
-            torque = np.where(np.abs(tau_prev) >= self.saturation, tau_prev, tau_prev - decay)
-        self._integral += (torque - 0.5 * (smooth + smooth_prev) + self.estimate) * dt
-        self._last = (np.array(tau, dtype=float), v, smooth)
-        self.estimate = self.gain * (m @ v - self._p0 - self._integral)
+            kpl, kdl = _floats(kp), ([0.0] * self.n if kd is None else _floats(kd))
+            torque = [t if abs(t) >= sat else t - 0.5 * (p * vp * dt + k * (vi - vp))
+                      for t, sat, p, k, vi, vp in zip(tau_prev, self._saturation, kpl, kdl, v, v_prev, strict=True)]
+        integral = self._integral
+        for i, (t, sm, sp, r) in enumerate(zip(torque, smooth, smooth_prev, self.estimate.tolist(), strict=True)):
+            integral[i] += (t - 0.5 * (sm + sp) + r) * dt
+        self._last = (_floats(tau), v, smooth)
+        mv = (m @ np.array(v)).tolist()
+        k = self.gain
+        self.estimate = np.array([k * (x - p0 - g) for x, p0, g in zip(mv, self._p0, integral, strict=True)])
         return self.estimate
 
 
@@ -206,8 +235,8 @@ class CollisionReflex:
         self.late = 1.5 * period
         self.early = 0.5 * period
         self._after_late = False  # a late cycle came last: start over again at the next that keeps time
-        self._q_last = np.zeros(len(self.names))
-        self._v_last = np.zeros(len(self.names))
+        self._q_last = [0.0] * len(self.names)
+        self._v_last = [0.0] * len(self.names)
         self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
         self.observer = observer
         self.set_thresholds(thresholds)
@@ -216,7 +245,7 @@ class CollisionReflex:
         self.armed = False
         self._cycle = -math.inf  # the loop time of the last step
         self._sample_last = -math.inf  # when the feedback of the last update was taken
-        self._v_des: np.ndarray | None = None  # the velocity the last cycle commanded
+        self._v_des: list[float] | None = None  # the velocity the last cycle commanded
         self._quiet_until = -math.inf  # no judging before (a motor was at its torque limit)
         self.peak = np.zeros(len(self.names))
 
@@ -235,6 +264,7 @@ class CollisionReflex:
                 raise ArgumentError(f"collision threshold {x!r} must be a positive number of N·m, or None",
                                  joint=name, fix="e.g. the threshold `akarm identify` suggests")
         self.thresholds = np.array([math.inf if x is None else float(x) for x in th])
+        self._thresholds = self.thresholds.tolist()
 
     def set_reaction(self, reaction: str) -> None:
         if reaction not in ("disable", "hold"):
@@ -246,18 +276,20 @@ class CollisionReflex:
         """Whether any joint has a threshold."""
         return bool(np.any(np.isfinite(self.thresholds)))
 
-    def _on_time(self, q: np.ndarray, v: np.ndarray, dt: float) -> bool:
+    def _on_time(self, q: list[float], v: list[float], dt: float) -> bool:
         """Whether the feedback's motion fits the time assumed between the two samples: the fastest
         joint's travel over its mean measured speed gives the time that really passed (a simulator or
         adapter that answered late shows here; the estimate would take the difference for a push).
         Within a period the motion is not exactly of constant acceleration (the commands' steps):
         a millisecond or two position steps of slack."""
-        v_mean = 0.5 * (v + self._v_last)
-        i = int(np.argmax(np.abs(v_mean)))
-        speed = abs(float(v_mean[i]))
+        i, v_i, speed = 0, 0.0, -1.0
+        for k, (a, b) in enumerate(zip(v, self._v_last, strict=True)):
+            m = 0.5 * (a + b)
+            if abs(m) > speed:  # the first of the fastest
+                i, v_i, speed = k, m, abs(m)
         if speed < 0.3:  # too slow to time (and a timing error matters little then)
             return True
-        passed = float(q[i] - self._q_last[i]) / float(v_mean[i])
+        passed = (q[i] - self._q_last[i]) / v_i
         return abs(passed - dt) <= max(1e-3, 2.0 * _POSITION_STEP / speed)
 
     def restart(self) -> None:
@@ -277,12 +309,12 @@ class CollisionReflex:
         ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
         mode) the reflex disarms."""
         isfinite = math.isfinite  # (per element: a seventh of np.all(np.isfinite(...)) for a few joints)
-        if not (all(map(isfinite, q)) and all(map(isfinite, dq)) and all(map(isfinite, tau))):
+        qa, va, ta = _floats(q), _floats(dq), _floats(tau)
+        if not (all(map(isfinite, qa)) and all(map(isfinite, va)) and all(map(isfinite, ta))):
             return None  # no feedback yet: the supervisor deals with missing feedback
-        qa, va, ta = np.asarray(q, dtype=float), np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
         sample, self._cycle = self._cycle, now
-        v_then, self._v_des = self._v_des, (None if v_des is None else np.asarray(v_des, dtype=float))
+        v_then, self._v_des = self._v_des, (None if v_des is None else _floats(v_des))
         # A late cycle: when the feedback was taken is not known, nor, on a machine that stalled as a
         # whole, when the drivers acted on the commands around it. The observer starts over there and
         # again at the next cycle that keeps time, so that no step integrates across the late one. A
@@ -306,24 +338,25 @@ class CollisionReflex:
             self._q_last, self._v_last = qa, va
             r = obs.estimate
         else:
-            r = obs.update(qa, va, ta, dt, None if kp is None else np.asarray(kp, dtype=float),
-                           None if kd is None else np.asarray(kd, dtype=float), v_then)
+            r = obs.update(qa, va, ta, dt, kp, kd, v_then)
             self._q_last, self._v_last = qa, va
         if not check:
             self.armed = False
             return None
-        if np.any(np.abs(ta) >= obs.saturation):  # a motor at its limit: within a period its torque is not known
+        # a motor at its limit: within a period its torque is not known
+        if any(abs(t) >= sat for t, sat in zip(ta, obs.saturation.tolist(), strict=True)):
             self._quiet_until = now + 2.0 / obs.gain
         if now < self._quiet_until:
             return None
         mag = np.abs(r)
         np.maximum(self.peak, mag, out=self.peak)
+        mags, thresholds = mag.tolist(), self._thresholds
         if not self.armed:
-            self.armed = bool(np.all(mag < 0.5 * self.thresholds))
+            self.armed = all(x < 0.5 * th for x, th in zip(mags, thresholds, strict=True))
+            return None
+        if not any(x > th for x, th in zip(mags, thresholds, strict=True)):
             return None
         over = mag > self.thresholds
-        if not np.any(over):
-            return None
         k = int(np.argmax(np.where(over, mag / self.thresholds, 0.0)))
         err = CollisionError(
             f"collision: an external torque of {r[k]:+.2f} N·m (threshold {self.thresholds[k]:.2f} N·m); "

@@ -127,6 +127,11 @@ class ViewProcess:
                 str(child_commands.fileno() if child_commands is not None else -1)]
         try:
             process = subprocess.Popen(argv, pass_fds=[c.fileno() for c in ends], env=env, stdin=subprocess.DEVNULL)
+        except OSError as e:
+            for conn in (feed, life, commands):
+                if conn is not None:
+                    conn.close()
+            raise StateError(f"cannot start the view's process: {e}", fix="see that Python runs here") from None
         finally:
             for end in ends:
                 end.close()  # the child holds them now: the parent's copies would keep EOF away

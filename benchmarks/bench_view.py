@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import akarm  # noqa: E402
-from akarm.sim.process import SimulatorProcess  # noqa: E402
+from akarm.sim.process import SimulatorProcess, stat_cpu_seconds  # noqa: E402
 from akarm.view import browser  # noqa: E402
 
 ARM6 = ROOT / "robots" / "arm6.yaml"
@@ -107,15 +107,6 @@ def measure(arm: akarm.Arm, seconds: float) -> dict[str, float]:
             "cpu": 100.0 * cpu / wall, "stops": stops}
 
 
-def child_cpu_seconds(pid: int | None) -> float:
-    """CPU seconds the view's process has used so far (Linux's /proc; 0 elsewhere)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except (OSError, IndexError):
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 def pin(pid: int, cpus: set[int] | None) -> None:
     """Every thread of process ``pid`` on ``cpus`` (threads started later inherit it)."""
     if not cpus:
@@ -156,13 +147,13 @@ def open_round(arm: akarm.Arm, seconds: float, nice: int = 0, in_process: bool =
                 return view.draws if isinstance(view, ViewServer) else view.snapshots
 
             pid = None if isinstance(view, ViewServer) else view.pid
-            took0, draws0, child0 = view.snapshot_seconds, count(), child_cpu_seconds(pid)
+            took0, draws0, child0 = view.snapshot_seconds, count(), stat_cpu_seconds(f"/proc/{pid}/stat")
             t0 = time.perf_counter()
             row = measure(arm, seconds)
             wall = time.perf_counter() - t0
             extra = {"draws_hz": (count() - draws0) / wall,
                      "snapshot_ms": 1e3 * (view.snapshot_seconds - took0) / max(1, count() - draws0),
-                     "child_cpu": 100.0 * (child_cpu_seconds(pid) - child0) / wall}
+                     "child_cpu": 100.0 * (stat_cpu_seconds(f"/proc/{pid}/stat") - child0) / wall}
         finally:
             if shown.stdin is not None:
                 shown.stdin.close()

@@ -88,6 +88,11 @@ def check_options(host: str, port: int, rate_hz: float, plot_hz: float) -> None:
             raise ArgumentError(f"{what} {hz!r} must be a number of Hz in (0, 120]", fix="the view draws at ~30 Hz")
 
 
+def page_url(host: str, port: int) -> str:
+    """The address a browser opens for a page served on ``host``:``port`` (localhost for loopback)."""
+    return f"http://{'localhost' if host in ('127.0.0.1', '::1') else host}:{port}"
+
+
 def _check_bindable(host: str) -> None:
     """Raise :class:`~akarm.StateError` when no port of ``host`` can be bound (not an address of this
     machine, a name that does not resolve)."""
@@ -163,8 +168,7 @@ class ViewServer:
     @property
     def url(self) -> str:
         """The page's address (:attr:`port` is the one bound, once started)."""
-        host = "localhost" if self.host in ("127.0.0.1", "::1") else self.host
-        return f"http://{host}:{self.port}"
+        return page_url(self.host, self.port)
 
     def start(self) -> ViewServer:
         """Serve the page and start drawing. Raises when viser is missing or the port cannot be bound."""

@@ -74,7 +74,7 @@ class ViewProcess:
 
     def __init__(self, config: RobotConfig, source: Source, *, host: str = "127.0.0.1", port: int = 8080,
                  rate_hz: float = 30.0, plot_hz: float = 10.0, history: float = 10.0, visuals: bool = True) -> None:
-        from akarm.view.page import check_options
+        from akarm.view.page import check_options  # (imported when used: the child only after SIGINT is off)
 
         check_options(host, port, rate_hz, plot_hz)
         if importlib.util.find_spec("viser") is None:
@@ -94,8 +94,9 @@ class ViewProcess:
     @property
     def url(self) -> str:
         """The page's address (:attr:`port` is the one bound, once started)."""
-        host = "localhost" if self.host in ("127.0.0.1", "::1") else self.host
-        return f"http://{host}:{self.port}"
+        from akarm.view.page import page_url
+
+        return page_url(self.host, self.port)
 
     @property
     def pid(self) -> int | None:
@@ -154,11 +155,12 @@ class ViewProcess:
             self.stop()
             raise rebuild_error(value)
         self.port = int(value)
-        self._spawn(lambda: self._serve_feed(feed), "akarm-view-feed")
+        self._spawn(lambda: _answer(feed, self._snapshot), "akarm-view-feed")
         if commands is not None:
             controls = self.source.controls
             assert controls is not None
-            self._spawn(lambda: _serve_commands(commands, controls), "akarm-view-commands")
+            self._spawn(lambda: _answer(commands, lambda request: _run_command(controls, request)),
+                        "akarm-view-commands")
         return self
 
     def _spawn(self, target: Callable[[], None], name: str) -> None:
@@ -166,24 +168,14 @@ class ViewProcess:
         thread.start()
         self._threads.append(thread)
 
-    def _serve_feed(self, conn: Connection) -> None:
-        """Answer the child's requests for snapshots until it is gone."""
-        while True:
-            try:
-                conn.recv()
-            except (EOFError, OSError):
-                return
-            t0 = time.perf_counter()
-            try:
-                reply: tuple[str, Any] = ("ok", self.source.snapshot())
-            except AkarmError as e:
-                reply = ("error", error_doc(e))
+    def _snapshot(self, request: object) -> Snapshot:
+        """A snapshot for the child (its request says nothing more), counted and timed."""
+        t0 = time.perf_counter()
+        try:
+            return self.source.snapshot()
+        finally:
             self.snapshot_seconds += time.perf_counter() - t0
             self.snapshots += 1
-            try:
-                conn.send(reply)
-            except (EOFError, OSError):
-                return
 
     def stop(self) -> None:
         """Stop the page and its process (the arm and the source are left as they are)."""
@@ -212,23 +204,29 @@ class ViewProcess:
         self.stop()
 
 
-def _serve_commands(conn: Connection, controls: Controls) -> None:
-    """Run the child's commands through ``controls`` (in this process) until it is gone."""
+def _answer(conn: Connection, handle: Callable[[Any], Any]) -> None:
+    """Answer each of the child's requests on ``conn`` with ``handle``'s result, or its akarm error
+    as the control socket carries it, until the child is gone."""
     while True:
         try:
-            op, args = conn.recv()
+            request = conn.recv()
         except (EOFError, OSError):
             return
-        except (TypeError, ValueError):  # not a pair: a broken child; answered, nothing run
-            op, args = "?", None
         try:
-            reply: tuple[str, Any] = ("ok", controls.call(op, args))
+            reply: tuple[str, Any] = ("ok", handle(request))
         except AkarmError as e:
             reply = ("error", error_doc(e))
         try:
             conn.send(reply)
         except (EOFError, OSError):
             return
+
+
+def _run_command(controls: Controls, request: Any) -> Any:
+    """One of the page's commands, ``(op, args)``, through ``controls`` (in this process); anything
+    else (a broken child) is refused by :meth:`Controls.call` as an operation it does not run."""
+    op, args = request if isinstance(request, tuple) and len(request) == 2 else ("?", {})
+    return controls.call(op, args)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -120,6 +120,10 @@ class MomentumObserver:
         self.offset = np.array(offset, dtype=float)
         self._friction = list(zip(self.coulomb.tolist(), self.viscous.tolist(), self.offset.tolist(), strict=True))
 
+    def at_limit(self, tau: Sequence[float]) -> bool:
+        """Whether a reported torque (N·m per joint) is at its motor's limit (:attr:`saturation`)."""
+        return any(abs(t) >= sat for t, sat in zip(tau, self._saturation, strict=True))
+
     def velocity(self, dq: ArrayLike, v_des: ArrayLike | None, dt: float = 0.0) -> list[float]:
         """The velocity the observer works with: the measured one, or, when the arm tracks a command,
         the command plus its (low-passed, 20 ms) difference to the measurement, kept within the
@@ -335,16 +339,15 @@ class CollisionReflex:
         self._sample_last = sample
         if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
             obs.reset(qa, va, ta, v_then)
-            self._q_last, self._v_last = qa, va
             r = obs.estimate
         else:
             r = obs.update(qa, va, ta, dt, kp, kd, v_then)
-            self._q_last, self._v_last = qa, va
+        self._q_last, self._v_last = qa, va
         if not check:
             self.armed = False
             return None
         # a motor at its limit: within a period its torque is not known
-        if any(abs(t) >= sat for t, sat in zip(ta, obs.saturation.tolist(), strict=True)):
+        if obs.at_limit(ta):
             self._quiet_until = now + 2.0 / obs.gain
         if now < self._quiet_until:
             return None

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import sys
 import tempfile
 import time
@@ -51,11 +50,6 @@ def two_bus_robot(directory: Path) -> Path:
     path = directory / "arm6_two_buses.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
-
-
-def process_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
 
 
 def main() -> int:
@@ -92,7 +86,7 @@ def main() -> int:
             print(f"  loop thread: {arm.realtime_report}", flush=True)
             arm.move_to("home", speed=0.5)
             arm.reset_stats()
-            cpu0, wall0 = process_cpu(), time.perf_counter()
+            cpu0, wall0 = time.process_time(), time.perf_counter()
             while time.perf_counter() - wall0 < args.seconds:
                 pose = poses[moves % len(poses)]
                 try:
@@ -103,7 +97,7 @@ def main() -> int:
                     print("STOP " + stops[-1], flush=True)
                     time.sleep(1.0)
                     arm.enable()
-            wall, cpu = time.perf_counter() - wall0, process_cpu() - cpu0
+            wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
             st = arm.stats()
             arm.disable()
     print(f"\n{moves} moves in {wall:.0f} s, {len(stops)} safety stops; load average {os.getloadavg()[0]:.2f} "

@@ -221,10 +221,12 @@ class SimulatedArm:
                             "those motors would have stayed powered (disable the arm, e.g. leave `with arm:`); "
                             "the test's fixture switched them off"), stacklevel=2)
             finally:
-                if gone is None:
-                    self.frames()  # the last ones, kept for after
-                self._closed = True
-                self._stop()
+                try:
+                    if gone is None:
+                        self.frames()  # the last ones, kept for after
+                finally:  # whatever the simulator answered: a simulator left running would answer on the
+                    self._closed = True  # next test's bus too (in vcan-vm, as a second motor on each ID)
+                    self._stop()
         if gone is not None:
             raise StateError(f"the simulator stopped before the test ended: {gone}",
                              fix="its output above says why; this is a bug in akarm's simulator if it shows a "

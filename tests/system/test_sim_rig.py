@@ -44,3 +44,16 @@ def test_a_simulator_that_dies_is_reported_when_leaving() -> None:
     with pytest.raises(StateError, match="the simulator stopped before the test ended: exit status -9"):
         rig.close()
     assert math.isnan(float("nan"))
+
+
+def test_a_simulator_that_no_longer_answers_is_stopped_all_the_same_when_leaving() -> None:
+    """Its control channel gone (as one too slow to answer within its catch-up time): closing says so,
+    and still stops the simulator, which would otherwise answer on the next test's bus as a second motor."""
+    rig = SimulatedArm.start(PLANAR2, "akarm_local", timing="slow")
+    proc = rig.process.proc
+    assert proc is not None and rig.process.control is not None
+    rig.process.control.path.unlink()
+    with pytest.raises(StateError, match="control channel"):
+        rig.close()
+    assert proc.poll() is not None                           # stopped, not left running
+    rig.close()                                              # and closed: a second close does nothing

@@ -26,7 +26,11 @@ for whatever comes due between frames (a status frame, a delayed reply, a driver
 next step) and at least every :attr:`SimulatedRobot.idle_interval` (20 ms): it sleeps in between, so an
 idle simulator costs little CPU (a ticker that woke at every step took most of a CPU in vcan-vm).
 When the machine cannot keep up, simulated time slips (it runs slower than the wall clock) rather
-than bursting: :attr:`SimulatedRobot.slip` says by how much.
+than bursting: :attr:`SimulatedRobot.slip` says by how much. A setpoint frame that waited longer than
+:attr:`SimulatedRobot.overrun_after` in the receive queue is dropped, as a driver's full receive buffer
+drops it (:attr:`SimulatedRobot.overruns` counts them), so the drivers answer the newest commands
+rather than working through a backlog that only grows (in vcan-vm on a busy host, frames had waited
+55 s).
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from akarm.buses.bus import close_buses, open_bus
 from akarm.buses.serialport import DEFAULT_BAUDRATE, Port, open_pty, open_serial
 from akarm.clock import RealClock, SteppedClock
 from akarm.errors import ConfigError, ConfigProblem, StateError
+from akarm.protocol import mit
 from akarm.sim import faults as _faults
 from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
 from akarm.sim.params import MotorSimParams, default_params
@@ -69,6 +74,16 @@ FRAME_LOG_SIZE = 200_000
 def _close_ports(ports: Mapping[str, Port]) -> None:
     for port in ports.values():
         port.close()
+
+
+_SPECIAL = frozenset((mit.ENTER, mit.EXIT, mit.ZERO))  # never dropped
+
+
+def _setpoint(msg: can.Message) -> bool:
+    """A frame a driver may lose to an overrun without harm beyond a missed reply: an MIT command
+    (standard ID, 8 bytes, not ENTER/EXIT/ZERO); extended-ID servo frames are kept whole."""
+    data = msg.data
+    return not msg.is_extended_id and len(data) == 8 and bytes(data) not in _SPECIAL
 
 
 def _driving(d: SimulatedDriver) -> bool:
@@ -96,6 +111,9 @@ class SimulatedRobot:
         zero_silence: s an MIT driver stays off-line after ZERO (default 1.0).
         servo_release: s after the last command a servo driver releases its output (default 1.0).
         max_lag: real time only: s the plant may fall behind the wall clock before time slips.
+        overrun_after: real time only: s a setpoint frame (an MIT command; never ENTER, EXIT, ZERO nor
+            an extended-ID servo frame) may have waited in the receive queue before it is dropped
+            unanswered (default 0.5: a reply later than that is stale to the controller anyway).
         faults: per joint name, faults in force from the start (e.g. a reply delay the controller
             meets at its first frame): ``{"elbow": faults.DelayReplies(0.06)}``.
         serial: per joint name, the serial port its driver answers on instead of CAN: ``"pty"`` (a
@@ -131,6 +149,7 @@ class SimulatedRobot:
         zero_silence: float = 1.0,
         servo_release: float = 1.0,
         max_lag: float = 0.05,
+        overrun_after: float = 0.5,
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
         timing: str | TimingProfile | None = None,
         log_frames: bool = False,
@@ -227,6 +246,9 @@ class SimulatedRobot:
         self._wake = threading.Event()  # an earlier deadline than the ticker sleeps to, or close()
         self._tick_due = math.inf  # simulated time the ticker sleeps to
         self.slip = 0.0
+        self.overrun_after = overrun_after
+        #: real time: setpoint frames dropped because they waited longer than :attr:`overrun_after`
+        self.overruns = 0
         self._late = 0.0
         self.send_errors = 0
         self.thread_error: BaseException | None = None
@@ -462,6 +484,8 @@ class SimulatedRobot:
                 parts.append(f"{d.name} {q + 0.0:+7.3f}rad {tau + 0.0:+6.2f}Nm {d.temperature:5.1f}C {state}{flag}")
             if self.slip > 0.001:
                 parts.append(f"slip {self.slip:.2f}s")
+            if self.overruns:
+                parts.append(f"overruns {self.overruns}")
             return " | ".join(parts)
 
     # ------------------------------------------------------------------ DriverHost
@@ -671,6 +695,12 @@ class SimulatedRobot:
                     msg = bus.recv(timeout=0.02)
                     while msg is not None:  # every frame waiting, then note that the queue was empty
                         late = time.time() - msg.timestamp  # (python-can stamps a frame in wall-clock time)
+                        if late > self.overrun_after and msg.timestamp > 0.0 and _setpoint(msg):
+                            self.overruns += 1  # a backlog: dropped unanswered, at almost no cost
+                            if late > self._late:
+                                self._late = late
+                            msg = bus.recv(timeout=0.0)
+                            continue
                         with self._lock:
                             if late > self._late and msg.timestamp > 0.0:
                                 self._late = late

@@ -71,3 +71,37 @@ def test_a_delayed_reply_goes_out_at_its_time_not_at_the_next_idle_wake(channel:
     assert reply is not None
     assert 0.015 < reply < 0.5, reply  # 20 ms late as asked; the ticker's next idle wake was ~1 s away
 
+
+
+def test_setpoints_that_waited_past_overrun_after_are_dropped_but_enter_and_exit_never(channel: str) -> None:
+    """A backlog (frames stamped 1 s ago, as a simulator that could not keep up finds them): its MIT
+    commands are dropped unanswered, as a driver's full receive buffer drops them, so the driver answers
+    the newest; ENTER and EXIT are honoured however late. A fresh command is answered."""
+    config = load_robot(ROBOTS / "planar2.yaml")
+    joint = config.joints[0]
+    command = mit.encode_command(joint.motor, 0.1, 0.0, 5.0, 0.5, 0.0)
+
+    def frame(data: bytes, age: float) -> can.Message:
+        return can.Message(arbitration_id=joint.can_id, data=data, is_extended_id=False, timestamp=time.time() - age)
+
+    def replies(bus: can.BusABC, wait: float = 0.3) -> int:
+        end, n = time.monotonic() + wait, 0
+        while time.monotonic() < end:
+            msg = bus.recv(timeout=0.05)
+            n += msg is not None and not msg.is_extended_id and msg.data[:1] == bytes([joint.can_id])
+        return n
+
+    with SimulatedRobot(config, "virtual", channel) as sim, \
+            can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
+        assert sim.overrun_after == pytest.approx(0.5)
+        bus.send(frame(mit.ENTER, 1.0))
+        assert replies(bus) == 1 and sim.joint(joint.name).enabled          # late, yet taken
+        for _ in range(10):
+            bus.send(frame(command, 1.0))
+        assert replies(bus) == 0 and sim.overruns == 10                    # the backlog: dropped
+        assert sim.take_late() >= 1.0 and "overruns 10" in sim.status_line()  # and reported
+        bus.send(frame(command, 0.0))
+        assert replies(bus) == 1 and sim.overruns == 10                    # a fresh one: answered
+        bus.send(frame(mit.EXIT, 1.0))
+        replies(bus)
+        assert not sim.joint(joint.name).enabled                           # EXIT however late

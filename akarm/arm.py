@@ -75,6 +75,9 @@ def _bounded(items: object, limit: int, what: str, context: str, fix: str) -> No
 
 FeedForward = FeedForwardKind
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
+#: rad: on a machine whose readings trail the commands (a timing profile with ``lag``), a move that waits
+#: returns once every joint reads this close to its command (or after twice the lag)
+ARRIVED = 0.005
 
 
 @dataclass(frozen=True)
@@ -400,7 +403,9 @@ class Arm:
             target: joint positions (rad, config order), a named pose from the YAML, or a mapping
                 ``{joint: rad}`` (other joints keep their commanded position).
             speed: fraction of the joint limits, in (0, 1]: the same path, 1/speed times slower.
-            wait: block until the motion ends.
+            wait: block until the motion ends (where the timing profile says readings trail the commands,
+                as ``slow`` does, until they show every joint within :data:`ARRIVED` of its target, for
+                at most twice the profile's ``lag``).
 
         Raises:
             LimitError: the target or any point of the planned path is outside a joint's range
@@ -469,7 +474,26 @@ class Arm:
             self.stop(wait=True)
 
     def _run(self, motion: Motion, wait: bool) -> Motion:
-        return motion.wait() if wait else motion
+        if not wait:
+            return motion
+        motion.wait()
+        if self.timing.lag > 0 and not motion.superseded:
+            self._await_readings(2.0 * self.timing.lag)
+        return motion
+
+    def _await_readings(self, window: float) -> None:
+        """On a machine whose readings trail the commands (a timing profile with ``lag``, e.g. ``slow``):
+        wait, at most ``window`` s, until every joint reads within :data:`ARRIVED` of its command, so that
+        a move that returned shows the arm where it was sent (a move's end is the plan's)."""
+        end = self.clock.now() + window
+
+        def there() -> bool:
+            q_des = self._ctl.desired_now()[0]
+            with self._ctl.lock:
+                q = np.array([j.state.position for j in self.joints])
+            return bool(np.abs(q - q_des).max() < ARRIVED) or self.clock.now() >= end
+
+        self._ctl.wait_for(there, window + 5.0, "the readings to catch up with the commands")
 
     # ------------------------------------------------------------------------------------------
     # Cartesian: the tool frame's pose (akarm.dynamics.ik, akarm.motion.cartesian)

@@ -95,3 +95,26 @@ def test_the_slow_profiles_lag_lets_a_late_simulator_run_a_fast_move(channel: st
             arm.move_to("up")
             arm.sleep(1.0)
             assert np.allclose(sim.q, config.pose("up"), atol=0.01)
+
+
+@pytest.mark.parametrize(("lag", "delay"), [(1.0, 0.5), (0.0, 0.04)])
+def test_a_move_returns_when_late_readings_show_the_arm_there(channel: str, lag: float, delay: float) -> None:
+    """Readings 0.5 s late (a simulator that cannot keep time): with the slow profile's lag, move_to
+    returns once they show every joint at its target; without a lag (where readings 0.5 s late stop the
+    arm) it returns at the plan's end."""
+    from akarm.arm import ARRIVED
+
+    profile = replace(PROFILES["slow"], lag=lag)
+    config = load_robot(PLANAR2).with_bus(interface="virtual", channel=channel)
+    late = {name: faults.DelayReplies(delay) for name in config.joint_names}
+    target = np.array(config.pose("up"))
+    with lockstep_arm(config, channel, q0=HANGING, timing=profile, sim_options={"faults": late}) as (arm, sim):
+        arm.enable()
+        motion = arm.move_to("up", speed=0.5)
+        behind = arm.clock.now() - motion.plan.t_end
+        error = np.abs(arm.state().q - target).max()
+        if lag:
+            assert error < ARRIVED
+            assert 0.3 < behind < 2.0 * lag       # about the replies' delay: not the whole window
+        else:
+            assert behind < 0.05                  # not a cycle more

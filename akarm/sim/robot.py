@@ -26,11 +26,11 @@ for whatever comes due between frames (a status frame, a delayed reply, a driver
 next step) and at least every :attr:`SimulatedRobot.idle_interval` (20 ms): it sleeps in between, so an
 idle simulator costs little CPU (a ticker that woke at every step took most of a CPU in vcan-vm).
 When the machine cannot keep up, simulated time slips (it runs slower than the wall clock) rather
-than bursting: :attr:`SimulatedRobot.slip` says by how much. A setpoint frame that waited longer than
-:attr:`SimulatedRobot.overrun_after` in the receive queue is dropped, as a driver's full receive buffer
-drops it (:attr:`SimulatedRobot.overruns` counts them), so the drivers answer the newest commands
-rather than working through a backlog that only grows (in vcan-vm on a busy host, frames had waited
-55 s).
+than bursting: :attr:`SimulatedRobot.slip` says by how much. Frames that wait in the receive queue are
+taken in together; of the setpoints among them that waited longer than
+:attr:`SimulatedRobot.overrun_after`, only the newest to each driver is answered, as a driver whose
+receive buffer overflowed answers the last (:attr:`SimulatedRobot.overruns` counts the others), so a
+backlog cannot grow without end (in vcan-vm on a busy host, frames had waited 55 s).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ if TYPE_CHECKING:
 
     from akarm.config import RobotConfig
 
-__all__ = ["FRAME_LOG_SIZE", "SimulatedRobot"]
+__all__ = ["FRAME_LOG_SIZE", "SimulatedRobot", "overrun"]
 
 #: How many of the frames its drivers took in and sent a simulator keeps (:meth:`SimulatedRobot.logged_frames`).
 FRAME_LOG_SIZE = 200_000
@@ -77,13 +77,23 @@ def _close_ports(ports: Mapping[str, Port]) -> None:
 
 
 _SPECIAL = frozenset((mit.ENTER, mit.EXIT, mit.ZERO))  # never dropped
+_BATCH = 256  # frames taken in at one simulated time, at most
 
 
 def _setpoint(msg: can.Message) -> bool:
-    """A frame a driver may lose to an overrun without harm beyond a missed reply: an MIT command
+    """A frame a driver may lose to a newer one without harm beyond a missed reply: an MIT command
     (standard ID, 8 bytes, not ENTER/EXIT/ZERO); extended-ID servo frames are kept whole."""
     data = msg.data
     return not msg.is_extended_id and len(data) == 8 and bytes(data) not in _SPECIAL
+
+
+def overrun(batch: Sequence[can.Message], now: float, after: float) -> list[can.Message]:
+    """What drivers whose receive buffers overflowed answer of ``batch`` (frames found waiting together,
+    oldest first; ``now`` and their timestamps in wall-clock s): every frame but a setpoint that waited
+    more than ``after`` s with a newer setpoint to the same CAN ID behind it."""
+    newest = {m.arbitration_id: k for k, m in enumerate(batch) if _setpoint(m)}
+    return [m for k, m in enumerate(batch)
+            if not _setpoint(m) or newest[m.arbitration_id] == k or now - m.timestamp <= after]
 
 
 def _driving(d: SimulatedDriver) -> bool:
@@ -112,8 +122,8 @@ class SimulatedRobot:
         servo_release: s after the last command a servo driver releases its output (default 1.0).
         max_lag: real time only: s the plant may fall behind the wall clock before time slips.
         overrun_after: real time only: s a setpoint frame (an MIT command; never ENTER, EXIT, ZERO nor
-            an extended-ID servo frame) may have waited in the receive queue before it is dropped
-            unanswered (default 0.5: a reply later than that is stale to the controller anyway).
+            an extended-ID servo frame) may have waited in the receive queue before a newer one to
+            the same driver waiting behind it replaces it unanswered (default 0.25).
         faults: per joint name, faults in force from the start (e.g. a reply delay the controller
             meets at its first frame): ``{"elbow": faults.DelayReplies(0.06)}``.
         serial: per joint name, the serial port its driver answers on instead of CAN: ``"pty"`` (a
@@ -149,7 +159,7 @@ class SimulatedRobot:
         zero_silence: float = 1.0,
         servo_release: float = 1.0,
         max_lag: float = 0.05,
-        overrun_after: float = 0.5,
+        overrun_after: float = 0.25,
         faults: Mapping[str, _faults.Fault | Sequence[_faults.Fault]] | None = None,
         timing: str | TimingProfile | None = None,
         log_frames: bool = False,
@@ -247,7 +257,8 @@ class SimulatedRobot:
         self._tick_due = math.inf  # simulated time the ticker sleeps to
         self.slip = 0.0
         self.overrun_after = overrun_after
-        #: real time: setpoint frames dropped because they waited longer than :attr:`overrun_after`
+        #: real time: setpoint frames dropped: they waited longer than :attr:`overrun_after` and a newer
+        #: one to the same driver waited behind them
         self.overruns = 0
         self._late = 0.0
         self.send_errors = 0
@@ -685,6 +696,24 @@ class SimulatedRobot:
             target -= slip
         return target
 
+    def _take_in(self, name: str, routes: dict[tuple[int, bool], SimulatedDriver], batch: list[can.Message]) -> None:
+        """The frames found waiting on bus ``name``, oldest first, at one simulated time: a setpoint
+        that waited more than :attr:`overrun_after` with a newer one to the same driver behind it is
+        dropped (:attr:`overruns`), as a driver whose receive buffer overflowed answers only the last."""
+        now = time.time()  # (python-can stamps a frame in wall-clock time)
+        late = max(now - m.timestamp if m.timestamp > 0.0 else 0.0 for m in batch)
+        if len(batch) > 1 and late > self.overrun_after:
+            kept = overrun(batch, now, self.overrun_after)
+            self.overruns += len(batch) - len(kept)
+            batch = kept
+        with self._lock:
+            if late > self._late:
+                self._late = late
+            self._integrate_to(self._wall())
+            for m in batch:
+                self._dispatch(name, routes, m)
+            self._nudge()
+
     def _rx_loop(self, name: str, bus: can.BusABC) -> None:
         import can
 
@@ -694,19 +723,10 @@ class SimulatedRobot:
                 try:
                     msg = bus.recv(timeout=0.02)
                     while msg is not None:  # every frame waiting, then note that the queue was empty
-                        late = time.time() - msg.timestamp  # (python-can stamps a frame in wall-clock time)
-                        if late > self.overrun_after and msg.timestamp > 0.0 and _setpoint(msg):
-                            self.overruns += 1  # a backlog: dropped unanswered, at almost no cost
-                            if late > self._late:
-                                self._late = late
-                            msg = bus.recv(timeout=0.0)
-                            continue
-                        with self._lock:
-                            if late > self._late and msg.timestamp > 0.0:
-                                self._late = late
-                            self._integrate_to(self._wall())
-                            self._dispatch(name, routes, msg)
-                            self._nudge()
+                        batch = [msg]
+                        while len(batch) < _BATCH and (msg := bus.recv(timeout=0.0)) is not None:
+                            batch.append(msg)
+                        self._take_in(name, routes, batch)
                         msg = bus.recv(timeout=0.0)
                 except can.CanError:
                     if self._stop.is_set():

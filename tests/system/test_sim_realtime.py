@@ -73,10 +73,10 @@ def test_a_delayed_reply_goes_out_at_its_time_not_at_the_next_idle_wake(channel:
 
 
 
-def test_setpoints_that_waited_past_overrun_after_are_dropped_but_enter_and_exit_never(channel: str) -> None:
-    """A backlog (frames stamped 1 s ago, as a simulator that could not keep up finds them): its MIT
-    commands are dropped unanswered, as a driver's full receive buffer drops them, so the driver answers
-    the newest; ENTER and EXIT are honoured however late. A fresh command is answered."""
+def test_a_backlog_of_old_setpoints_is_answered_once_and_enter_and_exit_are_honoured(channel: str) -> None:
+    """A backlog (frames stamped 1 s ago, as a simulator that could not keep up finds them): of its MIT
+    commands the driver answers the newest it finds (akarm.sim.robot.overrun), so the replies do not
+    pile up; ENTER and EXIT are honoured however late."""
     config = load_robot(ROBOTS / "planar2.yaml")
     joint = config.joints[0]
     command = mit.encode_command(joint.motor, 0.1, 0.0, 5.0, 0.5, 0.0)
@@ -93,15 +93,15 @@ def test_setpoints_that_waited_past_overrun_after_are_dropped_but_enter_and_exit
 
     with SimulatedRobot(config, "virtual", channel) as sim, \
             can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
-        assert sim.overrun_after == pytest.approx(0.5)
+        assert sim.overrun_after == pytest.approx(0.25)
         bus.send(frame(mit.ENTER, 1.0))
         assert replies(bus) == 1 and sim.joint(joint.name).enabled          # late, yet taken
-        for _ in range(10):
+        for _ in range(50):
             bus.send(frame(command, 1.0))
-        assert replies(bus) == 0 and sim.overruns == 10                    # the backlog: dropped
-        assert sim.take_late() >= 1.0 and "overruns 10" in sim.status_line()  # and reported
-        bus.send(frame(command, 0.0))
-        assert replies(bus) == 1 and sim.overruns == 10                    # a fresh one: answered
+        answered = replies(bus)
+        assert answered >= 1 and answered + sim.overruns == 50              # each answered or replaced
+        assert sim.overruns > 0 and f"overruns {sim.overruns}" in sim.status_line()
+        assert sim.take_late() >= 1.0
         bus.send(frame(mit.EXIT, 1.0))
         replies(bus)
         assert not sim.joint(joint.name).enabled                           # EXIT however late

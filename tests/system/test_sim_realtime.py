@@ -84,7 +84,7 @@ def test_a_backlog_of_old_setpoints_is_answered_once_and_enter_and_exit_are_hono
     def frame(data: bytes, age: float) -> can.Message:
         return can.Message(arbitration_id=joint.can_id, data=data, is_extended_id=False, timestamp=time.time() - age)
 
-    def replies(bus: can.BusABC, wait: float = 0.3) -> int:
+    def replies(bus: can.BusABC, wait: float = 1.0) -> int:  # (a busy machine: generous)
         end, n = time.monotonic() + wait, 0
         while time.monotonic() < end:
             msg = bus.recv(timeout=0.05)

@@ -130,8 +130,18 @@ class SimulatedArm:
     def __enter__(self) -> SimulatedArm:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, exc: BaseException | None, tb: object) -> None:
+        if exc is None:
+            self.close()
+            return
+        try:  # the block failed: that failure stays what is reported, with closing's as a note on it
+            self.close()
+        except AkarmError as e:
+            note = f"then closing the simulated arm failed too: {type(e).__name__}: {e}"
+            if sys.version_info >= (3, 11):
+                exc.add_note(note)
+            else:  # no notes before 3.11: said on stderr
+                warnings.warn(note, RuntimeWarning, stacklevel=2)
 
     # ------------------------------------------------------------------ arms
 

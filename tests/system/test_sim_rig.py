@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import os
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -57,3 +58,17 @@ def test_a_simulator_that_no_longer_answers_is_stopped_all_the_same_when_leaving
         rig.close()
     assert proc.poll() is not None                           # stopped, not left running
     rig.close()                                              # and closed: a second close does nothing
+
+
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="exception notes are new in Python 3.11")
+def test_a_failure_in_the_block_stays_the_one_reported_when_closing_fails_too() -> None:
+    """A test that failed while the simulator stopped answering: the test's own error comes out (pytest's
+    summary names it), with what closing said as a note, and the simulator is stopped all the same."""
+    with pytest.raises(ValueError, match="the test's own failure") as failed, \
+            SimulatedArm.start(PLANAR2, "akarm_local", timing="slow") as rig:
+        proc = rig.process.proc
+        assert proc is not None and rig.process.control is not None
+        rig.process.control.path.unlink()
+        raise ValueError("the test's own failure")
+    assert any("closing the simulated arm failed too: StateError" in n for n in failed.value.__notes__)
+    assert proc.poll() is not None

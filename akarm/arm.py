@@ -488,10 +488,9 @@ class Arm:
         end = self.clock.now() + window
 
         def there() -> bool:
-            q_des = self._ctl.desired_now()[0]
             with self._ctl.lock:
-                q = np.array([j.state.position for j in self.joints])
-            return bool(np.abs(q - q_des).max() < ARRIVED) or self.clock.now() >= end
+                error = max(abs(j.state.position - c) for j, c in zip(self.joints, self._ctl.des[0], strict=True))
+            return error < ARRIVED or self.clock.now() >= end
 
         self._ctl.wait_for(there, window + 5.0, "the readings to catch up with the commands")
 

@@ -131,12 +131,12 @@ class SimulatedArm:
         return self
 
     def __exit__(self, exc_type: object, exc: BaseException | None, tb: object) -> None:
-        if exc is None:
-            self.close()
-            return
-        try:  # the block failed: that failure stays what is reported, with closing's as a note on it
+        try:
             self.close()
         except AkarmError as e:
+            if exc is None:
+                raise
+            # the block failed: that failure stays what is reported, with closing's as a note on it
             note = f"then closing the simulated arm failed too: {type(e).__name__}: {e}"
             if sys.version_info >= (3, 11):
                 exc.add_note(note)

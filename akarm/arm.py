@@ -899,7 +899,7 @@ class Arm:
         :class:`~akarm.SafetyStop` if it stopped meanwhile.
         """
         end = self.clock.now() + seconds
-        self._ctl.wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass")
+        self._ctl.wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass", until=end)
 
     def telemetry(self, since: float | None = None) -> TelemetryLog:
         """The recorded cycles since ``since`` (clock time, s; default: all kept), oldest first: desired

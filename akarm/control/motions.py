@@ -14,6 +14,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -22,8 +23,16 @@ from akarm.motion.trajectory import Timed
 
 __all__ = ["Motion", "Motions", "PathRecorder", "Ticket", "WaitFor"]
 
-#: ``wait_for(done, timeout, what)``: the controller's wait (running cycles in lock step; raising its fault)
-WaitFor = Callable[[Callable[[], bool], float, str], None]
+
+
+class WaitFor(Protocol):
+    """The controller's wait (running cycles in lock step; raising its fault): until ``done()``,
+    woken by ``wake`` (:meth:`akarm.control.controller.Controller.wait_for`)."""
+
+    def __call__(self, done: Callable[[], bool], timeout: float, what: str, *,
+                 wake: threading.Event | None = None) -> None: ...
+
+
 #: (q, dq, ddq): a commanded state, rad, rad/s, rad/s²
 State = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -78,7 +87,8 @@ class Motion:
         ``timeout`` is in s of the arm's clock; ``None`` waits for the motion's duration plus a margin.
         """
         limit = self.duration + 5.0 if timeout is None else timeout
-        self._wait_for(self._outcome.event.is_set, limit, f"the motion ({self.duration:.2f} s) to end")
+        event = self._outcome.event
+        self._wait_for(event.is_set, limit, f"the motion ({self.duration:.2f} s) to end", wake=event)
         if self._outcome.error is not None:  # cut short without a safety stop (a collision, the arm holding)
             raise self._outcome.error
         return self

@@ -4,13 +4,20 @@ stepped clock: tests/unit/test_loop.py)."""
 from __future__ import annotations
 
 import gc
+import math
 import sys
 import threading
+import time
 
 import pytest
 
+from akarm import Arm, load_robot
 from akarm.clock import RealClock
-from akarm.control.loop import ControlLoop, request_realtime
+from akarm.control.controller import WAIT_SLICE
+from akarm.control.loop import TIMER_SLACK, ControlLoop, request_realtime, timer_slack
+from akarm.sim import SimulatedRobot
+
+from .conftest import ROBOTS
 
 
 @pytest.fixture
@@ -84,3 +91,70 @@ def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly(de
     finally:
         loop.stop()
     assert sys.getswitchinterval() == 0.005  # the last loop stopped: Python's own again
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="timer slack is Linux's")
+def test_the_loop_thread_sleeps_with_a_microsecond_of_timer_slack_and_leaves_the_others_theirs():
+    seen: list[int | None] = []
+    loop = ControlLoop(500.0, RealClock(), lambda now, slot: seen.append(timer_slack()))
+    before = timer_slack()
+    try:
+        loop.start()
+        loop.wait_cycle(5.0)
+        loop.wait_cycle(5.0)
+    finally:
+        loop.stop()
+    assert before is not None and before != TIMER_SLACK  # (Linux's default: 50 µs)
+    assert seen and set(seen) == {TIMER_SLACK}
+    assert timer_slack() == before  # the caller's thread keeps its own
+
+
+class _Waits:
+    """Counts, in the calling thread only, the times it goes to sleep in ``Condition.wait`` and
+    ``time.sleep`` (the ways a caller of the Arm waits for the loop)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, frame, event, arg):  # sys.setprofile's hook
+        if (event == "call" and frame.f_code.co_name == "wait" and frame.f_code.co_filename.endswith("threading.py")
+                and "self" in frame.f_locals and isinstance(frame.f_locals["self"], threading.Condition)) or (
+                event == "c_call" and arg is time.sleep):
+            self.count += 1
+
+    def __enter__(self) -> _Waits:
+        sys.setprofile(self)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        sys.setprofile(None)
+
+
+def test_a_caller_waiting_for_a_move_or_a_time_is_not_woken_every_cycle(channel):
+    """A waiting move sleeps until its motion ends (its event), ``Arm.sleep`` until its time: the caller's
+    thread looks for a stop or a close every WAIT_SLICE meanwhile, not after every cycle (each wake-up
+    cost the process about 40 µs of CPU a cycle); the move still returns within a few cycles of its end."""
+    config = load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(config, realtime=True, q0=[-math.pi / 2, 0.0]), \
+            Arm(config, remember_positions=False) as arm:
+        arm.enable()
+        period = 1.0 / config.rate_hz
+        motion = arm.move_to([-math.pi / 2 + 0.3, 0.2], wait=False)
+        with _Waits() as waits:
+            motion.wait()
+        waited = motion.duration  # at least; a move that was planned from rest
+        assert motion.done and not motion.superseded
+        assert waits.count <= waited / WAIT_SLICE + 10 < 0.5 * waited / period
+        s0 = arm.stats().cycles
+        t0 = time.perf_counter()
+        with _Waits() as waits:
+            arm.sleep(0.3)
+        assert time.perf_counter() - t0 >= 0.3
+        assert arm.stats().cycles - s0 >= 0.3 / period / 2  # the loop ran meanwhile
+        assert waits.count <= 0.3 / WAIT_SLICE + 5
+        # and a move still returns at its end, not a slice or more after it (generous: a loaded machine)
+        t0 = time.perf_counter()
+        back = arm.move_to([-math.pi / 2, 0.0])
+        assert back.done and not arm.state().moving
+        assert time.perf_counter() - t0 < back.duration + 0.25
+        assert arm.state().q_des == pytest.approx([-math.pi / 2, 0.0])

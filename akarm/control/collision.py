@@ -84,8 +84,8 @@ class MomentumObserver:
             at rest a joint's friction is anywhere within ±coulomb, and the smooth model says 0).
         saturation: N·m per joint, the motors' torque range (a torque there does not decay).
 
-    Its arithmetic per joint is done in scalar passes over lists of floats (the mass matrix and the
-    momentum terms come from the model as arrays): for six joints that is about a third of the cost
+    Its arithmetic per joint is done in scalar passes over lists of floats (the momentum and the
+    model's terms come from the model as arrays): for six joints that is about a third of the cost
     of the same steps as numpy calls on six-element arrays, with the same operations in the same
     order.
     """
@@ -148,7 +148,7 @@ class MomentumObserver:
 
     def _smooth(self, beta: list[float], dq: list[float], v_des: list[float] | None) -> list[float]:
         """``τ_f - Cᵀq̇ + g`` at (q, v), given ``beta = g - Cᵀq̇`` there
-        (:meth:`~akarm.dynamics.model.RobotModel.momentum_terms`): what the model and friction take
+        (:meth:`~akarm.dynamics.model.RobotModel.momentum`): what the model and friction take
         from the momentum's rate of change. The friction's speed: the commanded one where the joint
         tracks it (within two steps of the feedback: slow motions, whose feedback flips between "at
         rest" and "moving", follow the smooth command, as the feed-forward does); else the measured
@@ -170,8 +170,8 @@ class MomentumObserver:
         d = _floats(dq)
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd)
-        m, beta = self.model.momentum_terms(q, v)
-        self._p0 = (m @ np.array(v)).tolist()
+        p, beta = self.model.momentum(q, v)
+        self._p0 = p.tolist()
         self._integral = [0.0] * self.n
         self._last = (_floats(tau), v, self._smooth(beta.tolist(), d, vd))
         self.estimate = np.zeros(self.n)
@@ -194,7 +194,7 @@ class MomentumObserver:
         d = _floats(dq)
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd, dt)
-        m, beta = self.model.momentum_terms(q, v)
+        p, beta = self.model.momentum(q, v)
         smooth = self._smooth(beta.tolist(), d, vd)
         torque = tau_prev
         if kp is not None:  # (a saturated motor holds its limit: no decay)
@@ -205,9 +205,8 @@ class MomentumObserver:
         for i, (t, sm, sp, r) in enumerate(zip(torque, smooth, smooth_prev, self.estimate.tolist(), strict=True)):
             integral[i] += (t - 0.5 * (sm + sp) + r) * dt
         self._last = (_floats(tau), v, smooth)
-        mv = (m @ np.array(v)).tolist()
         k = self.gain
-        self.estimate = np.array([k * (x - p0 - g) for x, p0, g in zip(mv, self._p0, integral, strict=True)])
+        self.estimate = np.array([k * (x - p0 - g) for x, p0, g in zip(p.tolist(), self._p0, integral, strict=True)])
         return self.estimate
 
 

@@ -128,6 +128,7 @@ class RobotModel:
         self._q_identity = (not cont_cfg and model.nq == n and rev_q == list(range(n)))
         self._v_identity = (model.nv == n and idx_v == list(range(n)))
         self._below_diagonal = np.tril_indices(model.nv, -1)  # crba fills the upper triangle: mirrored into these
+        self._zero_v = np.zeros(model.nv)  # (read only) the zero velocity of the momentum's RNEA pass
 
         # tool frame
         if config.tool_frame is not None:
@@ -251,16 +252,19 @@ class RobotModel:
         m[low] = m.T[low]
         return m if self._v_identity else m[np.ix_(self._vi, self._vi)]
 
-    def momentum_terms(self, q: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        """``M(q)`` and ``g(q) - C(q, v)ᵀ·v`` (config order): what the collision observer needs each
-        cycle, with ``q`` and ``v`` converted once. (Pinocchio's ``computeAllTerms`` does not fill the
+    def momentum(self, q: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The momentum ``M(q)·v`` and ``g(q) - C(q, v)ᵀ·v`` (config order): what the collision
+        observer needs each cycle, with ``q`` and ``v`` converted once. The momentum is RNEA's torque
+        at zero velocity with ``v`` as the acceleration, less gravity: the mass matrix itself (CRBA,
+        mirrored, times ``v``) cost twice as much. (Pinocchio's ``computeAllTerms`` does not fill the
         Coriolis matrix: three passes.)"""
         model, data = self.pin_model, self.pin_data
         qp, vp = self.to_pin_q(q), self.to_pin_v(v)
         c = pin.computeCoriolisMatrix(model, data, qp, vp)
-        beta = pin.computeGeneralizedGravity(model, data, qp) - c.T @ vp
-        m = self._symmetric(pin.crba(model, data, qp))
-        return m, (beta if self._v_identity else beta[self._vi])
+        g = pin.computeGeneralizedGravity(model, data, qp)
+        beta = g - c.T @ vp
+        p = pin.rnea(model, data, qp, self._zero_v, vp) - g
+        return (p, beta) if self._v_identity else (p[self._vi], beta[self._vi])
 
     def _pv(self, x: ArrayLike, what: str) -> np.ndarray:
         x = self._vec(x, what)

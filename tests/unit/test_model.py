@@ -244,6 +244,21 @@ def test_arm6_forward_dynamics_inverts_inverse_dynamics(arm6: RobotConfig) -> No
         np.testing.assert_allclose(mm @ a, tau - model.nonlinear_effects(q, v), atol=1e-9)
 
 
+def test_momentum_is_the_mass_matrix_times_v_and_beta_is_gravity_less_coriolis_transposed(arm6: RobotConfig,
+                                                                                          tmp_path: Path) -> None:
+    rng = np.random.default_rng(8)
+    # arm6 with its rotors (armature) in Pinocchio's order, and a chain whose config order is not Pinocchio's
+    for model in (RobotModel(arm6, armature=True), RobotModel(chain(tmp_path, "revolute"))):
+        n = len(model.lower)
+        for _ in range(10):
+            q = rng.uniform(-1.5, 1.5, n)
+            v = rng.uniform(-2, 2, n)
+            p, beta = model.momentum(q, v)
+            np.testing.assert_allclose(p, model.mass_matrix(q) @ v, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(beta, model.gravity(q) - model.coriolis_matrix(q, v).T @ v, rtol=0, atol=1e-12)
+            assert np.abs(p).max() > 1e-3  # (not trivially zero)
+
+
 def test_inputs_accept_sequences_and_return_float_arrays(planar2: RobotConfig) -> None:
     model = RobotModel(planar2)
     for q in ([0.1, 0.2], (0.1, 0.2), np.array([0.1, 0.2], dtype=np.float32), np.array([0, 1])):

@@ -18,13 +18,16 @@ def feed(w: WakeLateness, lateness_us: list[int], times: int) -> None:
             w.woke(x * 1e-6)
 
 
-def test_the_spin_settles_at_the_95th_percentile_of_wake_up_lateness() -> None:
+def test_the_spin_settles_at_the_median_of_wake_up_lateness() -> None:
     w = WakeLateness(max_spin=200e-6)
-    lateness = list(range(30, 130))  # µs, uniform: p95 ≈ 125 µs
+    lateness = list(range(30, 130))  # µs, uniform: the median ≈ 80 µs
     feed(w, lateness, 300)
-    assert w.spin() == pytest.approx(125e-6, abs=8e-6)
+    assert w.spin() == pytest.approx(80e-6, abs=8e-6)
     late_after = sum(x * 1e-6 > w.spin() for x in lateness) / len(lateness)
-    assert 0.0 < late_after <= 0.1  # a few wake-ups still come after the spin began: that is the trade
+    assert 0.4 <= late_after <= 0.6  # half the wake-ups still come after the spin began: that is the trade
+    tail = [60] * 90 + [190] * 10  # µs: a few very late wake-ups do not lengthen every cycle's spin
+    feed(w, tail, 300)
+    assert w.spin() == pytest.approx(60e-6, abs=8e-6)
 
 
 def test_the_spin_never_exceeds_its_maximum() -> None:

@@ -194,9 +194,12 @@ class Arm:
             ``$XDG_STATE_HOME/akarm/positions/NAME.json``), and refuse an enable where a joint reads
             whole rotor turns from it (:class:`~akarm.TurnCountLost`, a driver that lost its turn
             count in a power cycle; see :meth:`enable`'s ``accept_position``); on buses only a
-            simulator answers on (``virtual``, ``akarm_local``, ``vcan*``), ``NAME.sim.json``: a
-            simulated arm never touches the real one's. A path: that state file. ``False``: nothing is
-            remembered or checked.
+            simulator answers on (``akarm_local``, ``vcan*``), ``NAME.sim.json``: a simulated arm never
+            touches the real one's. On python-can's ``virtual`` buses alone, nothing: such a bus lives
+            in one process, so its simulator started with this program, where another program's
+            simulated arm stopped says nothing of it (a fresh simulator a rotor turn from there was
+            refused as a lost turn count). A path: that state file. ``False``: nothing is remembered
+            or checked.
 
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
@@ -217,9 +220,12 @@ class Arm:
                  collision_gain: float = DEFAULT_GAIN,
                  remember_positions: bool | str | PathLike[str] = True) -> None:
         self.timing = get_profile(timing)
-        if remember_positions is True:
+        position_file: str | PathLike[str] | None
+        if remember_positions is True and all(b.interface == "virtual" for b in config.buses.values()):
+            position_file = None  # a simulator in this process, started with it: nothing of it to remember
+        elif remember_positions is True:
             on_simulator = all(map(simulated, config.buses.values()))
-            position_file: str | PathLike[str] | None = state_file(config.name, simulator=on_simulator)
+            position_file = state_file(config.name, simulator=on_simulator)
         elif remember_positions is False:
             position_file = None
         elif isinstance(remember_positions, str | PathLike) and str(remember_positions):

@@ -170,3 +170,28 @@ def test_without_remembered_positions_nothing_is_compared(channel: str) -> None:
         arm.sleep(0.1)
         arm.enable()  # the reading is believed (the issue's failure, on purpose)
         assert not state_dir().exists() or list(state_dir().iterdir()) == []
+
+
+def test_on_virtual_buses_another_programs_simulated_arm_is_not_remembered(channel: str) -> None:
+    """python-can's virtual bus lives in one process: its simulator started with this program, so where
+    another program's simulated arm stopped (NAME.sim.json) says nothing of it. That file had the
+    examples refuse to enable a fresh simulator whose wrist_roll stood one rotor turn from it."""
+    from akarm import Arm, load_robot
+    from akarm.control.turns import state_file
+
+    stale = state_file("arm6", simulator=True)
+    stale.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps({"robot_positions": 1, "positions": {"wrist_roll": -2 * math.pi / 6}})  # AK60-6: 1 turn
+    stale.write_text(text)
+    config = load_robot(Path(__file__).parents[2] / "robots" / "arm6.yaml").with_bus(interface="virtual",
+                                                                                     channel=channel)
+    with SimulatedRobot(config, realtime=False, q0=[0.0] * 6) as sim, Arm(config, clock=sim.clock) as arm:
+        arm.enable()  # (refused with TurnCountLost when the file was read)
+        arm.disable()
+    assert stale.read_text() == text  # neither read nor written
+    # the same arm on a bus another process's simulator may answer on: remembered, and checked
+    local = config.with_bus(interface="akarm_local", channel=channel)
+    with SimulatedRobot(local, realtime=False, q0=[0.0] * 6) as sim, Arm(local, clock=sim.clock) as arm, \
+            pytest.raises(TurnCountLost) as lost:
+        arm.enable()
+    assert lost.value.joint == "wrist_roll"

@@ -145,7 +145,7 @@ def run_akarm(channel: str, seconds: float) -> dict:
 
     cfg = replace(akarm.load_robot(ARM6).with_bus(interface="akarm_local", channel=channel), rate_hz=RATE)
     poses = [p for p in ("ready", "reach", "home") if p in cfg.poses]
-    with SimulatorProcess(ARM6, channel=channel) as sim, akarm.Arm(cfg) as arm:
+    with SimulatorProcess(ARM6, channel=channel) as sim, akarm.Arm(cfg, remember_positions=False) as arm:
         enable(arm)
         arm.reset_stats()
         wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), sim.cpu_seconds()

@@ -75,7 +75,8 @@ def realtime_run(rate: float, seconds: float, rt: bool, busy: bool, sim: str) ->
             # the simulator shares this process and its interpreter lock: a stall of it is not a motor
             # going silent, so the watchdog gets 100 ms here instead of the default 20 ms
             sim_cpu_seconds, options = (lambda: float("nan")), {"feedback_timeout": 0.1}
-        arm = stack.enter_context(akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, loop_cpu=loop_cpu, **options))
+        arm = stack.enter_context(akarm.Arm(cfg, realtime_priority=rt, busy_wait=busy, loop_cpu=loop_cpu,
+                                                  remember_positions=False, **options))
         arm.enable()
         arm.reset_stats()  # measure the steady state, not the enable
         wall0, cpu0, sim0 = time.perf_counter(), cpu_seconds(), sim_cpu_seconds()

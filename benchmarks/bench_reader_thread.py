@@ -114,7 +114,7 @@ def run(side: str, seconds: float) -> dict:
     interface = READER if side == "reader" else "akarm_local"
     cfg = replace(akarm.load_robot(ARM6).with_bus(interface=interface, channel=channel), rate_hz=RATE)
     poses = [p for p in ("ready", "reach", "home") if p in cfg.poses]
-    with SimulatorProcess(ARM6, channel=channel) as _sim, akarm.Arm(cfg) as arm:
+    with SimulatorProcess(ARM6, channel=channel) as _sim, akarm.Arm(cfg, remember_positions=False) as arm:
         arm.enable()
         arm.reset_stats()
         wall0, cpu0 = time.perf_counter(), cpu_seconds()

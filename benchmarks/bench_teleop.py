@@ -121,8 +121,8 @@ def realtime(robot: str, seconds: float, watchdog: float) -> None:
           f"{os.cpu_count()} CPUs, {load} at start")
     with SimulatorProcess(yaml_path, channel=f"lead-{tag}", control=True) as ls, \
             SimulatorProcess(yaml_path, channel=f"foll-{tag}", control=True) as fs:
-        leader = Arm(config.with_bus(interface="akarm_local", channel=f"lead-{tag}"))
-        follower = Arm(config.with_bus(interface="akarm_local", channel=f"foll-{tag}"))
+        leader = Arm(config.with_bus(interface="akarm_local", channel=f"lead-{tag}"), remember_positions=False)
+        follower = Arm(config.with_bus(interface="akarm_local", channel=f"foll-{tag}"), remember_positions=False)
         with leader, follower:
             leader.enable()
             follower.enable()

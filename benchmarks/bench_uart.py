@@ -95,7 +95,8 @@ def realtime(serial: Sequence[str]) -> dict[str, Any]:
         config = replace(rig.config, buses={k: replace(b, options={**b.options, "errors_in_row": 100})
                                             if b.interface == "akarm_uart" else b for k, b in rig.config.buses.items()},
                          joints=tuple(replace(j, following_error=3.0, stuck_travel=3.0) for j in rig.config.joints))
-        arm = stack.enter_context(akarm.Arm(config, timing=profile, telemetry_seconds=60.0))
+        arm = stack.enter_context(akarm.Arm(config, timing=profile, telemetry_seconds=60.0,
+                                                  remember_positions=False))
         return program(arm)
 
 

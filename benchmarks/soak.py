@@ -83,11 +83,11 @@ def main() -> int:  # noqa: C901
     with contextlib.ExitStack() as stack:
         if args.lockstep:
             sim = stack.enter_context(SimulatedRobot(config, realtime=False, q0=config.pose("home")))
-            arm = stack.enter_context(akarm.Arm(config, clock=sim.clock))
+            arm = stack.enter_context(akarm.Arm(config, clock=sim.clock, remember_positions=False))
             clock = arm.clock.now
         else:
             sim = stack.enter_context(SimulatorProcess(ARM6, channel=args.channel, pose="home"))
-            arm = stack.enter_context(akarm.Arm(config))
+            arm = stack.enter_context(akarm.Arm(config, remember_positions=False))
             clock = time.monotonic
         lo = arm.limits.lower + 0.05
         hi = arm.limits.upper - 0.05

@@ -139,11 +139,12 @@ def enable(arm: Any) -> None:
             time.sleep(0.5)
 
 
-def run_akarm(channel: str, seconds: float) -> dict:
+def run_akarm(channel: str, seconds: float, interface: str = "akarm_local") -> dict:
+    """akarm's side: an Arm on ``interface`` (the simulator is on akarm_local ``channel``)."""
     import akarm
     from akarm.sim.process import SimulatorProcess
 
-    cfg = replace(akarm.load_robot(ARM6).with_bus(interface="akarm_local", channel=channel), rate_hz=RATE)
+    cfg = replace(akarm.load_robot(ARM6).with_bus(interface=interface, channel=channel), rate_hz=RATE)
     poses = [p for p in ("ready", "reach", "home") if p in cfg.poses]
     with SimulatorProcess(ARM6, channel=channel) as sim, akarm.Arm(cfg, remember_positions=False) as arm:
         enable(arm)
@@ -172,8 +173,9 @@ def child(side: str, seconds: float) -> None:
     print(MARK + json.dumps(result), flush=True)
 
 
-def spawn(side: str, seconds: float) -> dict:
-    out = subprocess.run([sys.executable, __file__, "--child", side, "--seconds", str(seconds)],
+def spawn(side: str, seconds: float, script: str = __file__) -> dict:
+    """``script --child side``'s result, run in a fresh process of its own."""
+    out = subprocess.run([sys.executable, script, "--child", side, "--seconds", str(seconds)],
                          capture_output=True, text=True, timeout=seconds + 180)
     for line in out.stdout.splitlines():
         if line.startswith(MARK):

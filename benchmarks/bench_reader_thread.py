@@ -27,23 +27,14 @@ import argparse
 import collections
 import json
 import os
-import resource
-import subprocess
 import sys
 import threading
 import time
-from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import can
+from bench_cpu_peer import MARK, RATE, run_akarm, spawn
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-ARM6 = ROOT / "robots" / "arm6.yaml"
-RATE = 480.0
-MARK = "RESULT "
 READER = "akarm_bench_reader"
 
 
@@ -100,48 +91,9 @@ def register() -> None:
     can.util.VALID_INTERFACES = frozenset({*can.util.VALID_INTERFACES, READER})  # type: ignore[attr-defined]
 
 
-def cpu_seconds() -> float:
-    r = resource.getrusage(resource.RUSAGE_SELF)
-    return r.ru_utime + r.ru_stime
-
-
 def run(side: str, seconds: float) -> dict:
-    import akarm
-    from akarm.sim.process import SimulatorProcess
-
-    channel = f"reader-{os.getpid()}"
     register()
-    interface = READER if side == "reader" else "akarm_local"
-    cfg = replace(akarm.load_robot(ARM6).with_bus(interface=interface, channel=channel), rate_hz=RATE)
-    poses = [p for p in ("ready", "reach", "home") if p in cfg.poses]
-    with SimulatorProcess(ARM6, channel=channel) as _sim, akarm.Arm(cfg, remember_positions=False) as arm:
-        arm.enable()
-        arm.reset_stats()
-        wall0, cpu0 = time.perf_counter(), cpu_seconds()
-        k = stops = 0
-        while time.perf_counter() - wall0 < seconds:
-            try:
-                arm.move_to(poses[k % len(poses)], speed=0.7)
-            except akarm.SafetyStop as e:  # a starved simulator on a loaded machine: counted, enabled again
-                print(f"stop: {e}", file=sys.stderr)
-                stops += 1
-                time.sleep(0.5)
-                arm.enable()
-            k += 1
-        cpu = cpu_seconds() - cpu0
-        s = arm.stats()
-    return {"side": side, "stops": stops, "cycles": s.cycles, "missed": s.missed, "cpu_per_cycle": cpu / s.cycles,
-            "late_p99": s.late_p99, "compute_mean": s.compute_mean, "receive_mean": s.stage_mean["receive"],
-            "receive_p99": s.stage_p99["receive"]}
-
-
-def spawn(side: str, seconds: float) -> dict:
-    out = subprocess.run([sys.executable, __file__, "--child", side, "--seconds", str(seconds)],
-                         capture_output=True, text=True, timeout=seconds + 180)
-    for line in out.stdout.splitlines():
-        if line.startswith(MARK):
-            return json.loads(line[len(MARK):])
-    raise SystemExit(f"the {side} run failed:\n{out.stdout[-2000:]}\n{out.stderr[-4000:]}")
+    return run_akarm(f"reader-{os.getpid()}", seconds, READER if side == "reader" else "akarm_local")
 
 
 def main() -> None:
@@ -160,9 +112,10 @@ def main() -> None:
           f"{'compute':>8} {'late p99':>9} {'stops':>5}   (µs)")
     for r in range(1, args.rounds + 1):
         for side in ("direct", "reader"):
-            x = spawn(side, args.seconds)
+            x = spawn(side, args.seconds, __file__)
             print(f"{r:5d} {side:>7} {x['cycles']:7d} {x['missed']:6d} {x['cpu_per_cycle'] * us:10.1f} "
-                  f"{x['receive_mean'] * us:8.1f} {x['receive_p99'] * us:8.1f} {x['compute_mean'] * us:8.1f} "
+                  f"{x['stage_mean']['receive'] * us:8.1f} {x['stage_p99']['receive'] * us:8.1f} "
+                  f"{x['compute_mean'] * us:8.1f} "
                   f"{x['late_p99'] * us:9.1f} {x['stops']:5d}", flush=True)
 
 

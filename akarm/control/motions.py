@@ -24,7 +24,6 @@ from akarm.motion.trajectory import Timed
 __all__ = ["Motion", "Motions", "PathRecorder", "Ticket", "WaitFor"]
 
 
-
 class WaitFor(Protocol):
     """The controller's wait (running cycles in lock step; raising its fault): until ``done()``,
     woken by ``wake`` (:meth:`akarm.control.controller.Controller.wait_for`)."""

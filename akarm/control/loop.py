@@ -32,6 +32,12 @@ __all__ = ["TIMER_SLACK", "ControlLoop", "LoopStats", "StatsSummary", "collector
 log = logging.getLogger(__name__)
 
 
+def _libc() -> ctypes.CDLL:
+    """The C library, for the calls Python's os module lacks (mlockall, prctl). Raises OSError (or
+    TypeError where there is no C library to find)."""
+    return ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+
+
 def request_realtime(priority: int = 80, lock_memory: bool = True, switch_interval: float | None = None) -> str:
     """Ask for SCHED_FIFO for the calling thread, lock the process's memory, and keep Python's own
     pauses short: the garbage collector stops re-scanning the objects that exist now (``gc.freeze``:
@@ -50,10 +56,8 @@ def request_realtime(priority: int = 80, lock_memory: bool = True, switch_interv
         parts.append(f"real-time priority refused ({e.__class__.__name__}: {e}); run as root or raise "
                      f"RLIMIT_RTPRIO (ulimit -r {priority}) to get it")
     if lock_memory:
-        libc_name = ctypes.util.find_library("c")
         try:
-            libc = ctypes.CDLL(libc_name, use_errno=True)
-            if libc.mlockall(3) != 0:  # MCL_CURRENT | MCL_FUTURE
+            if _libc().mlockall(3) != 0:  # MCL_CURRENT | MCL_FUTURE
                 raise OSError(ctypes.get_errno(), os.strerror(ctypes.get_errno()))
             parts.append("memory locked")
         except (OSError, AttributeError, TypeError) as e:
@@ -117,7 +121,7 @@ def _prctl(option: int, value: int = 0) -> int | None:
     if not sys.platform.startswith("linux"):
         return None
     try:
-        result = int(ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True).prctl(option, value, 0, 0, 0))
+        result = int(_libc().prctl(option, value, 0, 0, 0))
     except (OSError, AttributeError, TypeError):
         return None
     return None if result < 0 else result

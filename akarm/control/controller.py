@@ -316,8 +316,11 @@ class Controller:
                                  fix="this is a bug in akarm; please report it with the traceback in the log")
             if self.clock.now() > end:
                 raise StateError(f"timed out after {timeout:.2f} s waiting for {what}")
+            if loop.stepped or (wake is None and until is None):
+                loop.wait_cycle(0.1)
+                continue
             pause = WAIT_SLICE if until is None else min(WAIT_SLICE, until - self.clock.now())
-            if loop.stepped or (wake is None and until is None) or pause <= 0.0:
+            if pause <= 0.0:
                 loop.wait_cycle(0.1)
             elif wake is not None:
                 wake.wait(pause)

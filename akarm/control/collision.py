@@ -111,7 +111,7 @@ class MomentumObserver:
         self.saturation = np.full(n, np.inf) if saturation is None else 0.999 * np.asarray(saturation, dtype=float)
         self._saturation = self.saturation.tolist()
         self._lag: list[float] | None = None
-        self.estimate = np.zeros(n)
+        self._r = [0.0] * n  # the estimate, N·m (:attr:`estimate`)
         self._p0 = [0.0] * n
         self._integral = [0.0] * n
         self._last: tuple[list[float], list[float], list[float]] = ([0.0] * n, [0.0] * n, [0.0] * n)
@@ -126,7 +126,7 @@ class MomentumObserver:
 
     def at_limit(self, tau: Sequence[float]) -> bool:
         """Whether a reported torque (N·m per joint) is at its motor's limit (:attr:`saturation`)."""
-        return any(abs(t) >= sat for t, sat in zip(tau, self._saturation, strict=True))
+        return any(t >= sat or t <= -sat for t, sat in zip(tau, self._saturation, strict=True))
 
     def velocity(self, dq: ArrayLike, v_des: ArrayLike | None, dt: float = 0.0) -> list[float]:
         """The velocity the observer works with: the measured one, or, when the arm tracks a command,
@@ -158,15 +158,18 @@ class MomentumObserver:
         rest" and "moving", follow the smooth command, as the feed-forward does); else the measured
         one, a speed within one step of it counting as at rest for the Coulomb friction (at rest it is
         anywhere within ±coulomb, and the smooth model says 0). (:func:`friction_torque`, per joint.)"""
-        tanh, s = math.tanh, FRICTION_SMOOTHING
-        out = []
-        for i, (x, db, (c, b, o), be) in enumerate(zip(dq, self._deadband, self._friction, beta, strict=True)):
-            at_rest = abs(x) <= db
-            v_f = x
-            if v_des is not None and abs(v_des[i] - x) <= 2.0 * db:  # tracks the command
-                v_f, at_rest = v_des[i], False
-            out.append((0.0 if at_rest else c) * tanh(v_f / s) + b * v_f + o + be)
-        return out
+        return [self._smooth_one(i, dq[i], None if v_des is None else v_des[i], beta[i]) for i in range(self.n)]
+
+    def _smooth_one(self, i: int, x: float, c: float | None, be: float) -> float:
+        """:meth:`_smooth` for joint ``i``: measured speed ``x``, commanded ``c`` (``None``: not tracking)."""
+        db = self._deadband[i]
+        co, b, o = self._friction[i]
+        v_f = x
+        if c is not None and abs(c - x) <= 2.0 * db:  # tracks the command
+            v_f = c
+        elif abs(x) <= db:  # at rest as far as the Coulomb friction goes
+            co = 0.0
+        return co * math.tanh(v_f / FRICTION_SMOOTHING) + b * v_f + o + be
 
     def reset(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, v_des: ArrayLike | None = None) -> None:
         """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
@@ -175,43 +178,80 @@ class MomentumObserver:
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd)
         p, beta = self.model.momentum(q, v)
-        self._p0 = p.tolist()
+        self._p0 = _floats(p)
         self._integral = [0.0] * self.n
-        self._last = (_floats(tau), v, self._smooth(beta.tolist(), d, vd))
-        self.estimate = np.zeros(self.n)
+        self._last = (_floats(tau), v, self._smooth(_floats(beta), d, vd))
+        self._r = [0.0] * self.n
         self.started = True
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The external torque estimate per joint, N·m (a new array; zeros before the first step)."""
+        return np.array(self._r)
 
     def update(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, dt: float,
                kp: ArrayLike | None = None, kd: ArrayLike | None = None,
                v_des: ArrayLike | None = None) -> np.ndarray:
+        """:meth:`advance`, and the new :attr:`estimate`."""
+        self.advance(q, dq, tau, dt, kp, kd, v_des)
+        return self.estimate
+
+    def advance(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, dt: float,
+                kp: ArrayLike | None = None, kd: ArrayLike | None = None,
+                v_des: ArrayLike | None = None) -> None:
         """One step: positions (rad), velocities (rad/s), motor torques (N·m) measured now, ``dt`` s
         since the last step; ``kp``, ``kd``: the MIT gains in force (N·m/rad, N·m·s/rad; 0 for servo
         joints); ``v_des``: the velocity commanded when the feedback was taken (see :meth:`velocity`).
-        Returns the external torque estimate (N·m).
+        The estimate is then :attr:`estimate` (:attr:`estimate_list` as floats).
 
         The torque between two samples: an MIT command is held for a whole period, and the reply
         carries the torque of the command just received, so the PD part decays from the sample by
         ``kp·q̇ + kd·q̈`` per second until the next command: over the period it averages the last
         sample less half that decay. Gravity, Coriolis and friction change smoothly: trapezoidal.
-        (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)"""
+        (The rectangle rule's error ``K·Δβ·dt/2`` would follow the arm's gravity torque.)
+
+        After the model's momentum, everything per joint is one scalar pass over floats (friction,
+        the torque's decay, the integral, the estimate), no numpy operation: in the control loop, whose
+        core sleeps between cycles, every separate pass and numpy call starts cold."""
         tau_prev, v_prev, smooth_prev = self._last
         d = _floats(dq)
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd, dt)
         p, beta = self.model.momentum(q, v)
-        smooth = self._smooth(beta.tolist(), d, vd)
-        torque = tau_prev
-        if kp is not None:  # (a saturated motor holds its limit: no decay)
-            kpl, kdl = _floats(kp), ([0.0] * self.n if kd is None else _floats(kd))
-            torque = [t if abs(t) >= sat else t - 0.5 * (p * vp * dt + k * (vi - vp))
-                      for t, sat, p, k, vi, vp in zip(tau_prev, self._saturation, kpl, kdl, v, v_prev, strict=True)]
-        integral = self._integral
-        for i, (t, sm, sp, r) in enumerate(zip(torque, smooth, smooth_prev, self.estimate.tolist(), strict=True)):
-            integral[i] += (t - 0.5 * (sm + sp) + r) * dt
+        pl, bl = _floats(p), _floats(beta)
+        n = self.n
+        if kp is not None:
+            kpl, kdl = _floats(kp), ([0.0] * n if kd is None else _floats(kd))
+        tanh, s_f = math.tanh, FRICTION_SMOOTHING
+        deadband, friction, saturation = self._deadband, self._friction, self._saturation
+        integral, p0, r_prev, k = self._integral, self._p0, self._r, self.gain
+        smooth = [0.0] * n
+        r = [0.0] * n
+        for i in range(n):
+            x = d[i]
+            db = deadband[i]
+            co, b, o = friction[i]
+            v_f = x
+            if vd is not None and abs(vd[i] - x) <= 2.0 * db:  # tracks the command (see _smooth)
+                v_f = vd[i]
+            elif abs(x) <= db:
+                co = 0.0
+            sm = co * tanh(v_f / s_f) + b * v_f + o + bl[i]
+            smooth[i] = sm
+            t = tau_prev[i]
+            if kp is not None and abs(t) < saturation[i]:  # (a saturated motor holds its limit: no decay)
+                vp = v_prev[i]
+                t = t - 0.5 * (kpl[i] * vp * dt + kdl[i] * (v[i] - vp))
+            g = integral[i] + (t - 0.5 * (sm + smooth_prev[i]) + r_prev[i]) * dt
+            integral[i] = g
+            r[i] = k * (pl[i] - p0[i] - g)
         self._last = (_floats(tau), v, smooth)
-        k = self.gain
-        self.estimate = np.array([k * (x - p0 - g) for x, p0, g in zip(p.tolist(), self._p0, integral, strict=True)])
-        return self.estimate
+        self._r = r
+
+    @property
+    def estimate_list(self) -> list[float]:
+        """:attr:`estimate` as a list of floats (read-only: a copy)."""
+        return self._r[:]
 
 
 class CollisionReflex:
@@ -254,11 +294,21 @@ class CollisionReflex:
         self._sample_last = -math.inf  # when the feedback of the last update was taken
         self._v_des: list[float] | None = None  # the velocity the last cycle commanded
         self._quiet_until = -math.inf  # no judging before (a motor was at its torque limit)
-        self.peak = np.zeros(len(self.names))
+        self._peak = [0.0] * len(self.names)
+
+    @property
+    def peak(self) -> np.ndarray:
+        return np.array(self._peak)
 
     @property
     def estimate(self) -> np.ndarray:
+        """The observer's :attr:`~MomentumObserver.estimate` (a new array)."""
         return self.observer.estimate
+
+    @property
+    def estimate_list(self) -> list[float]:
+        """The observer's estimate as floats (a copy): what the loop records every cycle."""
+        return self.observer.estimate_list
 
     def set_thresholds(self, thresholds: Sequence[float | None]) -> None:
         """N·m per joint (``None``: not checked); each positive and finite."""
@@ -305,7 +355,7 @@ class CollisionReflex:
         self.observer.started = False
 
     def clear_peak(self) -> None:
-        self.peak = np.zeros(len(self.names))
+        self._peak = [0.0] * len(self.names)
 
     def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
              kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
@@ -315,9 +365,10 @@ class CollisionReflex:
         ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with
         ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
         mode) the reflex disarms."""
-        isfinite = math.isfinite  # (per element: a seventh of np.all(np.isfinite(...)) for a few joints)
         qa, va, ta = _floats(q), _floats(dq), _floats(tau)
-        if not (all(map(isfinite, qa)) and all(map(isfinite, va)) and all(map(isfinite, ta))):
+        # a sum is finite only if every term is (NaN and ±inf carry through): one test for the usual case
+        if not math.isfinite(sum(qa) + sum(va) + sum(ta)) and not (
+                all(map(math.isfinite, qa)) and all(map(math.isfinite, va)) and all(map(math.isfinite, ta))):
             return None  # no feedback yet: the supervisor deals with missing feedback
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)
         sample, self._cycle = self._cycle, now
@@ -342,28 +393,43 @@ class CollisionReflex:
         self._sample_last = sample
         if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
             obs.reset(qa, va, ta, v_then)
-            r = obs.estimate
         else:
-            r = obs.update(qa, va, ta, dt, kp, kd, v_then)
+            obs.advance(qa, va, ta, dt, kp, kd, v_then)
         self._q_last, self._v_last = qa, va
         if not check:
             self.armed = False
             return None
+        return self._judge(now, ta)
+
+    def _judge(self, now: float, tau: list[float]) -> CollisionError | None:
+        """The step's verdict on the new estimate, the motors reporting ``tau`` (N·m)."""
+        obs = self.observer
         # a motor at its limit: within a period its torque is not known
-        if obs.at_limit(ta):
+        if obs.at_limit(tau):
             self._quiet_until = now + 2.0 / obs.gain
         if now < self._quiet_until:
             return None
-        mag = np.abs(r)
-        np.maximum(self.peak, mag, out=self.peak)
-        mags, thresholds = mag.tolist(), self._thresholds
+        # one pass: the peaks, whether any joint is over its threshold, whether all are under half of it
+        peak, thresholds = self._peak, self._thresholds
+        over = False
+        calm = True
+        for i, x in enumerate(obs.estimate_list):
+            m = x if x >= 0.0 else -x
+            if m > peak[i]:
+                peak[i] = m
+            th = thresholds[i]
+            if m > th:
+                over = True
+            if not m < 0.5 * th:
+                calm = False
         if not self.armed:
-            self.armed = all(x < 0.5 * th for x, th in zip(mags, thresholds, strict=True))
+            self.armed = calm
             return None
-        if not any(x > th for x, th in zip(mags, thresholds, strict=True)):
+        if not over:
             return None
-        over = mag > self.thresholds
-        k = int(np.argmax(np.where(over, mag / self.thresholds, 0.0)))
+        r = obs.estimate
+        mag = np.abs(r)
+        k = int(np.argmax(np.where(mag > self.thresholds, mag / self.thresholds, 0.0)))
         err = CollisionError(
             f"collision: an external torque of {r[k]:+.2f} N·m (threshold {self.thresholds[k]:.2f} N·m); "
             + ("the arm was damped and disabled" if self.reaction == "disable" else

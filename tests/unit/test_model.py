@@ -254,6 +254,7 @@ def test_momentum_is_the_mass_matrix_times_v_and_beta_is_gravity_less_coriolis_t
             q = rng.uniform(-1.5, 1.5, n)
             v = rng.uniform(-2, 2, n)
             p, beta = model.momentum(q, v)
+            assert isinstance(p, list) and isinstance(beta, list) and len(p) == len(beta) == n
             np.testing.assert_allclose(p, model.mass_matrix(q) @ v, rtol=0, atol=1e-12)
             np.testing.assert_allclose(beta, model.gravity(q) - model.coriolis_matrix(q, v).T @ v, rtol=0, atol=1e-12)
             assert np.abs(p).max() > 1e-3  # (not trivially zero)

@@ -201,6 +201,8 @@ class Controller:
         self._kp_list, self._kd_list = self._kp.tolist(), self._kd.tolist()
         self.ff.set_gains(self._kp_list)
         self._tracking = [(not m) or kp > 0.0 for m, kp in zip(self._mit, self._kp_list, strict=True)]
+        self._reflex_kd = [k if m else 0.0 for k, m in zip(self._kd_list, self._mit, strict=True)]
+        self._reflex_kp: tuple[float, list[float]] = (math.nan, [])  # (ramp scale, MIT kp at it): see _collision_check
         self.supervisor.set_guards(self._guards())
 
     @property
@@ -722,14 +724,14 @@ class Controller:
         q_meas = [j.state.position for j in js]
         ramp = self.ramp
         holding = plan is None and ramp.scale >= 1.0
-        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last)
+        vd = dq_d.tolist()
+        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd)
         self._t_last = t
         self.tau_ff = ff
         t4 = pc()
         stage[3] = t4 - t3
         g = ramp.update(t)
         kp, kd, tmax, sat = self._kp_list, self._kd_list, self._t_max, self._saturated
-        vd = dq_d.tolist()
         send = self.bus.send
         for i, j in enumerate(js):
             k = kp[i] * g
@@ -749,12 +751,16 @@ class Controller:
         js, reflex = self.joints, self.reflex
         if check:  # the MIT gains of this cycle's commands (teach: no stiffness, its damping)
             scale = self.ramp.scale
-            kp = [k * scale if m else 0.0 for k, m in zip(self._kp_list, self._mit, strict=True)]
-            kd = [k if m else 0.0 for k, m in zip(self._kd_list, self._mit, strict=True)]
+            at, kp = self._reflex_kp
+            if scale != at:  # (the ramp's scale is 1 but while enabling: the list is kept meanwhile)
+                kp = [k * scale if m else 0.0 for k, m in zip(self._kp_list, self._mit, strict=True)]
+                self._reflex_kp = (scale, kp)
+            kd = self._reflex_kd
         else:
             kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
-        err = reflex.step(now, [j.state.position for j in js], [j.state.velocity for j in js],
-                          [j.state.torque for j in js], check, kp, kd, [j.state.stamp for j in js],
+        states = [j.state for j in js]
+        err = reflex.step(now, [s.position for s in states], [s.velocity for s in states],
+                          [s.torque for s in states], check, kp, kd, [s.stamp for s in states],
                           self.des[1] if check else None)
         if err is None or err.reaction == "disable":
             return err
@@ -764,7 +770,7 @@ class Controller:
     def _record(self, now: float, q_d: Any, dq_d: Any, ff: Any) -> None:
         states = [j.state for j in self.joints]
         self.telemetry.record(now, q_d, dq_d, [s.position for s in states], [s.velocity for s in states],
-                              [s.torque for s in states], ff, self.reflex.estimate)
+                              [s.torque for s in states], ff, self.reflex.estimate_list)
 
     def _commanded(self, now: float, q: Sequence[float], tau: list[float]) -> None:
         """The enabler damped the arm at ``q`` with ``tau`` feed-forward this cycle."""

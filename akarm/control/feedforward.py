@@ -81,11 +81,12 @@ class FeedForward:
         return np.clip(tau, -self._lim_array, self._lim_array)
 
     def torques(self, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, q_meas: Sequence[float], holding: bool,
-                dt: float) -> list[float]:
+                dt: float, qd: list[float] | None = None, vd: list[float] | None = None) -> list[float]:
         """Feed-forward torque per joint (N·m) for the desired state and the measured positions.
 
         ``holding``: the arm holds still at ``q_d`` (the hold integral runs; otherwise it is reset).
-        ``dt``: s since the last call (for the integral).
+        ``dt``: s since the last call (for the integral). ``qd``, ``vd``: ``q_d`` and ``dq_d`` as lists
+        of floats where the caller has them already (the loop: each numpy call costs it a few µs cold).
         """
         n = self.n
         if self.kind == "full":
@@ -99,7 +100,8 @@ class FeedForward:
             g_meas = self.model.gravity(q_meas).tolist()
             for i in self.limp:
                 model_tau[i] = g_meas[i]
-        qd, vd = q_d.tolist(), dq_d.tolist()
+        if qd is None or vd is None:
+            qd, vd = q_d.tolist(), dq_d.tolist()
         c, b, ex, lim, ki, imax, integ = self._c, self._b, self.extra, self._lim, self._ki, self._imax, self._integral
         tanh = math.tanh
         out = [0.0] * n

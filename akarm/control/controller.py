@@ -658,7 +658,7 @@ class Controller:
     def cycle(self, now: float, slot: int) -> None:
         pc = time.perf_counter
         loop = self.loop
-        stage = loop.stats.stage[slot]
+        stage = loop.stats.row(slot)
         t0 = pc()
         self.bus.receive(now)
         t1 = pc()

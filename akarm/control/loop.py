@@ -199,6 +199,14 @@ class LoopStats:
         self.period = np.zeros(capacity)
         self.late = np.zeros(capacity)
         self.stage = np.zeros((capacity, len(self.stages)))
+        # the loop writes through views of the same buffers: a memoryview's item is set by a few
+        # instructions, a numpy array's by its indexing machinery, whose code starts cold in a loop
+        # that sleeps between cycles (ten such writes a cycle)
+        self._period = self.period.data.cast("B").cast("d")
+        self._late = self.late.data.cast("B").cast("d")
+        self._stage = self.stage.data.cast("B").cast("d")
+        self._stage_bytes = self.stage.data.cast("B")
+        self._row_zero = bytes(8 * len(self.stages))
         self.cycles = 0
         self.missed = 0
         self.first_start: float | None = None
@@ -215,14 +223,20 @@ class LoopStats:
     def begin(self, now: float, lateness: float) -> int:
         """Record a cycle start; return its ring index."""
         i = self.cycles % self.capacity
-        self.period[i] = now - self.last_start if self.last_start is not None else 0.0
-        self.late[i] = lateness
-        self.stage[i] = 0.0
+        self._period[i] = now - self.last_start if self.last_start is not None else 0.0
+        self._late[i] = lateness
+        size = len(self._row_zero)
+        self._stage_bytes[i * size:(i + 1) * size] = self._row_zero
         if self.first_start is None:
             self.first_start = now
         self.last_start = now
         self.cycles += 1
         return i
+
+    def row(self, i: int) -> memoryview[float]:
+        """Cycle ``i``'s stage times (s, :attr:`stages` order) to write: a view of its row of :attr:`stage`."""
+        k = len(self.stages)
+        return self._stage[i * k:(i + 1) * k]
 
     def summary(self) -> StatsSummary:
         """Percentiles over the cycles in the ring."""
@@ -284,7 +298,7 @@ class ControlLoop:
     that computes in Python holds the interpreter lock for up to 5 ms when the loop wakes.
 
     ``cycle`` receives the clock time at which it started and the ring index for its stage timings
-    (``loop.stats.stage[slot, k]``, s); while it runs, :attr:`deadline`, :attr:`skipped` and
+    (``loop.stats.row(slot)[k]``, s); while it runs, :attr:`deadline`, :attr:`skipped` and
     :attr:`gap` describe its slot. It must not raise; if it does, the loop stops and calls
     ``on_crash(exception)`` (the Arm uses that to send exit frames).
     """

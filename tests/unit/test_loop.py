@@ -7,7 +7,7 @@ import pytest
 
 from akarm import clock as clock_mod
 from akarm.clock import RealClock, SteppedClock
-from akarm.control.loop import ControlLoop
+from akarm.control.loop import ControlLoop, LoopStats
 
 
 def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():
@@ -41,6 +41,19 @@ def test_stats_summarise_stage_times():
     assert s.compute_max == pytest.approx(1e-2)
     assert s.rate == pytest.approx(100.0)
     assert "work" in s.table()
+
+
+def test_a_cycles_stage_row_is_its_own_and_starts_at_zero():
+    stats = LoopStats(("a", "b"), capacity=2)
+    for now, writes in ((0.0, (1e-4, 2e-4)), (0.01, (3e-4,))):  # the second cycle writes its first stage only
+        row = stats.row(stats.begin(now, 0.0))
+        for k, x in enumerate(writes):
+            row[k] = x
+    assert stats.stage.tolist() == [[1e-4, 2e-4], [3e-4, 0.0]]
+    assert stats.summary().stage_mean == pytest.approx({"a": 2e-4, "b": 1e-4})
+    stats.begin(0.02, 5e-5)  # the ring wraps: slot 0 again, zeroed for its cycle
+    assert stats.stage.tolist() == [[0.0, 0.0], [3e-4, 0.0]]
+    assert stats.late.tolist() == [5e-5, 0.0] and stats.period.tolist() == pytest.approx([0.01, 0.01])
 
 
 class _FakeTime:

@@ -18,6 +18,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from akarm.buses.bus import close_buses, open_bus
+from akarm.buses.localbus import LocalBus
 from akarm.config import RobotConfig
 from akarm.control.joints import Joint, Router
 from akarm.errors import BusError, BusLost
@@ -51,7 +52,9 @@ class BusSet:
         self._on_lost = on_lost
         self._clock = clock
         self._buses: dict[str, can.BusABC] = {}
-        self._live: list[tuple[str, Any, Any]] = []  # (name, bus.recv, router.route) of the buses not lost
+        # (name, read, route, drains) of the buses not lost: drains: read(limit) gives a cycle's frames
+        # (LocalBus.drain, routed by Router.route_frame), else read(0) gives one message (routed by Router.route)
+        self._live: list[tuple[str, Any, Any, bool]] = []
         self._bus_of: list[Any] = [None] * len(self.joints)  # each joint's bus (a lost one is still tried)
         self._failures: dict[str, int] = {}
         self._lost: dict[str, BaseException] = {}
@@ -81,15 +84,19 @@ class BusSet:
         except BusError:
             close_buses(self._buses)
             raise
-        routers = {name: Router([j for j in self.joints if j.bus == name]) for name in self._buses}
-        self._live = [(name, bus.recv, routers[name].route) for name, bus in self._buses.items()]
-        self._bus_of = [self._buses[j.bus] for j in self.joints]
-        self._failures = dict.fromkeys(self._buses, 0)
-        self._lost = {}
         if self._can_log is not None:
             import can
 
             self._logger = can.Logger(str(self._can_log))
+        routers = {name: Router([j for j in self.joints if j.bus == name]) for name in self._buses}
+        # an akarm_local bus hands over a cycle's frames in one call, without a message each (unless
+        # every frame is to be logged: the log takes messages)
+        self._live = [(name, bus.drain, routers[name].route_frame, True)
+                      if isinstance(bus, LocalBus) and self._logger is None else
+                      (name, bus.recv, routers[name].route, False) for name, bus in self._buses.items()]
+        self._bus_of = [self._buses[j.bus] for j in self.joints]
+        self._failures = dict.fromkeys(self._buses, 0)
+        self._lost = {}
 
     def close(self) -> None:
         """Close every bus (and the CAN log); nothing is read or sent afterwards. Never raises."""
@@ -104,8 +111,12 @@ class BusSet:
     def receive(self, now: float) -> None:
         """Route everything already received on every live bus to its joint, never waiting."""
         logger = self._logger
-        for name, recv, route in self._live:
+        for name, recv, route, drains in self._live:
             try:
+                if drains:
+                    for frame in recv(DRAIN_LIMIT):
+                        route(*frame, now)
+                    continue
                 for _ in range(DRAIN_LIMIT):
                     msg = recv(0.0)
                     if msg is None:

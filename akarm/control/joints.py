@@ -517,30 +517,34 @@ class Router:
 
     def route(self, msg: can.Message, now: float) -> Joint | None:
         """Hand ``msg`` to its joint; return that joint, or ``None``."""
-        data = msg.data
+        return self.route_frame(msg.arbitration_id, msg.is_extended_id,
+                                not (msg.is_remote_frame or msg.is_error_frame), msg.dlc, msg.data, now)
+
+    def route_frame(self, arbitration_id: int, extended: bool, plain: bool, dlc: int, data: bytes | bytearray,
+                    now: float) -> Joint | None:
+        """:meth:`route` for a frame given by its fields (``plain``: neither a remote nor an error frame)."""
         try:
-            if msg.is_extended_id:
-                j = self.by_status_id.get(msg.arbitration_id)
+            if extended:
+                j = self.by_status_id.get(arbitration_id)
                 if j is not None:
-                    j.take(msg.arbitration_id, data, now)
+                    j.take(arbitration_id, data, now)
                     return j
-                j = self.by_command_id.get((msg.arbitration_id, True))
+                j = self.by_command_id.get((arbitration_id, True))
                 if j is not None:
                     j.note_foreign("command", now)
                     return None
-                j = self.by_other_mode.get(msg.arbitration_id)
+                j = self.by_other_mode.get(arbitration_id)
                 if j is not None:
                     j.mode_seen = "servo"
-            elif not msg.is_remote_frame and not msg.is_error_frame:
-                dlc = msg.dlc
-                jc = self.by_command_id.get((msg.arbitration_id, False))
+            elif plain:
+                jc = self.by_command_id.get((arbitration_id, False))
                 if jc is not None and (dlc not in (6, 8) or data[0] != jc.can_id):
                     jc.note_foreign(mit.special_frame(data) or "command", now)
                     return None
                 if dlc == 6 or dlc == 8:
                     mj = self.by_driver_id.get(data[0])
                     if mj is not None:
-                        mj.take(msg.arbitration_id, data, now)
+                        mj.take(arbitration_id, data, now)
                         return mj
         except ProtocolError:
             self.corrupt += 1

@@ -188,3 +188,63 @@ def test_arm_moves_against_the_simulator_over_it(planar2, channel):
         for _ in range(100):
             arm.sleep(0.01)
         assert np.max(np.abs(arm.state().q - target)) < 1e-3
+
+
+# -- drain: the control loop's read, a cycle's frames in one call -------------------------------
+
+def _fields(m: can.Message) -> tuple[int, bool, bool, int, bytes]:
+    """A message as drain() gives a frame."""
+    return m.arbitration_id, m.is_extended_id, not (m.is_remote_frame or m.is_error_frame), m.dlc, bytes(m.data)
+
+
+FRAMES = [_msg(0x2903, bytes.fromhex("0102030405060708"), extended=True), _msg(0x7FF, b"\xaa"),
+          _msg(0x141, b"", is_remote_frame=True, dlc=6), _msg(0x2000_0004, b"\x00\x01\x02", extended=True,
+                                                                is_error_frame=True)]
+
+
+def test_drain_gives_what_recv_gives_field_for_field(bus):
+    a, by_recv, by_drain = bus(), bus(), bus()
+    for m in FRAMES:
+        a.send(m)
+    expected = [_fields(m) for m in iter(lambda: by_recv.recv(0.0), None)]
+    assert len(expected) == 4 and expected[2] == (0x141, False, False, 6, b"")  # (a remote frame has no data)
+    assert by_drain.drain(100) == expected
+    assert by_drain.drain(100) == [] and a.drain(100) == []  # each frame once; its own are not echoed
+
+
+def test_drain_takes_at_most_its_limit_and_every_sender_in_order(bus):
+    a, b, rx = bus(), bus(), bus()
+    for k in range(5):
+        a.send(_msg(1, bytes([k])))
+        b.send(_msg(2, bytes([k])))
+    first = rx.drain(3)
+    rest = rx.drain(100)
+    assert len(first) == 3 and len(rest) == 7
+    got: dict[int, list[int]] = {1: [], 2: []}
+    for arbitration_id, _ext, _plain, _dlc, data in first + rest:
+        got[arbitration_id].append(data[0])
+    assert got == {1: list(range(5)), 2: list(range(5))}
+
+
+def test_drain_counts_an_overrun_and_skips_half_written_and_stale_slots(pair):
+    a, b = pair
+    n = 700
+    for k in range(n):
+        a.send(_msg(1, k.to_bytes(2, "big")))
+    got = [int.from_bytes(f[4], "big") for f in b.drain(1024)]
+    assert got == list(range(n - 512, n)) and b.overruns == n - 512
+    # a published slot whose CRC does not match (half written, or the last lap's body) is left for later
+    at = localbus._slot(a._ring, n)
+    struct.pack_into("<Q", a._mm, at, n + 1)  # the new number beside the last lap's body and CRC
+    assert b.drain(10) == []
+    a.send(_msg(1, b"new"))  # the writer writes it for real
+    assert [f[4] for f in b.drain(10)] == [b"new"]
+
+
+def test_drain_applies_filters_and_echoes_own_frames_when_asked(bus):
+    a = bus(receive_own_messages=True)
+    b = bus(can_filters=[{"can_id": 0x20, "can_mask": 0x7FF, "extended": False}])
+    a.send(_msg(0x10, b"no"))
+    a.send(_msg(0x20, b"yes"))
+    assert b.drain(10) == [(0x20, False, True, 3, b"yes")]
+    assert [f[4] for f in a.drain(10)] == [b"no", b"yes"]

@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import can
 
-__all__ = ["message"]
+__all__ = ["Frame", "message"]
+
+#: A classic data frame by its fields, ``(arbitration_id, is_extended_id, data)``: what the control loop
+#: sends every cycle (an akarm_local bus takes it as it is: :meth:`akarm.buses.localbus.LocalBus.send_frame`).
+Frame = tuple[int, bool, bytes]
 
 _FIELDS = frozenset({"__weakref__", "arbitration_id", "bitrate_switch", "channel", "data", "dlc",
                      "error_state_indicator", "is_error_frame", "is_extended_id", "is_fd", "is_remote_frame",

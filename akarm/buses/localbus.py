@@ -280,7 +280,20 @@ class LocalBus(can.BusABC):
             can_id |= _RTR
         if msg.is_error_frame:
             can_id |= _ERR
-        rest = _REST.pack(time.time(), can_id, msg.dlc, bytes(msg.data))
+        self._write(_REST.pack(time.time(), can_id, msg.dlc, bytes(msg.data)))
+
+    def send_frame(self, arbitration_id: int, is_extended_id: bool, data: bytes) -> None:
+        """:meth:`send` for a data frame given by its fields (at most 8 bytes; the caller gives a valid ID):
+        the control loop's commands, without a :class:`can.Message` each."""
+        if self._closed:
+            raise can.CanOperationError(f"{self.channel_info} is shut down")
+        if len(data) > 8:
+            raise can.CanOperationError(f"{self.channel_info} carries classic CAN frames only (at most 8 bytes)")
+        can_id = arbitration_id & _ID_MASK | _EFF if is_extended_id else arbitration_id & _ID_MASK
+        self._write(_REST.pack(time.time(), can_id, len(data), data))
+
+    def _write(self, rest: bytes) -> None:
+        """Publish a slot's body (stamp, ID with flags, DLC, data) as this ring's next frame."""
         mm = self._mm
         with self._send_lock:
             seq = self._seq + 1

@@ -18,6 +18,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from akarm.buses.bus import close_buses, open_bus
+from akarm.buses.frames import Frame, message
 from akarm.buses.localbus import LocalBus
 from akarm.config import RobotConfig
 from akarm.control.joints import Joint, Router
@@ -56,6 +57,7 @@ class BusSet:
         # (LocalBus.drain, routed by Router.route_frame), else read(0) gives one message (routed by Router.route)
         self._live: list[tuple[str, Any, Any, bool]] = []
         self._bus_of: list[Any] = [None] * len(self.joints)  # each joint's bus (a lost one is still tried)
+        self._local = [False] * len(self.joints)  # each joint's bus is an akarm_local one (takes frames by fields)
         self._failures: dict[str, int] = {}
         self._lost: dict[str, BaseException] = {}
         self._logger: Any = None
@@ -95,6 +97,7 @@ class BusSet:
                       if isinstance(bus, LocalBus) and self._logger is None else
                       (name, bus.recv, routers[name].route, False) for name, bus in self._buses.items()]
         self._bus_of = [self._buses[j.bus] for j in self.joints]
+        self._local = [isinstance(self._buses[j.bus], LocalBus) for j in self.joints]
         self._failures = dict.fromkeys(self._buses, 0)
         self._lost = {}
 
@@ -135,15 +138,39 @@ class BusSet:
         try:
             bus.send(msg)
         except Exception as e:  # a full TX queue or an unplugged adapter: counted; many in a row = lost
-            failures = self._failures[j.bus] = self._failures[j.bus] + 1
-            if failures >= SEND_FAILURES:
-                self._lose(j.bus, e, self._clock())
+            self._refused(j, e)
             return
         self._failures[j.bus] = 0
         j.sent()
         if self._logger is not None:
             msg.timestamp = time.time()
             self._logger.on_message_received(msg)
+
+    def send_frame(self, j: Joint, frame: Frame) -> None:
+        """:meth:`send` for a frame by its fields (:meth:`Joint.track_frame`: the loop's commands). An
+        akarm_local bus writes it as it is; any other bus is sent a message built from it."""
+        bus = self._bus_of[j.index]
+        if bus is None:
+            return
+        try:
+            if self._local[j.index]:
+                bus.send_frame(*frame)
+            else:
+                bus.send(message(frame[0], frame[2], frame[1]))
+        except Exception as e:  # as send's
+            self._refused(j, e)
+            return
+        self._failures[j.bus] = 0
+        j.sent()
+        if self._logger is not None:
+            msg = message(frame[0], frame[2], frame[1], time.time())
+            self._logger.on_message_received(msg)
+
+    def _refused(self, j: Joint, error: Exception) -> None:
+        """Joint ``j``'s bus refused a frame: counted; :data:`SEND_FAILURES` in a row and it is lost."""
+        failures = self._failures[j.bus] = self._failures[j.bus] + 1
+        if failures >= SEND_FAILURES:
+            self._lose(j.bus, error, self._clock())
 
     def release_all(self, *, suppress: bool = False) -> None:
         """Send every joint its exit (MIT) or release (servo) frames; ``suppress``: whatever raises, go on."""

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import can
 
-from akarm.buses.frames import message
+from akarm.buses.frames import Frame, message
 from akarm.config import JointConfig
 from akarm.errors import ProtocolError
 from akarm.protocol import mit, servo, units
@@ -140,11 +140,17 @@ class Joint(abc.ABC):
     def neutral(self) -> can.Message | None:
         """A frame that commands nothing (no stiffness, no torque) but asks for feedback, or ``None``."""
 
-    @abc.abstractmethod
     def track(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> can.Message:
         """Hold or follow ``position`` (rad) at ``velocity`` (rad/s): MIT with gains ``kp``, ``kd`` and
         feed-forward ``torque`` (N·m); servo through the firmware's own position loop (gains and
         torque unused)."""
+        arbitration_id, extended, data = self.track_frame(position, velocity, kp, kd, torque)
+        return message(arbitration_id, data, extended)
+
+    @abc.abstractmethod
+    def track_frame(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> Frame:
+        """:meth:`track`'s frame by its fields, ``(arbitration_id, is_extended_id, data)``: what the control
+        loop sends every cycle (:meth:`akarm.control.busset.BusSet.send_frame`), without a message."""
 
     @abc.abstractmethod
     def carry(self, damping: float, torque: float) -> can.Message:
@@ -288,8 +294,8 @@ class MitJoint(Joint):
         """The zero-gain, zero-torque command: replaces the command the driver remembers, asks for a reply."""
         return self.command(math.nan, 0.0, 0.0, 0.0, 0.0)
 
-    def track(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> can.Message:
-        return self.command(position, velocity, kp, kd, torque)
+    def track_frame(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> Frame:
+        return self._arb, self._ext, self.command_data(position, velocity, kp, kd, torque)
 
     def carry(self, damping: float, torque: float) -> can.Message:
         return self.command(math.nan, 0.0, 0.0, damping, torque)
@@ -318,6 +324,10 @@ class MitJoint(Joint):
         (only meaningful with kp = 0). The law is kept as :attr:`cmd_position`, :attr:`cmd_velocity`,
         :attr:`cmd_kp`, :attr:`cmd_kd`, :attr:`cmd_torque` (what the driver applies until the next one).
         """
+        return self._msg(self.command_data(position, velocity, kp, kd, torque))
+
+    def command_data(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> bytes:
+        """:meth:`command`'s data bytes (its law kept as there)."""
         self.cmd_position = position
         self.cmd_velocity = velocity
         self.cmd_kp = kp
@@ -329,8 +339,7 @@ class MitJoint(Joint):
         else:
             p_motor = (position - self.offset) * self.direction - self._turns * self._span
         d = self.direction
-        data = self.codec.encode_command(p_motor, velocity * d, kp, kd, torque * d, firmware=self.firmware)
-        return self._msg(data)
+        return self.codec.encode_command(p_motor, velocity * d, kp, kd, torque * d, firmware=self.firmware)
 
     # -- routing and feedback -----------------------------------------------------------------
     def feedback_route(self) -> tuple[str, int]:
@@ -431,6 +440,11 @@ class ServoJoint(Joint):
               torque: float = 0.0) -> can.Message:
         return self.command(position)
 
+    def track_frame(self, position: float, velocity: float = 0.0, kp: float = 0.0, kd: float = 0.0,
+                    torque: float = 0.0) -> Frame:
+        arbitration_id, data = self._position_speed(position, 1.0)
+        return arbitration_id, True, data
+
     def carry(self, damping: float, torque: float) -> can.Message:
         return self.current(units.torque_to_amps(self.motor, torque * self.direction))
 
@@ -452,10 +466,13 @@ class ServoJoint(Joint):
 
         ``speed_fraction`` scales the speed and acceleration caps (``speed=`` of a move).
         """
+        return self._msg(self._position_speed(position, speed_fraction))
+
+    def _position_speed(self, position: float, speed_fraction: float) -> tuple[int, bytes]:
         deg = units.rad_to_servo_deg(self.motor, self.motor_position(position))
         speed = max(10.0, self._speed_cap * speed_fraction)
         accel = max(10.0, self._accel_cap * speed_fraction * speed_fraction)
-        return self._msg(servo.encode_position_speed(self.can_id, deg, speed, accel))
+        return servo.encode_position_speed(self.can_id, deg, speed, accel)
 
     def brake(self, amps: float) -> can.Message:
         """Current-brake frame (A, ≥ 0): resists motion without a position target."""

@@ -2,15 +2,18 @@
 
     .venv/bin/python benchmarks/bench_joint_growth.py              # 3 rounds, 6 s of moves each
     .venv/bin/python benchmarks/bench_joint_growth.py --rounds 1 --seconds 3
+    .venv/bin/python benchmarks/bench_joint_growth.py --interface akarm_local
 
 For k = 1..6, a robot file that is robots/arm6.yaml with only its first k joints (the others
 ``locked:`` at zero), its named poses cut to k values, run in lock step against the simulator in
-this process on python-can's ``virtual`` bus (the loop's clock is the simulator's: the compute is
-the controller's own, nothing else running meanwhile), moving between the poses at full speed,
+this process on python-can's ``virtual`` bus, or with ``--interface akarm_local`` on that (the
+loop's clock is the simulator's: the compute is the controller's own, nothing else running
+meanwhile), moving between the poses at full speed,
 every check and the collision reflex on. Per k: the compute per cycle (mean and p99) and each
 stage's mean, µs; then the least-squares growth per joint of the mean compute and of each stage
-(µs per joint), with the rounds' spread. (Receive and send include the ``virtual`` bus's own
-cost, a deep copy of every message and a queue per receiver: more than a SocketCAN frame costs.)
+(µs per joint), with the rounds' spread. (Receive and send include the bus's own cost: on ``virtual``
+a deep copy of every message and a queue per receiver, more than a SocketCAN frame costs; on
+``akarm_local`` a slot of shared memory, which the loop reads and writes by a frame's fields.)
 """
 
 from __future__ import annotations
@@ -46,8 +49,8 @@ def first_joints(k: int, directory: Path) -> Path:
     return path
 
 
-def measure(robot: Path, seconds: float) -> tuple[float, float, dict[str, float]]:
-    config = akarm.load_robot(robot).with_bus(interface="virtual", channel=f"growth-{robot.stem}")
+def measure(robot: Path, seconds: float, interface: str) -> tuple[float, float, dict[str, float]]:
+    config = akarm.load_robot(robot).with_bus(interface=interface, channel=f"growth-{robot.stem}")
     with SimulatedRobot(config, realtime=False, q0=config.pose("home")) as sim, \
             akarm.Arm(config, clock=sim.clock, remember_positions=False) as arm:
         arm.enable()
@@ -66,14 +69,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=6.0, help="simulated seconds of moves per robot and round")
+    ap.add_argument("--interface", choices=("virtual", "akarm_local"), default="virtual")
     args = ap.parse_args()
     directory = Path(tempfile.mkdtemp(prefix="joint-growth-"))
     robots = {k: first_joints(k, directory) for k in range(1, 7)}
     print(f"akarm {akarm.__version__}: compute per cycle against the number of joints (arm6's first k), lock step, "
-          f"{args.rounds} rounds of {args.seconds:g} s")
+          f"{args.rounds} rounds of {args.seconds:g} s, on {args.interface}")
     slopes: dict[str, list[float]] = {}
     for r in range(args.rounds):
-        rows = {k: measure(robot, args.seconds) for k, robot in robots.items()}
+        rows = {k: measure(robot, args.seconds, args.interface) for k, robot in robots.items()}
         stages = list(next(iter(rows.values()))[2])
         print(f"\nround {r + 1}\n{'joints':>6} {'compute':>8} {'p99':>7}   " + " ".join(f"{s:>11}" for s in stages))
         for k, (mean, p99, stage) in rows.items():

@@ -146,25 +146,27 @@ class BusSet:
             msg.timestamp = time.time()
             self._logger.on_message_received(msg)
 
-    def send_frame(self, j: Joint, frame: Frame) -> None:
-        """:meth:`send` for a frame by its fields (:meth:`Joint.track_frame`: the loop's commands). An
-        akarm_local bus writes it as it is; any other bus is sent a message built from it."""
-        bus = self._bus_of[j.index]
-        if bus is None:
-            return
-        try:
-            if self._local[j.index]:
-                bus.send_frame(*frame)
-            else:
-                bus.send(message(frame[0], frame[2], frame[1]))
-        except Exception as e:  # as send's
-            self._refused(j, e)
-            return
-        self._failures[j.bus] = 0
-        j.sent()
-        if self._logger is not None:
-            msg = message(frame[0], frame[2], frame[1], time.time())
-            self._logger.on_message_received(msg)
+    def send_frames(self, joints: Sequence[Joint], frames: Sequence[Frame]) -> None:
+        """:meth:`send` for each joint's frame given by its fields (:meth:`Joint.track_frame`: the loop's
+        commands, one a joint). An akarm_local bus writes each as it is; any other bus is sent a
+        message built from it. Refusals are counted as :meth:`send` counts them."""
+        bus_of, local, failures, logger = self._bus_of, self._local, self._failures, self._logger
+        for j, frame in zip(joints, frames, strict=True):
+            bus = bus_of[j.index]
+            if bus is None:
+                continue
+            try:
+                if local[j.index]:
+                    bus.send_frame(*frame)
+                else:
+                    bus.send(message(frame[0], frame[2], frame[1]))
+            except Exception as e:  # as send's
+                self._refused(j, e)
+                continue
+            failures[j.bus] = 0
+            j.sent()
+            if logger is not None:
+                logger.on_message_received(message(frame[0], frame[2], frame[1], time.time()))
 
     def _refused(self, j: Joint, error: Exception) -> None:
         """Joint ``j``'s bus refused a frame: counted; :data:`SEND_FAILURES` in a row and it is lost."""

@@ -110,6 +110,7 @@ class MomentumObserver:
         #: N·m per joint: a reported torque this large is the motor at its limit
         self.saturation = np.full(n, np.inf) if saturation is None else 0.999 * np.asarray(saturation, dtype=float)
         self._saturation = self.saturation.tolist()
+        self._saturation_min = min(self._saturation, default=math.inf)
         self._lag: list[float] | None = None
         self._r = [0.0] * n  # the estimate, N·m (:attr:`estimate`)
         self._p0 = [0.0] * n
@@ -126,6 +127,8 @@ class MomentumObserver:
 
     def at_limit(self, tau: Sequence[float]) -> bool:
         """Whether a reported torque (N·m per joint) is at its motor's limit (:attr:`saturation`)."""
+        if max(map(abs, tau), default=0.0) < self._saturation_min:  # (the usual case, in one pass)
+            return False
         return any(t >= sat or t <= -sat for t, sat in zip(tau, self._saturation, strict=True))
 
     def velocity(self, dq: ArrayLike, v_des: ArrayLike | None, dt: float = 0.0) -> list[float]:
@@ -284,7 +287,8 @@ class CollisionReflex:
         self._after_late = False  # a late cycle came last: start over again at the next that keeps time
         self._q_last = [0.0] * len(self.names)
         self._v_last = [0.0] * len(self.names)
-        self.fresh = [math.inf] * len(self.names) if fresh is None else [float(x) for x in fresh]
+        self.fresh = tuple(math.inf for _ in self.names) if fresh is None else tuple(float(x) for x in fresh)
+        self._fresh_min = min(self.fresh, default=math.inf)
         self.observer = observer
         self.set_thresholds(thresholds)
         self.set_reaction(reaction)
@@ -386,7 +390,9 @@ class CollisionReflex:
         elif self._after_late:
             self.observer.started = False
             self._after_late = False
-        if stamps is not None and any(now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
+        # (every joint's feedback is fresh when the oldest is fresh by the tightest limit: the usual case)
+        if stamps is not None and now - min(stamps, default=now) > self._fresh_min and any(
+                now - s > f for s, f in zip(stamps, self.fresh, strict=True)):
             return None  # a joint without new feedback: wait for a complete set (the next step spans the gap)
         obs = self.observer
         dt = sample - self._sample_last

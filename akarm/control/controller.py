@@ -732,14 +732,15 @@ class Controller:
         stage[3] = t4 - t3
         g = ramp.update(t)
         kp, kd, tmax, sat = self._kp_list, self._kd_list, self._t_max, self._saturated
-        send = self.bus.send_frame
+        frames = []
         for i, j in enumerate(js):
             k = kp[i] * g
-            send(j, j.track_frame(qd[i], vd[i], k, kd[i], ff[i]))
+            frames.append(j.track_frame(qd[i], vd[i], k, kd[i], ff[i]))
             # what the firmware will apply (before its clamp): saturated, the motor has no authority left
             s = j.state
             tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
             sat[i] = tau >= tmax[i] or tau <= -tmax[i]
+        self.bus.send_frames(js, frames)
         t5 = pc()
         stage[4] = t5 - t4
         self._record(now, qd, vd, ff)

@@ -150,7 +150,7 @@ class Joint(abc.ABC):
     @abc.abstractmethod
     def track_frame(self, position: float, velocity: float, kp: float, kd: float, torque: float) -> Frame:
         """:meth:`track`'s frame by its fields, ``(arbitration_id, is_extended_id, data)``: what the control
-        loop sends every cycle (:meth:`akarm.control.busset.BusSet.send_frame`), without a message."""
+        loop sends every cycle (:meth:`akarm.control.busset.BusSet.send_frames`), without a message."""
 
     @abc.abstractmethod
     def carry(self, damping: float, torque: float) -> can.Message:

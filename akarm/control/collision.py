@@ -181,9 +181,9 @@ class MomentumObserver:
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd)
         p, beta = self.model.momentum(q, v)
-        self._p0 = _floats(p)
+        self._p0 = p
         self._integral = [0.0] * self.n
-        self._last = (_floats(tau), v, self._smooth(_floats(beta), d, vd))
+        self._last = (_floats(tau), v, self._smooth(beta, d, vd))
         self._r = [0.0] * self.n
         self.started = True
 
@@ -221,25 +221,16 @@ class MomentumObserver:
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd, dt)
         p, beta = self.model.momentum(q, v)
-        pl, bl = _floats(p), _floats(beta)
+        pl, bl = p, beta  # (new lists of floats)
         n = self.n
         if kp is not None:
             kpl, kdl = _floats(kp), ([0.0] * n if kd is None else _floats(kd))
-        tanh, s_f = math.tanh, FRICTION_SMOOTHING
-        deadband, friction, saturation = self._deadband, self._friction, self._saturation
+        smooth_one, saturation = self._smooth_one, self._saturation
         integral, p0, r_prev, k = self._integral, self._p0, self._r, self.gain
         smooth = [0.0] * n
         r = [0.0] * n
         for i in range(n):
-            x = d[i]
-            db = deadband[i]
-            co, b, o = friction[i]
-            v_f = x
-            if vd is not None and abs(vd[i] - x) <= 2.0 * db:  # tracks the command (see _smooth)
-                v_f = vd[i]
-            elif abs(x) <= db:
-                co = 0.0
-            sm = co * tanh(v_f / s_f) + b * v_f + o + bl[i]
+            sm = smooth_one(i, d[i], None if vd is None else vd[i], bl[i])
             smooth[i] = sm
             t = tau_prev[i]
             if kp is not None and abs(t) < saturation[i]:  # (a saturated motor holds its limit: no decay)

@@ -753,7 +753,7 @@ class Controller:
         if check:  # the MIT gains of this cycle's commands (teach: no stiffness, its damping)
             scale = self.ramp.scale
             at, kp = self._reflex_kp
-            if scale != at:  # (the ramp's scale is 1 but while enabling: the list is kept meanwhile)
+            if scale != at:  # (it moves only while kp ramps up from the measured pose: enable, after teach)
                 kp = [k * scale if m else 0.0 for k, m in zip(self._kp_list, self._mit, strict=True)]
                 self._reflex_kp = (scale, kp)
             kd = self._reflex_kd

@@ -436,10 +436,6 @@ class ServoJoint(Joint):
     def neutral(self) -> None:
         return None
 
-    def track(self, position: float, velocity: float = 0.0, kp: float = 0.0, kd: float = 0.0,
-              torque: float = 0.0) -> can.Message:
-        return self.command(position)
-
     def track_frame(self, position: float, velocity: float = 0.0, kp: float = 0.0, kd: float = 0.0,
                     torque: float = 0.0) -> Frame:
         arbitration_id, data = self._position_speed(position, 1.0)

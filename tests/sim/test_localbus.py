@@ -84,11 +84,16 @@ def test_order_per_sender_is_kept_and_every_sender_is_heard(bus):
     assert got == {1: list(range(200)), 2: list(range(200))}
 
 
+def _flood(bus: LocalBus, n: int) -> None:
+    """Send frames 0 .. n - 1 (their number in the data), more than a reader's ring keeps if n > 512."""
+    for k in range(n):
+        bus.send(_msg(1, k.to_bytes(2, "big")))
+
+
 def test_a_reader_that_falls_behind_loses_the_oldest_frames_and_counts_them(pair):
     a, b = pair
     n = 700
-    for k in range(n):
-        a.send(_msg(1, k.to_bytes(2, "big")))
+    _flood(a, n)
     got = []
     while (m := b.recv(0.0)) is not None:
         got.append(int.from_bytes(m.data, "big"))
@@ -229,8 +234,7 @@ def test_drain_takes_at_most_its_limit_and_every_sender_in_order(bus):
 def test_drain_counts_an_overrun_and_skips_half_written_and_stale_slots(pair):
     a, b = pair
     n = 700
-    for k in range(n):
-        a.send(_msg(1, k.to_bytes(2, "big")))
+    _flood(a, n)
     got = [int.from_bytes(f[4], "big") for f in b.drain(1024)]
     assert got == list(range(n - 512, n)) and b.overruns == n - 512
     # a published slot whose CRC does not match (half written, or the last lap's body) is left for later

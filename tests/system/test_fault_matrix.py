@@ -114,9 +114,17 @@ def _exit_seen(wire: Wire, cfg) -> bool:
 
 
 def _start(argv: list[str], **kwargs) -> subprocess.Popen[str]:
+    """``akarm argv`` in a process of its own, with SIGHUP's default action: a child inherits an ignored
+    SIGHUP (tests run under ``nohup``), and akarm rightly leaves an ignored signal ignored."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    return subprocess.Popen([sys.executable, "-m", "akarm", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, **kwargs)
+    hup = getattr(signal, "SIGHUP", None)
+    before = signal.signal(hup, signal.SIG_DFL) if hup is not None else None
+    try:
+        return subprocess.Popen([sys.executable, "-m", "akarm", *argv], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, env=env, **kwargs)
+    finally:
+        if hup is not None:
+            signal.signal(hup, before)
 
 
 def _wait_for_line(stream, word: str, timeout: float = 60.0) -> str:

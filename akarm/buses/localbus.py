@@ -303,9 +303,10 @@ class LocalBus(can.BusABC):
             _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
             self._seq = seq
 
-    def _take(self, ring: int) -> can.Message | object | None:
-        """The next frame of ``ring``: a message, ``None`` if there is none, or ``_SKIPPED`` if there
-        was one this bus does not deliver (its own, or frames lost to an overrun): look again."""
+    def _next_frame(self, ring: int) -> tuple[float, int, int, bytes] | object | None:
+        """The next frame of ``ring`` as ``(stamp, can_id with flags, dlc, data)``, its position taken:
+        ``None`` if there is none yet, or ``_SKIPPED`` if there was one this bus does not deliver (its
+        own, or frames lost to an overrun): look again."""
         pos = self._pos[ring]
         at = _slot(ring, pos)
         mm = self._mm
@@ -323,15 +324,22 @@ class LocalBus(can.BusABC):
         if zlib.crc32(mm[at + 12:at + _SLOT_SIZE - _PAD], zlib.crc32(_SEQ.pack(seq))) != crc:
             return None  # being written right now, or the last lap's frame (a weakly ordered CPU): look again
         self._pos[ring] = seq
-        own = ring == self._ring
-        if (own and not self.receive_own_messages) or dlc > 8:
+        if (ring == self._ring and not self.receive_own_messages) or dlc > 8:
             return _SKIPPED
         if can_id & _RTR:
             data = b""
         elif dlc < 8:
             data = data[:dlc]
+        return stamp, can_id, dlc, data
+
+    def _take(self, ring: int) -> can.Message | object | None:
+        """:meth:`_next_frame` as a message."""
+        frame = self._next_frame(ring)
+        if not isinstance(frame, tuple):  # None or _SKIPPED
+            return frame
+        stamp, can_id, dlc, data = frame
         return message(can_id & _ID_MASK, data, bool(can_id & _EFF), stamp, bool(can_id & _RTR),
-                       bool(can_id & _ERR), dlc, self.channel, not own)
+                       bool(can_id & _ERR), dlc, self.channel, ring != self._ring)
 
     def drain(self, limit: int) -> list[tuple[int, bool, bool, int, bytes]]:
         """Every frame waiting from the other buses, at most ``limit``, without waiting and without
@@ -347,28 +355,17 @@ class LocalBus(can.BusABC):
         if self._filters is not None:
             return self._drain_filtered(limit)
         try:
-            mm = self._mm
-            if _GEN.unpack_from(mm, _GEN_AT)[0] != self._gen:
+            if _GEN.unpack_from(self._mm, _GEN_AT)[0] != self._gen:
                 self._refresh()
-            crc32, pos = zlib.crc32, self._pos
             for ring in self._active:
                 while len(out) < limit:
-                    p = pos[ring]
-                    at = _slot(ring, p)
-                    seq = _SEQ.unpack_from(mm, at)[0]
-                    if seq <= p:
+                    frame = self._next_frame(ring)
+                    if frame is None:
                         break
-                    if seq != p + 1:  # lapped or scribbled on: _take counts and steps over it
-                        self._take(ring)
+                    if not isinstance(frame, tuple):  # _SKIPPED
                         continue
-                    crc, _stamp, can_id, dlc, data = _BODY.unpack_from(mm, at + 8)
-                    if crc32(mm[at + 12:at + _SLOT_SIZE - _PAD], crc32(_SEQ.pack(seq))) != crc:
-                        break  # being written right now: the next cycle takes it
-                    pos[ring] = seq
-                    if dlc > 8:
-                        continue
-                    out.append((can_id & _ID_MASK, bool(can_id & _EFF), not can_id & (_RTR | _ERR), dlc,
-                                b"" if can_id & _RTR else data if dlc == 8 else data[:dlc]))
+                    _stamp, can_id, dlc, data = frame
+                    out.append((can_id & _ID_MASK, bool(can_id & _EFF), not can_id & (_RTR | _ERR), dlc, data))
         except ValueError:  # shut down by another thread meanwhile
             pass
         return out

@@ -712,8 +712,9 @@ class Controller:
         t2 = pc()
         stage[1] = t2 - t1
         stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
+        fb = self._feedback()
         if stop is None:
-            stop = self._collision_check(now, True)
+            stop = self._collision_check(now, True, fb)
         t3 = pc()
         stage[2] = t3 - t2
         if stop is not None:
@@ -721,7 +722,7 @@ class Controller:
             self._cycle_stopping(now)
             return
         js = self.joints
-        q_meas = [j.state.position for j in js]
+        q_meas = fb[0]
         ramp = self.ramp
         holding = plan is None and ramp.scale >= 1.0
         vd = dq_d.tolist()
@@ -743,13 +744,22 @@ class Controller:
         self.bus.send_frames(js, frames)
         t5 = pc()
         stage[4] = t5 - t4
-        self._record(now, qd, vd, ff)
+        self._record(now, qd, vd, ff, fb)
         stage[5] = pc() - t5
 
-    def _collision_check(self, now: float, check: bool) -> SafetyStop | None:
-        """Update the collision reflex; its stop if it fired with the "disable" reaction. Its "hold"
-        reaction replaces the plan here by a jerk-limited stop from this cycle's desired state."""
-        js, reflex = self.joints, self.reflex
+    def _feedback(self) -> tuple[list[float], list[float], list[float], list[float]]:
+        """The joints' latest feedback as lists: positions, velocities, torques and when each came (one
+        read a cycle, for the reflex, the feed-forward and telemetry)."""
+        states = [j.state for j in self.joints]
+        return ([s.position for s in states], [s.velocity for s in states], [s.torque for s in states],
+                [s.stamp for s in states])
+
+    def _collision_check(self, now: float, check: bool,
+                         fb: tuple[list[float], list[float], list[float], list[float]]) -> SafetyStop | None:
+        """Update the collision reflex with the feedback ``fb`` (:meth:`_feedback`); its stop if it fired
+        with the "disable" reaction. Its "hold" reaction replaces the plan here by a jerk-limited stop
+        from this cycle's desired state."""
+        reflex = self.reflex
         if check:  # the MIT gains of this cycle's commands (teach: no stiffness, its damping)
             scale = self.ramp.scale
             at, kp = self._reflex_kp
@@ -759,19 +769,17 @@ class Controller:
             kd = self._reflex_kd
         else:
             kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
-        states = [j.state for j in js]
-        err = reflex.step(now, [s.position for s in states], [s.velocity for s in states],
-                          [s.torque for s in states], check, kp, kd, [s.stamp for s in states],
-                          self.des[1] if check else None)
+        q, dq, tau, stamps = fb
+        err = reflex.step(now, q, dq, tau, check, kp, kd, stamps, self.des[1] if check else None)
         if err is None or err.reaction == "disable":
             return err
         self.motions.replace(Plan([self.planner.stop(self.des, self._t_plan)]), err)
         return None
 
-    def _record(self, now: float, q_d: Any, dq_d: Any, ff: Any) -> None:
-        states = [j.state for j in self.joints]
-        self.telemetry.record(now, q_d, dq_d, [s.position for s in states], [s.velocity for s in states],
-                              [s.torque for s in states], ff, self.reflex.estimate_list)
+    def _record(self, now: float, q_d: Any, dq_d: Any, ff: Any,
+                fb: tuple[list[float], list[float], list[float], list[float]] | None = None) -> None:
+        q, dq, tau, _ = self._feedback() if fb is None else fb
+        self.telemetry.record(now, q_d, dq_d, q, dq, tau, ff, self.reflex.estimate_list)
 
     def _commanded(self, now: float, q: Sequence[float], tau: list[float]) -> None:
         """The enabler damped the arm at ``q`` with ``tau`` feed-forward this cycle."""
@@ -786,8 +794,9 @@ class Controller:
             self._begin_stop(stop)
             self._cycle_stopping(now)
             return
-        self._collision_check(now, False)  # estimated (the hand's torque), never checked
-        q = np.array([j.state.position for j in self.joints])
+        fb = self._feedback()
+        self._collision_check(now, False, fb)  # estimated (the hand's torque), never checked
+        q = np.array(fb[0])
         g = self.ff.carried(q)
         gl = g.tolist()
         send = self.bus.send
@@ -798,7 +807,7 @@ class Controller:
         rec = self.recorder
         if rec is not None:
             rec.sample(now, q)
-        self._record(now, q, np.zeros(self.n), g)
+        self._record(now, q, np.zeros(self.n), g, fb)
 
     def _cycle_enabling(self, now: float) -> None:
         step = self.enabler.step(now)

@@ -10,6 +10,7 @@
 - :mod:`akarm.control.view`: read-only observability (``arm.observe``).
 - :mod:`akarm.control.joints`: one ``Joint`` interface for MIT and servo motors; the reply router.
 - :mod:`akarm.control.loop`: the fixed-rate loop and its statistics.
+- :mod:`akarm.control.cpuidle`: keeping the CPUs out of deep idle states while the loop runs.
 - :mod:`akarm.control.modes`: the mode enum and its transition table.
 - :mod:`akarm.control.safety`: the supervisor (every check, no bus needed).
 - :mod:`akarm.control.feedforward`: the feed-forward torque.

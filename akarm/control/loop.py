@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from akarm.clock import Clock, SteppedClock
+from akarm.control.cpuidle import IdleLatencyHold
 
 __all__ = ["TIMER_SLACK", "ControlLoop", "LoopStats", "StatsSummary", "collector_paused", "keep_from_collections",
            "pin_thread", "request_realtime", "set_timer_slack", "timer_slack"]
@@ -409,9 +410,11 @@ class ControlLoop:
         reports = []
         if self.cpu is not None:
             reports.append(pin_thread(self.cpu))
+        idle = IdleLatencyHold()
         if self.realtime_priority:
             reports.append(request_realtime())
             reports.append(f"switch interval {sys.getswitchinterval() * 1e6:.0f} µs")
+            reports.append(idle.acquire())  # cycles that start warm and on time (akarm.control.cpuidle)
         else:
             # what exists now (the model, numpy, the modules) lives as long as the loop: later full
             # collections need not scan it again (one took 33-61 ms here, and the loop waited for it)
@@ -434,6 +437,7 @@ class ControlLoop:
             with self.cycled:
                 self.cycled.notify_all()
         finally:
+            idle.release()
             _switch_interval.release(id(self))
 
     @property

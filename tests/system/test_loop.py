@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import gc
 import math
+import os
+import subprocess
 import sys
 import threading
 import time
@@ -14,6 +16,7 @@ import pytest
 from akarm import Arm, load_robot
 from akarm.clock import RealClock
 from akarm.control.controller import WAIT_SLICE
+from akarm.control.cpuidle import PM_QOS_PATH
 from akarm.control.loop import TIMER_SLACK, ControlLoop, request_realtime, timer_slack
 from akarm.sim import SimulatedRobot
 
@@ -73,6 +76,35 @@ def test_request_realtime_never_raises_and_keeps_python_pauses_short(default_swi
         assert "switch interval 100 µs" in report[0]
     finally:
         gc.unfreeze()
+
+
+_IDLE_CHILD = """
+import os, struct, time
+from akarm.clock import RealClock
+from akarm.control.cpuidle import PM_QOS_PATH
+from akarm.control.loop import ControlLoop
+def bound():  # the kernel's request in force, µs (reading the device gives it)
+    with open(PM_QOS_PATH, "rb") as f:
+        return struct.unpack("=i", f.read(4))[0]
+before = bound()
+loop = ControlLoop(200.0, RealClock(), lambda now, slot: None, realtime_priority=True)
+loop.start()
+time.sleep(0.2)
+during, report = bound(), loop.realtime_report
+loop.stop()
+time.sleep(0.05)
+print(before, during, bound(), report, sep="|")
+"""
+
+
+@pytest.mark.skipif(not os.access(PM_QOS_PATH, os.R_OK | os.W_OK), reason="needs write access to " + PM_QOS_PATH)
+def test_a_real_time_loop_holds_cpus_out_of_deep_idle_only_while_it_runs():
+    # in a child: a real-time loop locks memory and changes the scheduling of its process
+    out = subprocess.run([sys.executable, "-c", _IDLE_CHILD], capture_output=True, text=True, timeout=60, check=True)
+    before, during, after, report = out.stdout.strip().split("|")
+    assert "CPU idle latency held at 0 µs" in report
+    assert int(during) == 0
+    assert int(after) == int(before)  # withdrawn when the loop's thread ended (or another holder's own)
 
 
 def test_a_running_loop_makes_other_threads_hand_over_the_interpreter_quickly(default_switch_interval):

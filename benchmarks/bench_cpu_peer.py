@@ -18,6 +18,10 @@ of its own (so that its process CPU is its own alone), the sides alternating rou
   machine: the simulator's process starved past the 20 ms watchdog) is counted and the arm enabled
   again; the stops are printed.
 
+``--hold-idle`` holds the CPUs out of deep idle states for the whole run, both sides alike
+(:mod:`akarm.control.cpuidle`, needs root): what ``realtime_priority`` does for akarm's loop, and
+what anyone tuning a machine for either loop would do (``cyclictest`` does it by default).
+
 Printed per round and side: process CPU per cycle across all threads (getrusage), the loop's
 lateness p99, and for akarm its per-stage compute (mean and p99, µs).
 """
@@ -194,14 +198,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=20.0, help="length of each side's run, s")
+    ap.add_argument("--hold-idle", action="store_true",
+                    help="hold every CPU out of deep idle states for the run, both sides (needs root)")
     ap.add_argument("--child", choices=("peer", "akarm"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(args.child, args.seconds)
         return
+    hold = None
+    if args.hold_idle:
+        from akarm.control.cpuidle import IdleLatencyHold
+
+        hold = IdleLatencyHold()
+        report = hold.acquire()
+        if not hold.held:
+            raise SystemExit(report)
     us = 1e6
     print(f"arm6, 6 MIT joints, {RATE:g} Hz, akarm sim in its own process on akarm_local, both loops sleeping; "
-          f"{args.seconds:g} s per side, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}")
+          f"{args.seconds:g} s per side, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}"
+          + ("; CPU idle latency held at 0 µs" if hold is not None else ""))
     print(f"{'round':>5} {'side':>6} {'load':>5} {'cycles':>7} {'missed':>6} {'CPU/cycle':>10} {'akarm/peer':>10} "
           f"{'compute':>8} {'cmp p99':>8} {'late p99':>9} {'sim CPU/c':>9}   (µs)")
     for r in range(1, args.rounds + 1):

@@ -13,7 +13,7 @@ import can
 __all__ = ["Frame", "message"]
 
 #: A classic data frame by its fields, ``(arbitration_id, is_extended_id, data)``: what the control loop
-#: sends every cycle (an akarm_local bus takes it as it is: :meth:`akarm.buses.localbus.LocalBus.send_frame`).
+#: sends every cycle (an akarm_local bus takes it as it is: :meth:`akarm.buses.localbus.LocalBus.send_frames`).
 Frame = tuple[int, bool, bytes]
 
 _FIELDS = frozenset({"__weakref__", "arbitration_id", "bitrate_switch", "channel", "data", "dlc",

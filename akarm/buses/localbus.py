@@ -44,7 +44,7 @@ import tempfile
 import threading
 import time
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -282,26 +282,36 @@ class LocalBus(can.BusABC):
             can_id |= _ERR
         self._write(_REST.pack(time.time(), can_id, msg.dlc, bytes(msg.data)))
 
-    def send_frame(self, arbitration_id: int, is_extended_id: bool, data: bytes) -> None:
-        """:meth:`send` for a data frame given by its fields (at most 8 bytes; the caller gives a valid ID):
-        the control loop's commands, without a :class:`can.Message` each."""
+    def send_frames(self, frames: Sequence[tuple[int, bool, bytes]]) -> None:
+        """:meth:`send` for data frames given by their fields (``(arbitration_id, is_extended_id,
+        data)``; at most 8 bytes each, valid IDs), in order, stamped alike and published under one
+        hold of the ring: the control loop's commands, one call a cycle for the bus, without a
+        :class:`can.Message` each. Checked first: a frame of more than 8 bytes refuses them all."""
         if self._closed:
             raise can.CanOperationError(f"{self.channel_info} is shut down")
-        if len(data) > 8:
-            raise can.CanOperationError(f"{self.channel_info} carries classic CAN frames only (at most 8 bytes)")
-        can_id = arbitration_id & _ID_MASK | _EFF if is_extended_id else arbitration_id & _ID_MASK
-        self._write(_REST.pack(time.time(), can_id, len(data), data))
+        stamp = time.time()
+        pack = _REST.pack
+        rests = []
+        for arbitration_id, is_extended_id, data in frames:
+            n = len(data)
+            if n > 8:
+                raise can.CanOperationError(f"{self.channel_info} carries classic CAN frames only (at most 8 bytes)")
+            rests.append(pack(stamp, arbitration_id & _ID_MASK | _EFF if is_extended_id else arbitration_id & _ID_MASK,
+                              n, data))
+        self._write(*rests)
 
-    def _write(self, rest: bytes) -> None:
-        """Publish a slot's body (stamp, ID with flags, DLC, data) as this ring's next frame."""
+    def _write(self, *rests: bytes) -> None:
+        """Publish slot bodies (stamp, ID with flags, DLC, data) as this ring's next frames, in order."""
         mm = self._mm
         with self._send_lock:
-            seq = self._seq + 1
-            at = _slot(self._ring, seq - 1)
-            mm[at + 12:at + _SLOT_SIZE - _PAD] = rest
-            mm[at + 8:at + 12] = _CRC.pack(zlib.crc32(rest, zlib.crc32(_SEQ.pack(seq))))
-            _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
-            self._seq = seq
+            seq = self._seq
+            for rest in rests:
+                seq += 1
+                at = _slot(self._ring, seq - 1)
+                mm[at + 12:at + _SLOT_SIZE - _PAD] = rest
+                mm[at + 8:at + 12] = _CRC.pack(zlib.crc32(rest, zlib.crc32(_SEQ.pack(seq))))
+                _SEQ.pack_into(mm, at, seq)  # last: publishes the slot
+                self._seq = seq
 
     def _next_frame(self, ring: int) -> tuple[float, int, int, bytes] | object | None:
         """The next frame of ``ring`` as ``(stamp, can_id with flags, dlc, data)``, its position taken:

@@ -254,20 +254,23 @@ def test_drain_applies_filters_and_echoes_own_frames_when_asked(bus):
     assert [f[4] for f in a.drain(10)] == [b"no", b"yes"]
 
 
-def test_send_frame_puts_what_send_puts_field_for_field(bus):
+def test_send_frames_puts_what_send_puts_field_for_field(bus):
     a, rx = bus(), bus()
     frames = [(0x2903, True, bytes(range(8))), (0x141, False, b"\x01\x02\x03"), (0x1FFF_FFFF, True, b"")]
+    a.send_frames(frames)
     for arbitration_id, extended, data in frames:
-        a.send_frame(arbitration_id, extended, data)
         a.send(_msg(arbitration_id, data, extended))
     got = [_fields(m) for m in iter(lambda: rx.recv(0.0), None)]
-    assert got == [x for arbitration_id, extended, data in frames
-                   for x in [(arbitration_id, extended, True, len(data), data)] * 2]
+    assert got == [(arbitration_id, extended, True, len(data), data) for arbitration_id, extended, data in frames] * 2
+    # a frame too long refuses the whole batch: nothing of it is written
     with pytest.raises(can.CanOperationError, match="at most 8 bytes"):
-        a.send_frame(0x1, False, bytes(9))
+        a.send_frames([(0x1, False, b"ok"), (0x2, False, bytes(9))])
+    assert rx.recv(0.0) is None
+    a.send_frames([])
+    assert rx.recv(0.0) is None
     a.shutdown()
     with pytest.raises(can.CanOperationError, match="shut down"):
-        a.send_frame(0x1, False, b"")
+        a.send_frames([(0x1, False, b"")])
 
 
 def test_an_akarm_local_bus_that_refuses_the_loops_frames_is_lost_and_stops_the_arm(planar2, channel):
@@ -278,10 +281,10 @@ def test_an_akarm_local_bus_that_refuses_the_loops_frames_is_lost_and_stops_the_
         bus = arm.observe.buses["arm"]
         assert isinstance(bus, LocalBus)
 
-        def full(*frame):
+        def full(frames):
             raise can.CanOperationError("Transmit buffer full")
 
-        bus.send_frame = full  # the loop's commands go this way on akarm_local
+        bus.send_frames = full  # the loop's commands go this way on akarm_local
         with pytest.raises(akarm.BusLost, match="Transmit buffer full"):
             arm.sleep(0.5)
         assert arm.mode is akarm.Mode.FAULT

@@ -54,10 +54,11 @@ class BusSet:
         self._clock = clock
         self._buses: dict[str, can.BusABC] = {}
         # (name, read, route, drains) of the buses not lost: drains: read(limit) gives a cycle's frames
-        # (LocalBus.drain, routed by Router.route_frame), else read(0) gives one message (routed by Router.route)
+        # (LocalBus.drain, routed by Router.route_frames), else read(0) gives one message (routed by Router.route)
         self._live: list[tuple[str, Any, Any, bool]] = []
         self._bus_of: list[Any] = [None] * len(self.joints)  # each joint's bus (a lost one is still tried)
-        self._local = [False] * len(self.joints)  # each joint's bus is an akarm_local one (takes frames by fields)
+        # (name, bus, akarm_local: takes a batch of frames by their fields, its joints) of every open bus
+        self._send_plan: list[tuple[str, Any, bool, list[Joint]]] = []
         self._failures: dict[str, int] = {}
         self._lost: dict[str, BaseException] = {}
         self._logger: Any = None
@@ -93,11 +94,12 @@ class BusSet:
         routers = {name: Router([j for j in self.joints if j.bus == name]) for name in self._buses}
         # an akarm_local bus hands over a cycle's frames in one call, without a message each (unless
         # every frame is to be logged: the log takes messages)
-        self._live = [(name, bus.drain, routers[name].route_frame, True)
+        self._live = [(name, bus.drain, routers[name].route_frames, True)
                       if isinstance(bus, LocalBus) and self._logger is None else
                       (name, bus.recv, routers[name].route, False) for name, bus in self._buses.items()]
         self._bus_of = [self._buses[j.bus] for j in self.joints]
-        self._local = [isinstance(self._buses[j.bus], LocalBus) for j in self.joints]
+        self._send_plan = [(name, bus, isinstance(bus, LocalBus), [j for j in self.joints if j.bus == name])
+                           for name, bus in self._buses.items()]
         self._failures = dict.fromkeys(self._buses, 0)
         self._lost = {}
 
@@ -106,6 +108,7 @@ class BusSet:
         close_buses(self._buses)
         self._live = []
         self._bus_of = [None] * len(self.joints)
+        self._send_plan = []
         if self._logger is not None:
             with contextlib.suppress(Exception):
                 self._logger.stop()
@@ -117,8 +120,7 @@ class BusSet:
         for name, recv, route, drains in self._live:
             try:
                 if drains:
-                    for frame in recv(DRAIN_LIMIT):
-                        route(*frame, now)
+                    route(recv(DRAIN_LIMIT), now)
                     continue
                 for _ in range(DRAIN_LIMIT):
                     msg = recv(0.0)
@@ -146,27 +148,40 @@ class BusSet:
             msg.timestamp = time.time()
             self._logger.on_message_received(msg)
 
-    def send_frames(self, joints: Sequence[Joint], frames: Sequence[Frame]) -> None:
-        """:meth:`send` for each joint's frame given by its fields (:meth:`Joint.track_frame`: the loop's
-        commands, one a joint). An akarm_local bus writes each as it is; any other bus is sent a
-        message built from it. Refusals are counted as :meth:`send` counts them."""
-        bus_of, local, failures, logger = self._bus_of, self._local, self._failures, self._logger
-        for j, frame in zip(joints, frames, strict=True):
-            bus = bus_of[j.index]
-            if bus is None:
+    def send_frames(self, frames: Sequence[Frame]) -> None:
+        """:meth:`send` for each joint's frame given by its fields, one a joint in config order
+        (:meth:`Joint.track_frame`: the loop's commands). An akarm_local bus takes its joints' frames
+        in one call; any other bus is sent a message built from each. Refusals are counted per joint
+        as :meth:`send` counts them (a batch refused is refused for each of its joints)."""
+        failures, logger = self._failures, self._logger
+        for name, bus, local, members in self._send_plan:
+            if local:
+                try:
+                    bus.send_frames([frames[j.index] for j in members])
+                except Exception as e:  # as send's
+                    for j in members:
+                        self._refused(j, e)
+                    continue
+                failures[name] = 0
+                for j in members:
+                    j.sent()
+                    if logger is not None:
+                        frame = frames[j.index]
+                        logger.on_message_received(message(frame[0], frame[2], frame[1], time.time()))
                 continue
-            try:
-                if local[j.index]:
-                    bus.send_frame(*frame)
-                else:
-                    bus.send(message(frame[0], frame[2], frame[1]))
-            except Exception as e:  # as send's
-                self._refused(j, e)
-                continue
-            failures[j.bus] = 0
-            j.sent()
-            if logger is not None:
-                logger.on_message_received(message(frame[0], frame[2], frame[1], time.time()))
+            for j in members:
+                frame = frames[j.index]
+                msg = message(frame[0], frame[2], frame[1])
+                try:
+                    bus.send(msg)
+                except Exception as e:  # as send's
+                    self._refused(j, e)
+                    continue
+                failures[name] = 0
+                j.sent()
+                if logger is not None:
+                    msg.timestamp = time.time()
+                    logger.on_message_received(msg)
 
     def _refused(self, j: Joint, error: Exception) -> None:
         """Joint ``j``'s bus refused a frame: counted; :data:`SEND_FAILURES` in a row and it is lost."""

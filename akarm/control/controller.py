@@ -741,7 +741,7 @@ class Controller:
             s = j.state
             tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
             sat[i] = tau >= tmax[i] or tau <= -tmax[i]
-        self.bus.send_frames(js, frames)
+        self.bus.send_frames(frames)
         t5 = pc()
         stage[4] = t5 - t4
         self._record(now, qd, vd, ff, fb)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import abc
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import can
@@ -525,8 +526,28 @@ class Router:
                 self.by_other_mode[(servo.ServoPacket.STATUS << 8) | key] = j
             for cid in j.command_ids():
                 self.by_command_id[cid] = j
+        # what route_frames takes straight to a joint: a standard 6- or 8-byte frame on an ID no joint
+        # is commanded on is a V1/V2 reply, handed to the handler of the joint its byte 0 names
+        self._reply_handlers = {key: j.handle_reply for key, j in self.by_driver_id.items() if isinstance(j, MitJoint)}
+        self._standard_commands = frozenset(arb for arb, ext in self.by_command_id if not ext)
         self.unrouted = 0
         self.corrupt = 0
+
+    def route_frames(self, frames: Iterable[tuple[int, bool, bool, int, bytes]], now: float) -> None:
+        """:meth:`route_frame` for each of a bus's frames as :meth:`akarm.buses.localbus.LocalBus.drain`
+        gives them: the loop's replies each go straight to their joint's decoder."""
+        handlers, commands, route = self._reply_handlers, self._standard_commands, self.route_frame
+        for frame in frames:
+            arbitration_id, extended, plain, dlc, data = frame
+            if not extended and plain and (dlc == 8 or dlc == 6) and arbitration_id not in commands:
+                handle = handlers.get(data[0])
+                if handle is not None:
+                    try:
+                        handle(data, now)
+                    except ProtocolError:
+                        self.corrupt += 1
+                    continue
+            route(arbitration_id, extended, plain, dlc, data, now)
 
     def route(self, msg: can.Message, now: float) -> Joint | None:
         """Hand ``msg`` to its joint; return that joint, or ``None``."""

@@ -64,7 +64,7 @@ if TYPE_CHECKING:
 
     from akarm.motion.trajectory import Timed
 
-__all__ = ["PLAN_ATTEMPTS", "RELEASES", "STAGES", "WAIT_SLICE", "Controller"]
+__all__ = ["PLAN_ATTEMPTS", "RELEASES", "STAGES", "WAIT_SLICE", "WAKE_BACKSTOP", "Controller"]
 
 STAGES = ("receive", "trajectory", "safety", "feedforward", "send", "telemetry")
 #: Plans made for one motion at most before it is refused: each one that comes too late to take over
@@ -77,9 +77,12 @@ BIG_PLAN = 1000
 #: frames are idempotent, and one lost frame (a driver's full receive queue, a reader that fell
 #: behind) must not leave a motor in motor mode, powered, after its program has let go of it
 RELEASES = 3
-#: s: how often a caller waiting for something that says when it happens (a motion's end, a time) looks
-#: for a stop, a close or a crash meanwhile (:meth:`Controller.wait_for`)
+#: s: how often a caller waiting for a time (``Arm.sleep``) looks for a stop, a close or a crash
+#: meanwhile (:meth:`Controller.wait_for`)
 WAIT_SLICE = 0.01
+#: s: how often a caller waiting for an event that those set too (a motion's end: a stop, a close
+#: and a crash of the loop end the motion) looks anyway: a backstop, not the way it learns of them
+WAKE_BACKSTOP = 0.1
 
 
 def _feedback_timeout(j: JointConfig, default: float) -> float:
@@ -261,8 +264,16 @@ class Controller:
         return self.loop.thread is threading.current_thread()
 
     def _crashed(self, exc: BaseException) -> None:
-        """The loop died of a bug: tell every motor to go limp, as a last resort."""
-        self.bus.release_all()
+        """The loop died of a bug: tell every motor to go limp, as a last resort; then end the motions,
+        which wakes their callers (they raise the crash)."""
+        try:
+            self.bus.release_all()
+        finally:
+            if self.lock.acquire(timeout=1.0):  # (the cycle that raised let go of it)
+                try:
+                    self.motions.cancel()
+                finally:
+                    self.lock.release()
 
     def _bus_lost(self, stop: BusLost) -> None:
         """A bus failed under the arm (the bus set says so once): stop, or FAULT if nothing was powered."""
@@ -299,29 +310,31 @@ class Controller:
         """Wait (running cycles in lock step) until ``done()``; raise the arm's fault if one comes first.
 
         With a real clock the caller looks at ``done()`` after every cycle, unless it says what can make
-        it true: ``wake``, an event set when it may have (a motion's end, which a stop sets too), wakes
-        it at once, and ``until``, the clock time at which it turns true by itself, ends its sleep there.
-        Then it looks for a stop, a close or a crash only every :data:`WAIT_SLICE` between: a caller
-        woken every cycle costs the process about 40 µs of CPU a cycle (a thread switch, the interpreter
-        lock handed over and back).
+        it true: ``wake``, an event set when it may have (a motion's end, which a stop, a close and a
+        crash of the loop set too), wakes it at once, and ``until``, the clock time at which it turns
+        true by itself, ends its sleep there. Between, it looks for a stop, a close or a crash every
+        :data:`WAIT_SLICE` (waiting for a time) or :data:`WAKE_BACKSTOP` (for an event that they set): a
+        caller woken every cycle cost the process about 40 µs of CPU a cycle (a thread switch, the
+        interpreter lock handed over and back), one woken every 10 ms about 10 µs.
         """
         loop = self.loop
         end = self.clock.now() + timeout
         while True:
             if raise_fault and self.fault is not None:  # before `done`: a motion ended by a stop must raise
                 self.raise_fault()
+            if loop.crashed is not None:  # before `done` too: the crash ended the motion
+                raise StateError(f"the control loop crashed: {loop.crashed!r}",
+                                 fix="this is a bug in akarm; please report it with the traceback in the log")
             if done():
                 return
             self.require_open()  # closed meanwhile (another thread): nothing will change any more
-            if loop.crashed is not None:
-                raise StateError(f"the control loop crashed: {loop.crashed!r}",
-                                 fix="this is a bug in akarm; please report it with the traceback in the log")
             if self.clock.now() > end:
                 raise StateError(f"timed out after {timeout:.2f} s waiting for {what}")
             if loop.stepped or (wake is None and until is None):
                 loop.wait_cycle(0.1)
                 continue
-            pause = WAIT_SLICE if until is None else min(WAIT_SLICE, until - self.clock.now())
+            slice_ = WAIT_SLICE if wake is None else WAKE_BACKSTOP
+            pause = slice_ if until is None else min(slice_, until - self.clock.now())
             if pause <= 0.0:
                 loop.wait_cycle(0.1)
             elif wake is not None:

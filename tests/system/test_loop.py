@@ -13,9 +13,10 @@ import time
 
 import pytest
 
+import akarm
 from akarm import Arm, load_robot
 from akarm.clock import RealClock
-from akarm.control.controller import WAIT_SLICE
+from akarm.control.controller import WAIT_SLICE, WAKE_BACKSTOP
 from akarm.control.cpuidle import PM_QOS_PATH
 from akarm.control.loop import TIMER_SLACK, ControlLoop, request_realtime, timer_slack
 from akarm.sim import SimulatedRobot
@@ -163,8 +164,9 @@ class _Waits:
 
 
 def test_a_caller_waiting_for_a_move_or_a_time_is_not_woken_every_cycle(channel):
-    """A waiting move sleeps until its motion ends (its event), ``Arm.sleep`` until its time: the caller's
-    thread looks for a stop or a close every WAIT_SLICE meanwhile, not after every cycle (each wake-up
+    """A waiting move sleeps until its motion ends (its event; a stop, a close and a crash end it too, and
+    it looks every WAKE_BACKSTOP anyway), ``Arm.sleep`` until its time (looking for a stop or a close
+    every WAIT_SLICE meanwhile): not woken after every cycle (each wake-up
     cost the process about 40 µs of CPU a cycle); the move still returns within a few cycles of its end."""
     config = load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(config, realtime=True, q0=[-math.pi / 2, 0.0]), \
@@ -177,8 +179,8 @@ def test_a_caller_waiting_for_a_move_or_a_time_is_not_woken_every_cycle(channel)
             motion.wait()
         waited = time.perf_counter() - t0  # (longer than the plan where the loop missed slots)
         assert motion.done and not motion.superseded and waited > 0.2
-        assert waits.count <= waited / WAIT_SLICE + 10
-        assert waits.count < 0.5 * waited / period  # (one per cycle before)
+        assert waits.count <= waited / WAKE_BACKSTOP + 10  # (every WAIT_SLICE before: 0.1 the backstop)
+        assert waits.count < 0.5 * waited / period  # (one per cycle before that)
         s0 = arm.stats().cycles
         t0 = time.perf_counter()
         with _Waits() as waits:
@@ -192,3 +194,48 @@ def test_a_caller_waiting_for_a_move_or_a_time_is_not_woken_every_cycle(channel)
         assert back.done and not arm.state().moving
         assert time.perf_counter() - t0 < back.duration + 0.25
         assert arm.state().q_des == pytest.approx([-math.pi / 2, 0.0])
+
+
+def test_a_caller_waiting_for_a_move_learns_of_a_crash_of_the_loop_at_once(channel):
+    """Its wait looks for a crash only every WAKE_BACKSTOP by itself: the crash ends the motion, which
+    wakes it, and it raises the crash (not a motion that merely ended)."""
+    config = load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(config, realtime=True, q0=[-math.pi / 2, 0.0]), \
+            Arm(config, remember_positions=False) as arm:
+        arm.enable()
+        motion = arm.move_to([-math.pi / 2 + 0.6, 0.4], wait=False)
+        ended = threading.Event()
+        errors: list[BaseException] = []
+
+        def wait() -> None:
+            try:
+                motion.wait()
+            except BaseException as e:  # (what the caller would see)
+                errors.append(e)
+            ended.set()
+
+        th = threading.Thread(target=wait)
+        th.start()
+        time.sleep(0.05)  # the caller waits for the motion's end
+        loop = arm.observe.loop
+        cycle = loop.cycle
+        crashed = threading.Event()
+
+        def crash(now: float, slot: int) -> None:
+            crashed.set()
+            raise RuntimeError("a bug in a cycle")
+
+        loop.cycle = crash
+        assert crashed.wait(5.0)
+        t0 = time.perf_counter()
+        assert ended.wait(5.0)
+        woke = time.perf_counter() - t0
+        th.join()
+        loop.cycle = cycle
+        assert len(errors) == 1 and isinstance(errors[0], akarm.StateError) and "crashed" in str(errors[0])
+        assert woke < 10 * WAKE_BACKSTOP  # (at once here; generous for a loaded machine)
+        end = time.perf_counter() + 2.0
+        while not motion.done and time.perf_counter() < end:
+            time.sleep(0.005)
+        assert motion.done and motion.superseded  # the crash ended it: what woke the caller
+        assert not loop.running

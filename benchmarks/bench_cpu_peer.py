@@ -194,6 +194,18 @@ def load() -> str:
         return "?"
 
 
+def hold_idle() -> Any:
+    """Every CPU held out of deep idle states until the process ends (akarm.control.cpuidle), or exit
+    saying why not (it needs root)."""
+    from akarm.control.cpuidle import IdleLatencyHold
+
+    hold = IdleLatencyHold()
+    report = hold.acquire()
+    if not hold.held:
+        raise SystemExit(report)
+    return hold
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
@@ -205,14 +217,7 @@ def main() -> None:
     if args.child:
         child(args.child, args.seconds)
         return
-    hold = None
-    if args.hold_idle:
-        from akarm.control.cpuidle import IdleLatencyHold
-
-        hold = IdleLatencyHold()
-        report = hold.acquire()
-        if not hold.held:
-            raise SystemExit(report)
+    hold = hold_idle() if args.hold_idle else None
     us = 1e6
     print(f"arm6, 6 MIT joints, {RATE:g} Hz, akarm sim in its own process on akarm_local, both loops sleeping; "
           f"{args.seconds:g} s per side, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}"

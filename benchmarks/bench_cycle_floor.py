@@ -31,6 +31,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 import ruckig  # noqa: E402
+from bench_cpu_peer import hold_idle  # noqa: E402 (this folder: the same request, the same refusal)
 
 import akarm  # noqa: E402
 from akarm.dynamics.model import RobotModel  # noqa: E402
@@ -108,14 +109,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0, help="length of each case's run, s")
     ap.add_argument("--hold-idle", action="store_true", help="hold every CPU out of deep idle states (needs root)")
     args = ap.parse_args()
-    hold = None
-    if args.hold_idle:
-        from akarm.control.cpuidle import IdleLatencyHold
-
-        hold = IdleLatencyHold()
-        report = hold.acquire()
-        if not hold.held:
-            raise SystemExit(report)
+    hold = hold_idle() if args.hold_idle else None
     print(f"arm6, 6 joints, {RATE:g} Hz, sleeping loop, {args.seconds:g} s per case"
           + ("; CPU idle latency held at 0 µs" if hold is not None else ""))
     print(f"{'case':>10} {'mean':>7} {'p50':>7} {'p99':>7} {'CPU/c':>7} {'warm':>7}   (µs)")

@@ -42,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     renamed(parser, "--rate", "--loop-rate")
     parser.add_argument("--busy-wait", action="store_true",
                         help="the loop keeps its core between cycles: faster cycles for a whole core")
-    parser.add_argument("--realtime-priority", action="store_true", help="ask for SCHED_FIFO and locked memory")
+    parser.add_argument("--realtime-priority", action="store_true",
+                        help="ask for SCHED_FIFO, locked memory and the CPUs held out of deep idle states")
     parser.add_argument("--in-process", action="store_true",
                         help="run the simulator in this process, on a virtual bus, instead of in its own")
     add_profile_argument(parser)

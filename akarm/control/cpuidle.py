@@ -3,10 +3,11 @@
 Between cycles the loop's thread sleeps, and its core goes idle. A deep idle state takes time to
 leave, and on many processors (and on a virtual machine whose host gives the idle core away) it
 loses the core's caches, so every cycle starts cold. On our 2-core virtual machines (``haltpoll``
-cpuidle driver), arm6 at 480 Hz measured, with the request held against without, in pairs of runs:
-the cycle's compute 167-189 µs against 215-245 µs, the process's CPU per cycle 203-231 µs against
-272-309 µs, and the loop's lateness p99 41-42 µs against 68-82 µs. The library calls every cycle
-makes (ruckig, four Pinocchio passes) cost 26 µs instead of 58 µs (``benchmarks/bench_cycle_floor.py``).
+cpuidle driver), arm6 at 480 Hz measured, with the request held against without, in three pairs of
+runs of four: the cycle's compute 167-189 µs against 226-245 µs, the process's CPU per cycle 203-231
+µs against 283-309 µs, and the loop's lateness p99 41-42 µs against 68-82 µs (the fourth pair came
+out even). The library calls every cycle makes (ruckig, four Pinocchio passes) cost 20-26 µs instead
+of 51-58 µs (``benchmarks/bench_cycle_floor.py``).
 
 The request is the one ``cyclictest`` makes: the 32-bit latency bound (µs) written to
 ``/dev/cpu_dma_latency``, which the kernel honours for as long as that file stays open. Closing it,

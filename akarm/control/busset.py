@@ -155,33 +155,23 @@ class BusSet:
         as :meth:`send` counts them (a batch refused is refused for each of its joints)."""
         failures, logger = self._failures, self._logger
         for name, bus, local, members in self._send_plan:
-            if local:
-                try:
-                    bus.send_frames([frames[j.index] for j in members])
-                except Exception as e:  # as send's
-                    for j in members:
-                        self._refused(j, e)
-                    continue
-                failures[name] = 0
+            if not local:
                 for j in members:
-                    j.sent()
-                    if logger is not None:
-                        frame = frames[j.index]
-                        logger.on_message_received(message(frame[0], frame[2], frame[1], time.time()))
+                    frame = frames[j.index]
+                    self.send(j, message(frame[0], frame[2], frame[1]))
                 continue
-            for j in members:
-                frame = frames[j.index]
-                msg = message(frame[0], frame[2], frame[1])
-                try:
-                    bus.send(msg)
-                except Exception as e:  # as send's
+            try:
+                bus.send_frames([frames[j.index] for j in members])
+            except Exception as e:  # as send's
+                for j in members:
                     self._refused(j, e)
-                    continue
-                failures[name] = 0
+                continue
+            failures[name] = 0
+            for j in members:
                 j.sent()
                 if logger is not None:
-                    msg.timestamp = time.time()
-                    logger.on_message_received(msg)
+                    frame = frames[j.index]
+                    logger.on_message_received(message(frame[0], frame[2], frame[1], time.time()))
 
     def _refused(self, j: Joint, error: Exception) -> None:
         """Joint ``j``'s bus refused a frame: counted; :data:`SEND_FAILURES` in a row and it is lost."""

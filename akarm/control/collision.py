@@ -221,7 +221,6 @@ class MomentumObserver:
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd, dt)
         p, beta = self.model.momentum(q, v)
-        pl, bl = p, beta  # (new lists of floats)
         n = self.n
         if kp is not None:
             kpl, kdl = _floats(kp), ([0.0] * n if kd is None else _floats(kd))
@@ -230,7 +229,7 @@ class MomentumObserver:
         smooth = [0.0] * n
         r = [0.0] * n
         for i in range(n):
-            sm = smooth_one(i, d[i], None if vd is None else vd[i], bl[i])
+            sm = smooth_one(i, d[i], None if vd is None else vd[i], beta[i])
             smooth[i] = sm
             t = tau_prev[i]
             if kp is not None and abs(t) < saturation[i]:  # (a saturated motor holds its limit: no decay)
@@ -238,7 +237,7 @@ class MomentumObserver:
                 t = t - 0.5 * (kpl[i] * vp * dt + kdl[i] * (v[i] - vp))
             g = integral[i] + (t - 0.5 * (sm + smooth_prev[i]) + r_prev[i]) * dt
             integral[i] = g
-            r[i] = k * (pl[i] - p0[i] - g)
+            r[i] = k * (p[i] - p0[i] - g)
         self._last = (_floats(tau), v, smooth)
         self._r = r
 

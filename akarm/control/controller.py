@@ -641,8 +641,7 @@ class Controller:
 
     # -- what the loop measured ----------------------------------------------------------------------
     def telemetry_log(self, since: float | None = None) -> TelemetryLog:
-        with self.lock:
-            return self.telemetry.snapshot(since)
+        return self.telemetry.snapshot(since)  # (not under the loop's lock: the ring is read lock-free)
 
     def stats(self) -> StatsSummary:
         self.require_open()

@@ -56,6 +56,8 @@ def check_writable(path: str | os.PathLike[str]) -> Path:
         RecordingError: it is a directory, or its directory cannot be created or written; the
             message says which and what to do.
     """
+    if "\x00" in os.fsdecode(path):
+        raise RecordingError("the path holds a NUL character", fix="check the path")
     target = Path(path)
     if target.is_dir():
         raise RecordingError(f"{target} is a directory, not a file", fix="give a file name, e.g. out/run.csv")
@@ -127,6 +129,9 @@ def over(found: str, limit: float, unit: str, name: str) -> str:
     return f"{found}, over the limit of {number(limit)} {unit}" + (f" ({name})" if name else "")
 
 
+_NONBLOCK = getattr(os, "O_NONBLOCK", 0)  # (POSIX; elsewhere a plain open)
+
+
 def _too_large(what: str, size: int | None, max_bytes: int, name: str) -> FileProblem:
     """The file of ``size`` bytes (``None``: more than the limit, not a regular file) is too large."""
     found = f"more than {number(max_bytes)}" if size is None else number(size)
@@ -143,12 +148,29 @@ def _open_problem(e: OSError, what: str) -> FileProblem:
 @contextmanager
 def _opened(path: str | os.PathLike[str], max_bytes: int, what: str, name: str) -> Iterator[io.BufferedReader]:
     """The file open for reading, refused first when it is a regular file of more than ``max_bytes``;
-    an OSError while it is open is a :class:`FileProblem` too."""
+    an OSError while it is open is a :class:`FileProblem` too.
+
+    Opening never waits: a FIFO that no program writes to opens at once and reads as empty (opening it
+    plainly would wait for a writer for ever: a server thread, the lock it holds). A pipe with a
+    writer (``/dev/stdin``, ``<(...)``) is read as before."""
+    if "\x00" in os.fsdecode(path):
+        raise FileProblem(f"the {what}'s path holds a NUL character", "check the path")
     try:
-        with open(path, "rb") as f:
-            info = os.fstat(f.fileno())
+        fd = os.open(path, os.O_RDONLY | _NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        try:
+            file = os.fdopen(fd, "rb")
+        except BaseException:
+            os.close(fd)
+            raise
+    except OSError as e:
+        raise _open_problem(e, what) from None
+    try:
+        with file as f:
+            info = os.fstat(fd)
             if stat.S_ISREG(info.st_mode) and info.st_size > max_bytes:
                 raise _too_large(what, info.st_size, max_bytes, name)
+            if _NONBLOCK and not stat.S_ISREG(info.st_mode):
+                os.set_blocking(fd, True)  # (a pipe's reads wait for its writer, as they always did)
             yield f
     except OSError as e:
         raise _open_problem(e, what) from None

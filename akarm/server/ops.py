@@ -114,7 +114,9 @@ def _scalar_problem(value: object, tp: Any) -> str | None:
     if tp is str:
         if not isinstance(value, str):
             return f"must be text, not {_json_kind(value)}"
-        return None if len(value) <= MAX_TEXT else f"must be at most {MAX_TEXT} characters, not {len(value)}"
+        if len(value) > MAX_TEXT:
+            return f"must be at most {MAX_TEXT} characters, not {len(value)}"
+        return None if "\x00" not in value else "must not hold a NUL character (no name or path does)"
     if tp is bool:
         return None if isinstance(value, bool) else f"must be true or false, not {_json_kind(value)}"
     if tp is type(None) or tp is None:

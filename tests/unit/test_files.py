@@ -4,14 +4,16 @@ tests/unit/test_hostile_files.py."""
 
 from __future__ import annotations
 
+import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from akarm import files
+from akarm import RecordingError, files
 from akarm.files import FileProblem, YamlLimits, compose_yaml, construct, read_bytes, read_csv_table, read_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,6 +46,30 @@ def test_a_file_is_read_up_to_its_limit_and_refused_one_byte_past_it(tmp_path: P
 def test_an_endless_file_is_read_to_one_byte_past_the_limit_no_further() -> None:
     with pytest.raises(FileProblem, match=r"more than 4 096 bytes, over the limit of 4 096 bytes \(MAX_X\)"):
         read_bytes("/dev/zero", 4096, what="file", name="MAX_X")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs are POSIX")
+def test_a_fifo_nobody_writes_to_opens_at_once_and_reads_empty(tmp_path: Path) -> None:
+    """Opening a FIFO plainly waits for a writer, for ever if none comes (a server's thread, its lock)."""
+    fifo = tmp_path / "f"
+    os.mkfifo(fifo)
+    t0 = time.monotonic()
+    assert read_bytes(fifo, 100) == b""
+    assert time.monotonic() - t0 < 5.0
+    r, w = os.pipe()  # a pipe with a writer is read as before (/dev/stdin, <(...))
+    os.write(w, b"hello")
+    os.close(w)
+    try:
+        assert read_bytes(f"/dev/fd/{r}", 100) == b"hello"
+    finally:
+        os.close(r)
+
+
+def test_a_path_with_a_nul_character_is_a_problem_not_a_value_error(tmp_path: Path) -> None:
+    with pytest.raises(FileProblem, match="NUL character"):
+        read_text(str(tmp_path / "a\x00b.yaml"), 100, what="recording")
+    with pytest.raises(RecordingError, match="NUL character"):
+        files.check_writable(str(tmp_path / "a\x00b.csv"))
 
 
 def test_missing_unreadable_and_not_utf8(tmp_path: Path) -> None:

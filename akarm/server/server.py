@@ -60,6 +60,8 @@ _E = TypeVar("_E", bound=BaseException)
 PROTOCOL = 2  #: the control socket's protocol version (``describe``)
 _READ_TIMEOUT = 0.25  # s a disabled arm's joints get to answer a status request (as akarm status's default)
 _POLL = 0.02  # s between looks while a request waits (a motion to end, time to pass)
+_STOP_WAIT = 0.5  # s stop() waits for a running command before it disables the arm without it
+_STOP_GRACE = 10.0  # s it then waits for that command to end (to disable again after it), at most
 _OP = re.compile(r"^[a-z][a-z_]{0,39}$")
 
 
@@ -221,12 +223,23 @@ class ArmServerCore:
         """Damp and disable the arm (first: at once), stop serving, close the arm if the server opened
         it, free the buses. Commands that arrive meanwhile are refused."""
         self._stop.set()
+        held = False
         try:
             # no signal cuts the damping short
-            with _signals.deferred(), self._cmd, contextlib.suppress(AkarmError), self._fresh_errors():
-                self._end_teach()
+            with _signals.deferred(), contextlib.suppress(AkarmError), self._fresh_errors():
+                held = self._cmd.acquire(timeout=_STOP_WAIT)
+                if not held:
+                    # a command is still being carried out (a long plan being made; a file that is slow to
+                    # read): the motors are not left powered for it; the arm is disabled again after it
+                    self.log(f"akarm serve: a request still runs after {_STOP_WAIT:g} s; disabling the arm now")
+                    self.arm.disable()
+                    held = self._cmd.acquire(timeout=_STOP_GRACE)
+                if held:
+                    self._end_teach()
                 self.arm.disable()
         finally:
+            if held:
+                self._cmd.release()
             frontends, self._frontends = self._frontends, []
             for frontend in frontends:
                 frontend.stop()
@@ -656,8 +669,11 @@ class ArmServerCore:
     def _op_replay(self, path: str, speed: float = 1.0) -> dict[str, Any]:
         from akarm.motion.recording import Keyframes
 
+        # read and checked first, outside the command lock: a file that is slow to read (a large one, a
+        # FIFO, a slow disk) keeps no other request, nor the server's stop, waiting
+        self._require_serving()
+        rec = self.arm.check_replay(path, speed)
         with self._cmd:
-            rec = self.arm.check_replay(path, speed)
             self._require_commandable()
             doc = self._motion_doc(self.arm.replay(rec, speed=speed, wait=False), self._stop_seq)
         doc["kind"] = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"

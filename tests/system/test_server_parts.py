@@ -256,3 +256,77 @@ def test_the_snapshot_operation_reads_the_arm_and_takes_no_arguments(channel, tm
                 c.call("snapshot", joint="elbow")
         server.dispatch("disable", {})
         assert server.snapshot().mode == "disabled" and not server.snapshot().enabled
+
+
+def _in_thread(fn, *args):
+    """Run ``fn(*args)`` in a daemon thread; what it returned or raised lands in the list returned."""
+    out: list[object] = []
+
+    def run() -> None:
+        try:
+            out.append(fn(*args))
+        except BaseException as e:  # (handed to the test)
+            out.append(e)
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    return th, out
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs are POSIX")
+def test_a_replay_of_a_file_that_never_ends_keeps_no_request_and_no_stop_waiting(channel, tmp_path):
+    """A FIFO whose writer never writes: the replay's read waits, and only it. Other requests are answered,
+    and the server's stop damps and disables the arm at once (it used to wait for that read for ever,
+    the motors powered, deaf to SIGTERM and Ctrl-C)."""
+    fifo = tmp_path / "never.yaml"
+    os.mkfifo(fifo)
+    writer = os.open(fifo, os.O_RDWR)  # a writer that never writes (O_RDWR: opening does not wait)
+    config = config_on(channel, "virtual")
+    try:
+        with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+            del sim
+            server = ArmServerCore(arm).start()
+            try:
+                replay, replayed = _in_thread(server.dispatch, "replay", {"path": str(fifo)})
+                time.sleep(0.3)
+                assert replay.is_alive(), replayed  # it is reading the FIFO
+                status, answered = _in_thread(server.dispatch, "status", {})
+                status.join(5.0)
+                assert answered and answered[0]["mode"] == "holding"
+            finally:
+                t0 = time.monotonic()
+                server.stop()
+                took = time.monotonic() - t0
+            assert not arm.enabled and took < 3.0, took
+    finally:
+        os.close(writer)  # the read ends (empty file)
+    replay.join(5.0)
+    assert replayed and isinstance(replayed[0], AkarmError), replayed
+
+
+def test_the_stop_disables_the_arm_at_once_while_a_command_still_runs(channel, monkeypatch):
+    """A command that holds the server (a long plan being made) does not keep the motors powered when the
+    server stops: it disables the arm after half a second, and again once the command is done."""
+    config = config_on(channel, "virtual")
+    entered, release = threading.Event(), threading.Event()
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm:
+        del sim
+        move_to = arm.move_to
+
+        def slow_move_to(*args, **kwargs):
+            entered.set()
+            release.wait(30.0)
+            return move_to(*args, **kwargs)
+
+        monkeypatch.setattr(arm, "move_to", slow_move_to)
+        server = ArmServerCore(arm).start()
+        move, moved = _in_thread(server.dispatch, "move", {"target": [0.1, 0.1]})
+        assert entered.wait(10.0)
+        stop, _ = _in_thread(server.stop)
+        assert wait_until(lambda: not arm.enabled, 3.0), "the arm stays enabled while the command runs"
+        assert stop.is_alive()  # it waits for the command, to disable again after it
+        release.set()
+        stop.join(10.0)
+        move.join(10.0)
+        assert not stop.is_alive() and not arm.enabled
+        assert moved and isinstance(moved[0], AkarmError), moved  # refused: the arm was disabled under it

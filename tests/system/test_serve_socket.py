@@ -341,3 +341,37 @@ def test_past_the_connection_limit_the_idle_longest_goes_and_busy_ones_stay(tmp_
         for t in waits:
             t.join(5)
         server.close()
+
+
+def test_a_client_on_a_descriptor_past_1023_is_not_taken_for_gone(tmp_path: Path):
+    """A process with more than 1023 files open (a script serving its arm with many files, cameras,
+    sockets open): ``select`` cannot take such descriptors. The server's "has the client left?" used to
+    read its error as "yes", so every served wait and sleep returned at once while the arm moved."""
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if max(soft, hard if hard != resource.RLIM_INFINITY else 4096) < 1200:
+        pytest.skip("this process may not open 1200 files")
+    if soft < 1200:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (min(4096, hard), hard))
+    answers: list[bool] = []
+    server: SocketServer | None = None
+
+    def dispatch(op: str, args: dict, client: int) -> bool:
+        assert server is not None
+        gone = server.gone(client)
+        answers.append(gone)
+        return gone
+
+    filler = [os.open(os.devnull, os.O_RDONLY) for _ in range(1100)]  # the connections' descriptors come after
+    try:
+        server = SocketServer(tmp_path / "c.sock", dispatch)
+        try:
+            with SocketClient(str(tmp_path / "c.sock"), timeout=5) as c:
+                assert c.call("still_there") is False
+            assert answers == [False]
+        finally:
+            server.close()
+    finally:
+        for fd in filler:
+            os.close(fd)

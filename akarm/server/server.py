@@ -35,6 +35,7 @@ import signal
 import sys
 import threading
 import time
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -189,6 +190,9 @@ class ArmServerCore:
         self._last_stop: LatchedStop | None = None  # the latest stop, acknowledged or not
         self._stop_seq = 0
         self._seen: tuple[object, ...] = ()  # the arm's fault and last collision as last seen
+        # every stop latched, acknowledged or raised to a client as a copy: none is latched (again) later
+        # (an old motion's stop waited for after its acknowledgement; a copy a request reported)
+        self._known: weakref.WeakSet[BaseException] = weakref.WeakSet()
         self._refusals_logged = (0.0, 0)  # when a refusal was last logged, and how many since
 
     # ------------------------------------------------------------------------------------------
@@ -295,9 +299,10 @@ class ArmServerCore:
             self._seen = now
 
     def _latch(self, e: SafetyStop) -> None:
-        """(Under the latch lock) latch ``e``, and say so."""
-        if self._latched is not None and self._latched.error is e:
+        """(Under the latch lock) latch ``e``, and say so, unless the server knows it already."""
+        if e in self._known:
             return
+        self._known.add(e)
         e.with_traceback(None)  # kept: let its frames go
         at = getattr(e, "at", None)
         t = time.time() - max(0.0, self.arm.clock.now() - at) if isinstance(at, float) and math.isfinite(at) \
@@ -325,7 +330,14 @@ class ArmServerCore:
         self._update_latch()
         stop = self._last_stop
         if stop is not None and stop.seq > seq:
-            raise stop.copy()
+            raise self._copy(stop.error)
+
+    def _copy(self, e: SafetyStop) -> SafetyStop:
+        """A copy of the stop ``e`` to raise to a client, known to the server (never latched itself)."""
+        new = copy_error(e)
+        with self._latch_lock:
+            self._known.add(new)
+        return new
 
     @contextlib.contextmanager
     def _fresh_errors(self) -> Iterator[None]:
@@ -337,7 +349,7 @@ class ArmServerCore:
                 self._latch(e)  # an enable refused, or a fault not latched yet
                 self._seen = (*self._seen, e)
             e.with_traceback(None)
-            raise copy_error(e) from None
+            raise self._copy(e) from None
 
     # ------------------------------------------------------------------------------------------
     # what the arm is doing
@@ -625,7 +637,7 @@ class ArmServerCore:
         seq = self._stop_seq
         stop = self.latched
         if stop is not None:
-            raise stop.copy()
+            raise self._copy(stop.error)
         end = time.monotonic() + seconds
         while (left := end - time.monotonic()) > 0:
             time.sleep(min(_POLL, left))

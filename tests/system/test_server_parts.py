@@ -330,3 +330,35 @@ def test_the_stop_disables_the_arm_at_once_while_a_command_still_runs(channel, m
         move.join(10.0)
         assert not stop.is_alive() and not arm.enabled
         assert moved and isinstance(moved[0], AkarmError), moved  # refused: the arm was disabled under it
+
+
+def test_a_stop_is_latched_once_and_an_acknowledged_one_never_again(channel, tmp_path):
+    """Each request that reports the latched stop raised a copy of it, and each copy was latched as a new
+    stop (a new number, a new log line); after an acknowledgement, waiting for the motion that stop ended
+    latched it again, refusing every motion until a second enable."""
+    from akarm.errors import FeedbackTimeout
+    from akarm.sim import faults
+
+    config = akarm.load_robot(relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)).with_bus(interface="virtual",
+                                                                                         channel=channel)
+    said: list[str] = []
+    with SimulatedRobot(config) as sim, akarm.Arm(config) as arm, \
+            ArmServerCore(arm, log=said.append) as server:
+        motion = server.dispatch("move", {"target": [0.3, 0.3], "speed": 0.2})
+        sim.joint("elbow").inject(faults.Unplugged())
+        with pytest.raises(FeedbackTimeout):
+            server.dispatch("wait", {"id": motion["id"]})
+        assert server.latched is not None and server.latched.seq == 1
+        for _ in range(3):
+            with pytest.raises(FeedbackTimeout):
+                server.dispatch("sleep", {"seconds": 0.1})
+        assert server.latched.seq == 1
+        assert len([s for s in said if "safety stop (FeedbackTimeout)" in s]) == 1, said
+        sim.clear_faults()
+        server.dispatch("enable", {})  # acknowledged
+        assert server.latched is None
+        with pytest.raises(FeedbackTimeout):  # the old motion: the stop that ended it, raised again
+            server.dispatch("wait", {"id": motion["id"]})
+        server.dispatch("stop", {})  # (what a served verb's Ctrl-C sends: it waits for the stored motions)
+        assert server.latched is None and server.mode == "holding"
+        server.dispatch("move", {"target": [0.0, 0.0]})  # not refused

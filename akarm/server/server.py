@@ -61,6 +61,9 @@ _E = TypeVar("_E", bound=BaseException)
 PROTOCOL = 2  #: the control socket's protocol version (``describe``)
 _READ_TIMEOUT = 0.25  # s a disabled arm's joints get to answer a status request (as akarm status's default)
 _POLL = 0.02  # s between looks while a request waits (a motion to end, time to pass)
+#: What the control socket carries when every connection is busy (one of its reserved connections):
+#: what an operator needs to stop the arm and see it, while long requests hold the others.
+URGENT_OPERATIONS = frozenset({"disable", "stop", "hold", "status", "state", "snapshot", "describe"})
 _STOP_WAIT = 0.5  # s stop() waits for a running command before it disables the arm without it
 _STOP_GRACE = 10.0  # s it then waits for that command to end (to disable again after it), at most
 _OP = re.compile(r"^[a-z][a-z_]{0,39}$")
@@ -214,7 +217,8 @@ class ArmServerCore:
             self._update_latch()  # a stop from before (a script's arm): latched, unless enabled now
             if self._enable_at_start:
                 self.enable()
-            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left, log=self.log)
+            self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left, log=self.log,
+                                        urgent=URGENT_OPERATIONS)
             threading.Thread(target=self._watch_stops, name="akarm-serve-faults", daemon=True).start()
             for frontend in self._frontends:
                 frontend.start()
@@ -561,7 +565,9 @@ class ArmServerCore:
         """The protocol: its version, each operation with its arguments, the socket's limits."""
         return {"protocol": PROTOCOL, "ops": {name: op.describe() for name, op in _operations(type(self)).items()},
                 "limits": {"connections": _socket.MAX_CONNECTIONS, "request_bytes": _socket.MAX_REQUEST_BYTES,
-                           "request_seconds": _socket.REQUEST_TIMEOUT, "idle_seconds": _socket.IDLE_TIMEOUT}}
+                           "request_seconds": _socket.REQUEST_TIMEOUT, "idle_seconds": _socket.IDLE_TIMEOUT,
+                           "reserved_connections": _socket.RESERVED_CONNECTIONS,
+                           "urgent_ops": sorted(URGENT_OPERATIONS)}}
 
     def _op_state(self, read: bool = True) -> dict[str, Any]:
         """Every joint's reading with its age; a disabled arm's joints are asked first (``read``)."""

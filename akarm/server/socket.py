@@ -15,7 +15,10 @@ by a client that misbehaves:
 
 - at most :data:`MAX_CONNECTIONS` connections at once: a new one past that closes the connection
   that has waited longest for its next request, or, when every one is busy with a request, is
-  answered with a :class:`~akarm.StateError` and closed;
+  taken on one of :data:`RESERVED_CONNECTIONS` more, which carry one request each and only the
+  server's urgent operations (``disable``, ``stop``, ``hold``, the status: what an operator needs
+  when every connection is held by long requests); anything else is answered there with a
+  :class:`~akarm.StateError`, and a connection past those is answered so and closed;
 - a request is at most :data:`MAX_REQUEST_BYTES` long, and must arrive whole within
   :data:`REQUEST_TIMEOUT` s of its first byte; a connection with no request for
   :data:`IDLE_TIMEOUT` s is closed;
@@ -48,10 +51,12 @@ from typing import Any
 from akarm import errors
 from akarm.errors import AkarmError, ArgumentError, StateError
 
-__all__ = ["IDLE_TIMEOUT", "MAX_CONNECTIONS", "MAX_REQUEST_BYTES", "REQUEST_TIMEOUT", "SocketClient",
-           "SocketServer"]
+__all__ = ["IDLE_TIMEOUT", "MAX_CONNECTIONS", "MAX_REQUEST_BYTES", "REQUEST_TIMEOUT", "RESERVED_CONNECTIONS",
+           "SocketClient", "SocketServer"]
 
 MAX_CONNECTIONS = 32  #: control connections open at once
+#: connections more, for one urgent request each, when all the others are busy with requests
+RESERVED_CONNECTIONS = 4
 MAX_REQUEST_BYTES = 1 << 20  #: bytes of one request line (1 MiB)
 REQUEST_TIMEOUT = 10.0  #: s for a request to arrive whole, from its first byte
 IDLE_TIMEOUT = 600.0  #: s a connection may wait between requests before it is closed
@@ -144,11 +149,12 @@ def _parse(line: bytes) -> tuple[Any, str, dict[str, Any]]:
 class _Connection:
     """One client's connection, as the server keeps it."""
 
-    __slots__ = ("busy", "client", "conn", "since")
+    __slots__ = ("busy", "client", "conn", "reserve", "since")
 
-    def __init__(self, conn: socket.socket, client: int) -> None:
+    def __init__(self, conn: socket.socket, client: int, reserve: bool = False) -> None:
         self.conn = conn
         self.client = client
+        self.reserve = reserve  # one of the reserved connections: one urgent request, then closed
         self.busy = False  # a request is being carried out
         self.since = time.monotonic()  # when it last began to wait for a request
 
@@ -176,12 +182,15 @@ class SocketServer:
     ``client`` is a number for the connection the request came on; ``closed(client)`` is called once
     that connection has ended (the client closed it, exited, was killed, or it was closed here).
     ``log`` gets a line for what the server should hear about (a bug's traceback, descriptors
-    running out). Limits: see the module's docstring."""
+    running out). ``urgent``: the operations a reserved connection may carry. Limits: see the
+    module's docstring."""
 
     def __init__(self, path: str | os.PathLike[str], dispatch: Callable[[str, dict[str, Any], int], Any],
-                 closed: Callable[[int], None] | None = None, log: Callable[[str], None] | None = None) -> None:
+                 closed: Callable[[int], None] | None = None, log: Callable[[str], None] | None = None,
+                 urgent: frozenset[str] = frozenset()) -> None:
         self.path = Path(path)
         self.dispatch = dispatch
+        self.urgent = urgent
         self.closed = closed
         self.log = log or (lambda text: None)
         self._clients = itertools.count(1)
@@ -240,10 +249,10 @@ class SocketServer:
                 self.log("akarm serve: could not serve a control connection; going on\n" + traceback.format_exc())
 
     def _evict(self) -> bool:
-        """Close the connection that has waited longest for a request (none busy with one is closed);
-        False when every one is busy."""
+        """Close the connection that has waited longest for a request (none busy with one is closed, nor
+        a reserved one: it ends soon anyway); False when every one is busy."""
         with self._lock:
-            idle = [c for c in self._connections.values() if not c.busy]
+            idle = [c for c in self._connections.values() if not c.busy and not c.reserve]
             if not idle:
                 return False
             oldest = min(idle, key=lambda c: c.since)
@@ -253,12 +262,15 @@ class SocketServer:
         return True
 
     def _admit(self, conn: socket.socket) -> None:
-        if len(self._connections) >= MAX_CONNECTIONS and not self._evict():
+        with self._lock:
+            reserved = sum(c.reserve for c in self._connections.values())
+        reserve = len(self._connections) - reserved >= MAX_CONNECTIONS and not self._evict()
+        if reserve and (reserved >= RESERVED_CONNECTIONS or not self.urgent):
             self.refused += 1
             self._refuse(conn)
             return
         with self._lock:
-            c = _Connection(conn, next(self._clients))
+            c = _Connection(conn, next(self._clients), reserve)
             self._connections[c.client] = c
         try:
             threading.Thread(target=self._serve, args=(c,), name="akarm-serve-client", daemon=True).start()
@@ -267,9 +279,13 @@ class SocketServer:
                 self._connections.pop(c.client, None)
             raise
 
+    def _busy(self) -> StateError:
+        urgent = f" (only {', '.join(sorted(self.urgent))} are taken now)" if self.urgent else ""
+        return StateError(f"akarm serve has {MAX_CONNECTIONS} control connections busy with requests{urgent}",
+                          fix="try again once one has finished")
+
     def _refuse(self, conn: socket.socket) -> None:
-        e = StateError(f"akarm serve has {MAX_CONNECTIONS} control connections busy with requests",
-                       fix="try again once one has finished")
+        e = self._busy()
         with contextlib.suppress(OSError), conn:
             conn.setblocking(False)
             conn.send(json.dumps({"id": None, "ok": False, "error": error_doc(e)}).encode() + b"\n")
@@ -308,7 +324,7 @@ class SocketServer:
                     f"a request is at most {MAX_REQUEST_BYTES} bytes; this one is longer",
                     fix="send smaller requests (a recording or trajectory: a file, by its path)"))
                 return
-            limit = REQUEST_TIMEOUT if buf else IDLE_TIMEOUT
+            limit = REQUEST_TIMEOUT if buf or c.reserve else IDLE_TIMEOUT
             left = c.since + limit - time.monotonic()
             if left <= 0:
                 if buf:
@@ -335,6 +351,13 @@ class SocketServer:
         req_id: Any = None
         try:
             req_id, op, args = _parse(line)
+            if c.reserve:  # one request, urgent, and the reserved place is free again
+                if op not in self.urgent:
+                    self.refused += 1
+                    self._answer(c, req_id, self._busy())
+                    return False
+                self._answer(c, req_id, None, self.dispatch(op, args, c.client))
+                return False
             return self._answer(c, req_id, None, self.dispatch(op, args, c.client))
         except AkarmError as e:
             return self._answer(c, e.req_id if isinstance(e, _BadRequest) else req_id, e)

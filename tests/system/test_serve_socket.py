@@ -271,7 +271,9 @@ def test_the_protocol_describes_itself(served: Serve):
         doc = c.call("describe")
     assert doc["protocol"] == 2 and doc["ops"]["move"]["target"].startswith("text")
     assert doc["limits"] == {"connections": control.MAX_CONNECTIONS, "request_bytes": control.MAX_REQUEST_BYTES,
-                             "request_seconds": control.REQUEST_TIMEOUT, "idle_seconds": control.IDLE_TIMEOUT}
+                             "request_seconds": control.REQUEST_TIMEOUT, "idle_seconds": control.IDLE_TIMEOUT,
+                             "reserved_connections": control.RESERVED_CONNECTIONS,
+                             "urgent_ops": ["describe", "disable", "hold", "snapshot", "state", "status", "stop"]}
 
 
 # -- the limits' timing, on a socket server in this process ------------------------------------------
@@ -375,3 +377,52 @@ def test_a_client_on_a_descriptor_past_1023_is_not_taken_for_gone(tmp_path: Path
     finally:
         for fd in filler:
             os.close(fd)
+
+
+def test_with_every_connection_busy_an_urgent_request_still_gets_through(tmp_path: Path, small_limits: None,
+                                                                         monkeypatch: pytest.MonkeyPatch):
+    """Connections held by long requests (sleeps of a day, waits for motions) used to refuse every new
+    one, `akarm disable` included. A reserved connection carries one urgent request; others are refused."""
+    monkeypatch.setattr(control, "RESERVED_CONNECTIONS", 1)
+    release = threading.Event()
+    blocked: list[int] = []
+    done: list[str] = []
+
+    def dispatch(op: str, args: dict, client: int) -> str:
+        if op == "block":
+            blocked.append(client)
+            release.wait(10)
+        done.append(op)
+        return op
+
+    path = tmp_path / "c.sock"
+    server = SocketServer(path, dispatch, urgent=frozenset({"disable"}))
+    waits: list[threading.Thread] = []
+    clients = [SocketClient(str(path), timeout=10) for _ in range(3)]
+    try:
+        for c in clients:
+            waits.append(threading.Thread(target=c.call, args=("block",), daemon=True))
+            waits[-1].start()
+        assert wait_until(lambda: len(blocked) == 3, 2.0)
+        with SocketClient(str(path), timeout=5) as urgent:
+            assert urgent.call("disable") == "disable"
+        with SocketClient(str(path), timeout=5) as other, \
+                pytest.raises(StateError, match=r"3 control connections busy.*only disable are taken now"):
+            other.call("move")
+        assert "move" not in done
+        # the reserve is one connection: while one holds it (no request yet), the next is refused at once
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as holder:
+            holder.connect(str(path))
+            assert wait_until(lambda: server.connections == 4, 2.0)
+            with SocketClient(str(path), timeout=5) as late, pytest.raises(StateError, match="busy"):
+                late.call("disable")
+            assert holder.recv(10) == b"", "a reserved connection waits no longer than a request may take"
+        with SocketClient(str(path), timeout=5) as again:  # free again
+            assert again.call("disable") == "disable"
+    finally:
+        release.set()
+        for t in waits:
+            t.join(5)
+        for c in clients:
+            c.close()
+        server.close()

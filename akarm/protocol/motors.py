@@ -17,6 +17,7 @@ fields; naming an existing model without ``base`` changes only the fields given.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields, replace
@@ -89,6 +90,10 @@ _POSITIVE = ("p_max", "v_max", "t_max", "gear_ratio", "pole_pairs", "kp_max", "k
              "friction_coulomb", "friction_viscous")
 _CHOICES = {"servo_position": ("output", "rotor"), "firmware": ("v2", "v3")}
 
+def _is_number(v: object) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
 #: One problem with one catalogue entry: (field or None, message, fix).
 EntryProblem = tuple[str | None, str, str]
 
@@ -158,13 +163,23 @@ class Catalogue(Mapping[str, MotorModel]):
         for k in _POSITIVE:
             if k in entry:
                 v = entry[k]
-                if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
-                    problems.append((k, f"motor {name!r}: {k} must be a positive number, got {v!r}",
+                # (finite: an infinite range scales every command to NaN or 0, an infinite torque limit
+                # reads every reply's torque as NaN)
+                if not _is_number(v) or not 0 < v < math.inf:
+                    problems.append((k, f"motor {name!r}: {k} must be a positive finite number, got {v!r}",
                                      f"set {k} to a number above 0"))
-        if "mit_temp_offset" in entry and (isinstance(entry["mit_temp_offset"], bool)
-                                           or not isinstance(entry["mit_temp_offset"], int | float)):
-            problems.append(("mit_temp_offset", f"motor {name!r}: mit_temp_offset must be a number",
+                elif k == "pole_pairs" and v != int(v):
+                    problems.append((k, f"motor {name!r}: pole_pairs must be a whole number, got {v!r}",
+                                     "count the rotor's magnet pairs (the datasheet's pole pairs)"))
+        if "mit_temp_offset" in entry and not (_is_number(entry["mit_temp_offset"])
+                                               and math.isfinite(entry["mit_temp_offset"])):
+            # (a NaN offset reads every temperature as NaN, which no limit is above: no over-temperature stop)
+            problems.append(("mit_temp_offset", f"motor {name!r}: mit_temp_offset must be a finite number, got "
+                             f"{entry['mit_temp_offset']!r}",
                              "0 for raw temperature bytes, 40 for firmware that adds 40"))
+        if "source" in entry and not isinstance(entry["source"], str):
+            problems.append(("source", f"motor {name!r}: source must be text, got {entry['source']!r}",
+                             "name where the values come from, e.g. a datasheet"))
         for k, allowed in _CHOICES.items():
             if k in entry and entry[k] not in allowed:
                 problems.append((k, f"motor {name!r}: {k} must be one of {', '.join(allowed)}, got {entry[k]!r}",

@@ -274,7 +274,7 @@ def test_motors_section_problems_get_their_lines(tmp_path: Path) -> None:
     assert "did you mean 'v_max'" in one(found, "'vmax'").message
     assert one(found, "lacks 'p_max'").line == line_of(text, "NewAK")
     assert one(found, "unknown motor model 'AK99'").line == line_of(text, "Based")
-    assert one(found, "t_max must be a positive number").line == line_of(text, "Based")
+    assert one(found, "t_max must be a positive finite number").line == line_of(text, "Based")
     # a joint using a broken entry is not reported again as an unknown model
     text = text.replace("motor: AK60-6", "motor: NewAK")
     found = problems(tmp_path, text)

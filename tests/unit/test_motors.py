@@ -86,11 +86,34 @@ def test_bad_entries_report_every_problem() -> None:
     with pytest.raises(ConfigError) as info:
         Catalogue().extended({"X": {"p_max": -1, "v_maxx": 3, "servo_position": "shaft"}}, "f.yaml")
     msgs = [p.message for p in info.value.problems]
-    assert any("p_max must be a positive number" in m for m in msgs)
+    assert any("p_max must be a positive finite number" in m for m in msgs)
     assert any("unknown motor field 'v_maxx'" in m and "did you mean 'v_max'" in m for m in msgs)
     assert any("servo_position must be one of output, rotor" in m for m in msgs)
     assert any("lacks 'gear_ratio'" in m for m in msgs)
     assert all(p.file == "f.yaml" for p in info.value.problems)
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("t_max", float("inf"), "t_max must be a positive finite number, got inf"),
+    ("p_max", float("inf"), "p_max must be a positive finite number"),
+    ("gear_ratio", float("inf"), "gear_ratio must be a positive finite number"),
+    ("v_max", float("nan"), "v_max must be a positive finite number, got nan"),
+    ("pole_pairs", float("inf"), "pole_pairs must be a positive finite number"),
+    ("pole_pairs", 1.5, "pole_pairs must be a whole number, got 1.5"),
+    ("mit_temp_offset", float("nan"), "mit_temp_offset must be a finite number, got nan"),
+    ("mit_temp_offset", float("-inf"), "mit_temp_offset must be a finite number"),
+    ("source", 5, "source must be text"),
+])
+def test_a_variant_with_an_infinite_nan_or_fractional_value_is_refused(field: str, value: object,
+                                                                         message: str) -> None:
+    """An infinite range or limit made every command or reading NaN (the arm enabled, its torque NaN);
+    a NaN temperature offset made the over-temperature stop impossible; 1.5 pole pairs became 1."""
+    with pytest.raises(ConfigError) as info:
+        motors.default_catalogue().extended({"AK80-9": {field: value}}, "m.yaml")
+    (problem,) = info.value.problems
+    assert problem.message.startswith(f"motor 'AK80-9': {message}"), problem.message
+    fine = motors.default_catalogue().extended({"AK80-9": {"pole_pairs": 21.0, "mit_temp_offset": -40}}, "m.yaml")
+    assert fine.get("AK80-9").pole_pairs == 21 and fine.get("AK80-9").mit_temp_offset == -40
 
 
 def test_unknown_base_is_a_config_problem() -> None:

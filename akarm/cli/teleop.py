@@ -99,11 +99,26 @@ def _config(path: str, args: argparse.Namespace, channel: str | None) -> RobotCo
 
     config = load_robot(path)
     kwargs = args.bus_kwargs or None
-    channel = channel or args.channel
-    if args.interface or channel or args.bitrate or kwargs:
-        config = config.with_bus(interface=args.interface, channel=parse_channel(channel), bitrate=args.bitrate,
-                                 options=kwargs)
+    parsed = parse_channel(channel or args.channel)
+    if isinstance(parsed, dict) and not channel:  # -c NAME=CHANNEL,... names both arms' buses: this arm's
+        parsed = {k: v for k, v in parsed.items() if k in config.buses}
+    if args.interface or parsed or args.bitrate or kwargs:
+        config = config.with_bus(interface=args.interface, channel=parsed, bitrate=args.bitrate, options=kwargs)
     return get_profile(args.profile).apply(config)
+
+
+def _check_shared_channels(args: argparse.Namespace, *configs: RobotConfig) -> None:
+    """-c NAME=CHANNEL,... (both arms' buses in one mapping) names no bus that neither arm has."""
+    from akarm.config import parse_channel
+    from akarm.errors import ArgumentError, did_you_mean
+
+    parsed = parse_channel(args.channel) if not (args.leader_channel and args.follower_channel) else None
+    if isinstance(parsed, dict):
+        known = [name for c in configs for name in c.buses]
+        for name in parsed:
+            if name not in known:
+                raise ArgumentError(f"-c names bus {name!r}, which neither arm has{did_you_mean(name, known)}",
+                                    fix=f"their buses are: {', '.join(known)}")
 
 
 def _keys(stream: TextIO) -> queue.Queue[str]:
@@ -251,6 +266,7 @@ def run(args: argparse.Namespace) -> int:
     _check(args)
     leader_config = _config(args.leader, args, args.leader_channel)
     follower_config = _config(args.follower, args, args.follower_channel)
+    _check_shared_channels(args, leader_config, follower_config)
     pairing = Pairing.load(args.map, leader_config.joint_names, follower_config.joint_names) if args.map else \
         Pairing.in_order(leader_config.joint_names, follower_config.joint_names)
     recorder = _recorder(args, follower_config)

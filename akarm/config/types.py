@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
-from akarm.errors import ConfigError, ConfigProblem, did_you_mean
+from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.protocol.motors import Catalogue, MotorModel
 
 __all__ = [
@@ -247,7 +247,18 @@ class RobotConfig:
         (python-can keyword arguments) are added to every bus's. A bus whose interface changes drops
         the keyword arguments it had: they were meant for the other interface. A serial port
         (``akarm_uart``) is no CAN bus: it keeps its settings, but for its channel where a mapping names it.
+
+        Raises:
+            ArgumentError: a mapping names a bus the robot does not have (a misspelled name would
+                leave that bus on the robot file's channel: a real arm where a virtual one was meant).
         """
+        if isinstance(channel, Mapping):
+            unknown = [str(k) for k in channel if k not in self.buses]
+            if unknown:
+                first = unknown[0]
+                raise ArgumentError(f"no bus named {first!r} on robot {self.name!r}"
+                                    f"{did_you_mean(first, list(self.buses))}",
+                                    fix=f"its buses are: {', '.join(self.buses)} (BUS=CHANNEL,BUS=CHANNEL)")
         buses = {}
         for name, b in self.buses.items():
             if b.interface == "akarm_uart":  # a serial port: only a channel mapping that names it changes it
@@ -280,4 +291,15 @@ def parse_channel(text: str | None) -> str | dict[str, str] | None:
     ``vcan0`` → ``"vcan0"``; ``arm=vcan0,aux=vcan1`` → ``{"arm": "vcan0", "aux": "vcan1"}``."""
     if text is None or "=" not in text:
         return text
-    return dict(part.split("=", 1) for part in text.split(","))
+    mapping: dict[str, str] = {}
+    for part in text.split(","):
+        name, _, channel = part.partition("=")
+        name, channel = name.strip(), channel.strip()
+        if not name or not channel:
+            raise ArgumentError(f"bus channels {text!r}: {part!r} is not BUS=CHANNEL",
+                                fix="give one channel, or BUS=CHANNEL for each bus, separated by commas "
+                                    "(arm=vcan0,aux=vcan1)")
+        if name in mapping:
+            raise ArgumentError(f"bus channels {text!r} name bus {name!r} twice", fix="give each bus one channel")
+        mapping[name] = channel
+    return mapping

@@ -12,10 +12,10 @@ from pathlib import Path
 import can
 import pytest
 
-from akarm import BusError, ConfigError
+from akarm import ArgumentError, BusError, ConfigError
 from akarm.buses.bus import no_answer_hint, open_bus, open_error
 from akarm.cli import main
-from akarm.config import BusConfig
+from akarm.config import BusConfig, parse_channel
 from akarm.config.canconfig import python_can_settings
 from akarm.robotfile.load import load_robot
 
@@ -59,6 +59,22 @@ def test_cli_bus_kwargs_are_added_and_an_interface_change_drops_the_files(tmp_pa
     # the simulator's virtual bus has no use for a PCAN device ID
     other = config.with_bus(interface="virtual", channel="x", options={"rx_queue_size": 8})
     assert other.buses["arm"].options == {"rx_queue_size": 8}
+
+
+def test_a_channel_mapping_must_name_the_robots_buses(capsys: pytest.CaptureFixture[str]) -> None:
+    """-c left=vcan0,rihgt=vcan1 used to leave 'right' on the file's channel (socketcan can1: a real arm),
+    and a stray comma was a ValueError from dict()."""
+    config = load_robot(ROBOTS / "biarm.yaml")
+    with pytest.raises(ArgumentError, match=r"no bus named 'rihgt' on robot 'biarm' \(did you mean 'right'\?\)"):
+        config.with_bus(channel={"left": "vcan0", "rihgt": "vcan1"})
+    moved = config.with_bus(channel=parse_channel("left=vcan0, right=vcan1"))
+    assert [b.channel for b in moved.buses.values()] == ["vcan0", "vcan1"]
+    for text, message in (("left=revA,", "'' is not BUS=CHANNEL"), ("left=,right=x", "'left=' is not BUS=CHANNEL"),
+                          ("left=a,left=b", "name bus 'left' twice")):
+        with pytest.raises(ArgumentError, match=message):
+            parse_channel(text)
+    assert main(["check", str(ROBOTS / "biarm.yaml"), "-c", "left=vcan0,rihgt=vcan1"]) != 0
+    assert "no bus named 'rihgt'" in capsys.readouterr().err
 
 
 def test_bus_kwargs_on_the_command_line(tmp_path: Path, channel: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -12,6 +12,8 @@ Reading a robot file (YAML → :class:`RobotConfig`) is :mod:`akarm.robotfile`, 
 from __future__ import annotations
 
 from akarm.config.types import (
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
     BusConfig,
     Firmware,
     Friction,
@@ -24,5 +26,17 @@ from akarm.config.types import (
     parse_channel,
 )
 
-__all__ = ["BusConfig", "Firmware", "Friction", "Gains", "JointConfig", "Limits", "Mode", "Payload", "RobotConfig",
-           "parse_channel"]
+__all__ = [
+    "MAX_RATE_HZ",
+    "MIN_RATE_HZ",
+    "BusConfig",
+    "Firmware",
+    "Friction",
+    "Gains",
+    "JointConfig",
+    "Limits",
+    "Mode",
+    "Payload",
+    "RobotConfig",
+    "parse_channel",
+]

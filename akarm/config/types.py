@@ -16,6 +16,8 @@ from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.protocol.motors import Catalogue, MotorModel
 
 __all__ = [
+    "MAX_RATE_HZ",
+    "MIN_RATE_HZ",
     "BusConfig",
     "Friction",
     "Gains",
@@ -28,6 +30,12 @@ __all__ = [
 
 Mode = Literal["mit", "servo"]
 Firmware = Literal["v2", "v3"]
+
+#: Hz: the slowest control loop akarm runs (a period of 0.1 s, half its default stall limit; the
+#: ``slow`` timing profile runs at 25 Hz).
+MIN_RATE_HZ = 10.0
+#: Hz: the fastest (a period of 100 µs: more than a CAN bus at 1 Mbit/s carries for one joint).
+MAX_RATE_HZ = 10_000.0
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from akarm.clock import Clock, SteppedClock
+from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ
 from akarm.control.cpuidle import IdleLatencyHold
+from akarm.errors import ArgumentError
 
 __all__ = ["TIMER_SLACK", "ControlLoop", "LoopStats", "StatsSummary", "collector_paused", "keep_from_collections",
            "pin_thread", "request_realtime", "set_timer_slack", "timer_slack"]
@@ -307,8 +309,10 @@ class ControlLoop:
     def __init__(self, rate_hz: float, clock: Clock, cycle: Callable[[float, int], None], *,
                  stages: Sequence[str] = ("cycle",), realtime_priority: bool = False, cpu: int | None = None,
                  on_crash: Callable[[BaseException], None] | None = None) -> None:
-        if not rate_hz > 0:
-            raise ValueError("rate_hz must be positive")
+        if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or \
+                not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
+            raise ArgumentError(f"the loop rate must be a number of Hz from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, "
+                                f"not {rate_hz!r}", fix="give the robot's rate_hz within that range, e.g. 500")
         self.rate_hz = float(rate_hz)
         self.period = 1.0 / self.rate_hz
         self.clock = clock

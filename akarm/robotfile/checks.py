@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from akarm.config import BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
+from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ, BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.canconfig import resolve_bus
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
@@ -180,8 +180,10 @@ def rate(found: Findings, item: Item | None, override: float | None) -> tuple[fl
         hz, at = (item.value if item.ok else None), line(item.key)
     if override is None:
         return hz, at
-    if isinstance(override, bool) or not isinstance(override, int | float) or not override > 0:
-        found.add(None, f"rate_hz override must be a positive number, got {override!r}", "pass e.g. 500")
+    if isinstance(override, bool) or not isinstance(override, int | float) or \
+            not MIN_RATE_HZ <= override <= MAX_RATE_HZ:
+        found.add(None, f"rate_hz override must be a number of Hz from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, got "
+                  f"{override!r}", "pass e.g. 500")
         return hz, at
     return float(override), None
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import yaml
 
-from akarm.config import JointConfig, Payload, RobotConfig
+from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ, JointConfig, Payload, RobotConfig
 from akarm.config.canconfig import RESERVED_BUS_KEYS
 from akarm.files import over
 from akarm.protocol.motors import did_you_mean
@@ -695,8 +695,9 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
     Key("gravity", Vector(3, unit="m/s²"), "gravity in the URDF's base frame (wall or ceiling mounts)",
         default=_ROBOT["gravity"]),
     Key("payload", PAYLOAD, "a load at the tool frame"),
-    Key("rate_hz", Number(positive=True, unit="Hz"), "the control loop's rate; the bus load must carry it",
-        default=_ROBOT["rate_hz"], fix="give the loop rate in Hz, e.g. 500"),
+    Key("rate_hz", Number(minimum=MIN_RATE_HZ, maximum=MAX_RATE_HZ, unit="Hz"),
+        "the control loop's rate; the bus load must carry it", default=_ROBOT["rate_hz"],
+        fix=f"give the loop rate in Hz, e.g. 500 ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g})"),
     Key("buses", Table(BUS, "bus {name!r}", "bus name → bus"), "the CAN buses, by the name joints use",
         default_text="one bus `arm`: socketcan, can0, 1 Mbit/s"),
     Key("poses", Table(Vector(unit="rad"), "pose {name!r}", "pose name → one position per joint (rad)"),

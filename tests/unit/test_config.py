@@ -256,6 +256,13 @@ def test_wrong_types(tmp_path: Path) -> None:
     assert one(found, "gravity must have 3 numbers").line == line_of(text, "gravity:")
 
 
+@pytest.mark.parametrize("rate", ["1.0e-300", "5", "20001"])
+def test_a_loop_rate_outside_what_akarm_runs_is_refused(tmp_path: Path, rate: str) -> None:
+    """rate_hz 1e-300 passed akarm check, and the loop then crashed in time.sleep (OverflowError)."""
+    text = BASE.replace("rate_hz: 500", f"rate_hz: {rate}")
+    assert one(problems(tmp_path, text), "rate_hz must be within 10..10000").line == line_of(text, "rate_hz:")
+
+
 def test_unknown_motor_lists_the_known_ones(tmp_path: Path) -> None:
     text = BASE.replace("motor: AK80-9", "motor: AK80-99")
     p = one(problems(tmp_path, text), "unknown motor model 'AK80-99'")

@@ -8,6 +8,7 @@ import pytest
 from akarm import clock as clock_mod
 from akarm.clock import RealClock, SteppedClock
 from akarm.control.loop import ControlLoop, LoopStats
+from akarm.errors import ArgumentError
 
 
 def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():
@@ -125,3 +126,10 @@ def test_no_collection_while_any_thread_plans_and_the_setting_comes_back() -> No
         assert not gc.isenabled()  # off before: left off
     finally:
         gc.enable()
+
+
+@pytest.mark.parametrize("rate", [0.0, 1e-300, 5.0, 1e9, float("nan"), float("inf"), "500", True])
+def test_a_loop_rate_outside_what_akarm_runs_is_an_argument_error(rate: object) -> None:
+    """(a config made in code skips the robot file's check: the loop checks its rate itself)"""
+    with pytest.raises(ArgumentError, match="the loop rate must be a number of Hz from 10 to 10000"):
+        ControlLoop(rate, SteppedClock(), lambda now, slot: None)  # type: ignore[arg-type]

@@ -242,9 +242,10 @@ class PathPlan(Timed):
         #: replay time (s) before the recording's first sample: the rest padding that smoothing needs
         self.lead_in = lead * dt / speed
         self.q = qq
-        self.dq = np.gradient(qq, dt, axis=0) * speed
-        self.ddq = np.gradient(self.dq, dt, axis=0) * speed
-        self.jerk = np.gradient(self.ddq, dt, axis=0) * speed
+        with np.errstate(invalid="ignore", over="ignore"):  # a sample that is not finite: check_path says which
+            self.dq = np.gradient(qq, dt, axis=0) * speed
+            self.ddq = np.gradient(self.dq, dt, axis=0) * speed
+            self.jerk = np.gradient(self.ddq, dt, axis=0) * speed
         self.t0 = t0
         self.t_end = t0 + (len(qq) - 1) * dt / speed
         self.segments = ()
@@ -269,8 +270,27 @@ def check_path(plan: PathPlan, limits: JointLimits) -> None:
 
     The error names the joint, the time (s into the replay) and the largest speed factor that
     would pass (velocity scales with the speed factor s, acceleration with s², jerk with s³).
+
+    Raises:
+        RecordingError: the path has a value that is not finite (NaN or infinite): no limit can be
+            checked against it, and the arm must not be sent there.
+        LimitError: a limit is broken.
     """
     s = plan.speed
+    if plan.q.ndim != 2 or plan.q.shape[1] != len(limits.names):
+        raise RecordingError(f"the path has {plan.q.shape[1] if plan.q.ndim == 2 else 0} values per sample, the arm "
+                             f"{len(limits.names)} joints ({', '.join(limits.names)})",
+                             fix="replay a recording of this arm's joints, one value per joint")
+    for arr, what in ((plan.q, "position"), (plan.dq, "velocity"), (plan.ddq, "acceleration"), (plan.jerk, "jerk")):
+        bad_rows = ~np.isfinite(arr).all(axis=1)
+        if bad_rows.any():
+            i = int(np.argmax(bad_rows))
+            k = int(np.argmax(~np.isfinite(arr[i])))
+            name = limits.names[k] if k < len(limits.names) else None
+            raise RecordingError(f"the path's {what} is {arr[i, k]} at t = {plan.t_rec[i] / s:.2f} s: not a number "
+                                 "a joint can be sent to", joint=name,
+                                 fix="the recording is damaged: record it again, or edit out the samples that are "
+                                     "not finite")
     for k, name in enumerate(limits.names):
         q = plan.q[:, k]
         bad = np.nonzero((q < limits.lower[k] - 1e-9) | (q > limits.upper[k] + 1e-9))[0]

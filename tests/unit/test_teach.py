@@ -12,6 +12,7 @@ import pytest
 
 from akarm import RecordingError
 from akarm.motion import recording as rec
+from akarm.motion.trajectory import JointLimits
 
 from ..system.test_teach_lockstep import NAMES, sweep
 
@@ -61,6 +62,30 @@ def test_corrupt_or_truncated_recordings_get_clear_errors(tmp_path, name, conten
 def test_missing_file_is_a_recording_error(tmp_path) -> None:
     with pytest.raises(RecordingError, match="path recording not found"):
         rec.load(tmp_path / "nope.csv", NAMES)
+
+
+WIDE_LIMITS = JointLimits(NAMES, np.array([-3.0, -3.0]), np.array([3.0, 3.0]), np.array([100.0, 100.0]),
+                          np.array([1e4, 1e4]), np.array([1e6, 1e6]))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_path_with_a_value_that_is_not_finite_is_refused_before_replay(bad: float) -> None:
+    p = sweep()
+    q = p.q.copy()
+    q[120:130, 1] = bad  # a damaged recording: NaN compares False with every limit, so it passed before
+    plan = rec.PathPlan(rec.PathRecording(NAMES, p.t, q), 0.0, 1.0)
+    message = r"the path's position is (nan|inf|-inf) at t = 1\.\d\d s: not a number"
+    with pytest.raises(RecordingError, match=message) as e:
+        rec.check_path(plan, WIDE_LIMITS)
+    assert e.value.joint == "elbow"
+    rec.check_path(rec.PathPlan(p, 0.0, 1.0), WIDE_LIMITS)  # the same path without them passes
+
+
+def test_a_path_of_other_width_than_the_arms_joints_is_refused() -> None:
+    p = sweep()
+    wide = rec.PathRecording(NAMES, p.t, np.column_stack([p.q, p.q[:, :1]]))  # 3 values for 2 joints
+    with pytest.raises(RecordingError, match=r"the path has 3 values per sample, the arm 2 joints \(shoulder, elbow\)"):
+        rec.check_path(rec.PathPlan(wide, 0.0, 1.0), WIDE_LIMITS)
 
 
 def test_the_recorder_keeps_its_grid_through_a_stall() -> None:

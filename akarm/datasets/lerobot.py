@@ -144,8 +144,16 @@ class Episode:
         if key not in self.features:
             raise RecordingError(f"episode {self.index} has no feature {key!r}",
                                  fix="features are: " + ", ".join(self.features))
-        return PathRecording(self.joint_names, self.timestamp.astype(float),
-                             np.asarray(self.features[key], dtype=float))
+        q = np.asarray(self.features[key], dtype=float)
+        if q.shape != (len(self.timestamp), len(self.joint_names)):
+            raise RecordingError(f"episode {self.index}: {key} is {' × '.join(map(str, q.shape))} values, not one per "
+                                 f"frame ({len(self.timestamp)}) and joint ({len(self.joint_names)})",
+                                 fix="the dataset is damaged; record it again")
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():
+            raise RecordingError(f"episode {self.index}: {key} has a value that is not finite at frame "
+                                 f"{int(np.argmax(bad))}", fix="the dataset is damaged; record it again")
+        return PathRecording(self.joint_names, self.timestamp.astype(float), q)
 
 
 def _feature_spec(names: Sequence[str]) -> dict[str, Any]:
@@ -190,6 +198,34 @@ def _read_json(path: Path) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, UnicodeDecodeError) as e:
         raise RecordingError(f"cannot read {path}: {e}", fix="pass a LeRobot v3.0 dataset folder") from None
+
+
+def _vectors(column: pa.ChunkedArray, width: int, what: str) -> np.ndarray:
+    """A vector feature's column as a (frames × ``width``) float32 array: lists of ``width`` numbers,
+    none of them null nor NaN nor infinite (a RecordingError saying ``what`` otherwise)."""
+    pa, _ = _arrow()
+    import pyarrow.compute as pc
+
+    damaged = "the dataset is damaged; record it again"
+    t = column.type
+    if not ((pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t))
+            and (pa.types.is_floating(t.value_type) or pa.types.is_integer(t.value_type))):
+        raise RecordingError(f"{what} is of type {t}, not a list of numbers per frame", fix=damaged)
+    if column.null_count:
+        raise RecordingError(f"{what} has {column.null_count} frames without a value", fix=damaged)
+    lengths = pc.list_value_length(column).to_numpy(zero_copy_only=False)
+    if len(lengths) and (lengths.min() != width or lengths.max() != width):
+        odd = int(np.argmax(lengths != width))
+        raise RecordingError(f"{what} has {int(lengths[odd])} values at frame {odd}; the dataset's joints are {width}",
+                             fix=damaged)
+    flat = pc.list_flatten(column)
+    if flat.null_count:
+        raise RecordingError(f"{what} has {flat.null_count} values that are null", fix=damaged)
+    values = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=np.float32).reshape(len(lengths), width)
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise RecordingError(f"{what} has a value that is not finite at frame {int(np.argmax(bad))}", fix=damaged)
+    return values
 
 
 def _write_parquet(path: Path, table: pa.Table) -> Path:
@@ -353,7 +389,7 @@ class LeRobotDataset:
         width = len(self.joint_names)
         for key in self.features:
             if key in table.column_names and key not in SCALARS and self.features[key].get("shape") == [width]:
-                features[key] = np.asarray(table.column(key).to_pylist(), dtype=np.float32)[order]
+                features[key] = _vectors(table.column(key), width, f"episode {k}'s {key} in {path}")[order]
         tasks = row.get("tasks") or []
         task_index = table.column("task_index").to_numpy(zero_copy_only=False)
         task = tasks[0] if tasks else (self.tasks[int(task_index[0])] if len(self.tasks) > int(task_index[0]) else "")

@@ -4,6 +4,7 @@ its commits (an episode is in or out, never half), and the reader's checks and b
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -162,3 +163,39 @@ def test_a_data_file_past_its_size_starts_the_next(tmp_path: Path, monkeypatch: 
     ds = read_dataset(tmp_path)
     assert [r["data/file_index"] for r in ds.episodes] == [0, 1, 2]
     assert len(ds.episode(2)) == 31 and ds.episode(1).global_index[0] == 40
+
+
+def rewrite_column(root: Path, key: str, values: object, type_: object = None) -> None:
+    """Replace column ``key`` of the first data file (a damaged or hand-edited dataset)."""
+    path = root / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    table = table.set_column(table.column_names.index(key), key, pa.array(values, type_))
+    pq.write_table(table, path)
+
+
+@pytest.mark.parametrize(("action", "message"), [
+    ([[0.0, 0.1, 0.2]] * 20, "has 3 values at frame 0; the dataset's joints are 2"),
+    ([[0.0, 0.1]] * 19 + [[0.0]], "has 1 values at frame 19; the dataset's joints are 2"),
+    ([[0.0, None]] * 20, "has 20 values that are null"),
+    ([[0.0, 0.1]] * 10 + [None] * 10, "has 10 frames without a value"),
+    ([[0.0, 0.1]] * 5 + [[0.0, float("nan")]] * 15, "has a value that is not finite at frame 5"),
+    ([[0.0, 0.1]] * 7 + [[float("inf"), 0.0]] * 13, "has a value that is not finite at frame 7"),
+])
+def test_an_episodes_vectors_of_the_wrong_width_null_or_not_finite_are_refused(
+        tmp_path: Path, action: list[list[float | None] | None], message: str) -> None:
+    DatasetWriter(tmp_path, JOINTS, 30).save_episode("pick", frames(20))
+    rewrite_column(tmp_path, "action", action, pa.list_(pa.float32()))
+    data = tmp_path / "data/chunk-000/file-000.parquet"
+    with pytest.raises(RecordingError, match="^" + re.escape(f"episode 0's action in {data} {message}")):
+        read_dataset(tmp_path).episode(0)
+
+
+def test_an_episode_built_with_values_that_are_not_finite_gives_no_path() -> None:
+    q = np.zeros((4, 2))
+    q[2, 1] = np.nan
+    e = lr.Episode(0, "pick", 30, JOINTS, np.arange(4) / 30, np.arange(4), np.arange(4), {"action": q})
+    with pytest.raises(RecordingError, match=r"^episode 0: action has a value that is not finite at frame 2"):
+        e.path()
+    e = lr.Episode(0, "pick", 30, JOINTS, np.arange(4) / 30, np.arange(4), np.arange(4), {"action": np.zeros((4, 3))})
+    with pytest.raises(RecordingError, match=r"^episode 0: action is 4 × 3 values, not one per frame \(4\) and joint"):
+        e.path()

@@ -196,8 +196,64 @@ def _read_json(path: Path) -> Any:
             raise RecordingError(f"{path} is {size} bytes, over the {MAX_JSON_BYTES} bytes a dataset's JSON may have",
                                  fix="is this a LeRobot dataset's meta folder?")
         return json.loads(path.read_text(encoding="utf-8"))
+    except RecursionError:  # JSON nested deeper than Python's parser goes ([[[[...)
+        raise RecordingError(f"cannot read {path}: its JSON is nested too deep",
+                             fix="pass a LeRobot v3.0 dataset folder") from None
     except (OSError, ValueError, UnicodeDecodeError) as e:
         raise RecordingError(f"cannot read {path}: {e}", fix="pass a LeRobot v3.0 dataset folder") from None
+
+
+def _is_integers(t: pa.DataType) -> bool:
+    pa, _ = _arrow()
+    return bool(pa.types.is_integer(t))
+
+
+def _is_numbers(t: pa.DataType) -> bool:
+    pa, _ = _arrow()
+    return bool(pa.types.is_integer(t) or pa.types.is_floating(t))
+
+
+def _is_texts(t: pa.DataType) -> bool:
+    pa, _ = _arrow()
+    return bool((pa.types.is_list(t) or pa.types.is_large_list(t))
+                and (pa.types.is_string(t.value_type) or pa.types.is_large_string(t.value_type)))
+
+
+#: The columns of a data file akarm reads besides the vector features, and the types they must have.
+DATA_COLUMNS = {"timestamp": _is_numbers, "frame_index": _is_integers, "episode_index": _is_integers,
+                "index": _is_integers, "task_index": _is_integers}
+#: The columns of an episodes file akarm reads, and the types they must have.
+EPISODE_COLUMNS = {"episode_index": _is_integers, "tasks": _is_texts, "length": _is_integers,
+                   "dataset_from_index": _is_integers, "dataset_to_index": _is_integers,
+                   "data/chunk_index": _is_integers, "data/file_index": _is_integers}
+
+
+def _check_schema(schema: pa.Schema, path: Path, columns: Mapping[str, Any]) -> None:
+    """Refuse a file without one of ``columns`` (name → a check of its Arrow type) or with another type."""
+    for name, check in columns.items():
+        if name not in schema.names:
+            raise RecordingError(f"{path} has no column {name!r}", fix="the dataset is damaged; record it again")
+        t = schema.field(name).type
+        if not check(t):
+            raise RecordingError(f"{path}: column {name!r} is of type {t}, not {check.__name__[4:]}",
+                                 fix="the dataset is damaged; record it again")
+
+
+def _check_nulls(table: pa.Table, path: Path, columns: Sequence[str]) -> None:
+    for name in columns:
+        nulls = table.column(name).null_count
+        if nulls:
+            raise RecordingError(f"{path}: column {name!r} has {nulls} null values",
+                                 fix="the dataset is damaged; record it again")
+
+
+def _read_table(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
+    """A parquet file (only ``columns``, if given), a RecordingError if it cannot be read."""
+    pa, pq = _arrow()
+    try:
+        return pq.read_table(path, columns=None if columns is None else list(columns))
+    except (OSError, ValueError, KeyError, pa.ArrowException) as e:
+        raise RecordingError(f"cannot read {path}: {e}", fix="the dataset is damaged; record it again") from None
 
 
 def _vectors(column: pa.ChunkedArray, width: int, what: str) -> np.ndarray:
@@ -302,7 +358,7 @@ class LeRobotDataset:
         if isinstance(names, dict):  # LeRobot's older {"motors": [...]} form
             names = next(iter(names.values()), None)
         if not (isinstance(shape, list) and len(shape) == 1 and isinstance(shape[0], int)
-                and 0 < shape[0] <= MAX_JOINTS):
+                and not isinstance(shape[0], bool) and 0 < shape[0] <= MAX_JOINTS):
             raise RecordingError(f"{self.root / INFO}: the action's shape {shape!r} is not a vector of at most "
                                  f"{MAX_JOINTS} values", fix="pass a dataset of joint positions")
         if not (isinstance(names, list) and len(names) == shape[0] and all(isinstance(n, str) for n in names)):
@@ -330,16 +386,17 @@ class LeRobotDataset:
     def _episodes(self, pa: Any, pq: Any) -> list[dict[str, Any]]:
         rows: list[dict[str, Any]] = []
         folder = self.root / "meta" / "episodes"
-        keys = ("episode_index", "tasks", "length", "dataset_from_index", "dataset_to_index", "data/chunk_index",
-                "data/file_index")
+        keys = tuple(EPISODE_COLUMNS)
         for path in sorted(folder.glob("*/*.parquet")) if folder.is_dir() else []:
             try:
                 if pq.read_metadata(path).num_rows > MAX_EPISODES:
                     raise RecordingError(f"{path} lists more than {MAX_EPISODES} episodes",
                                          fix="pass a LeRobot v3.0 dataset folder")
+                _check_schema(pq.read_schema(path), path, EPISODE_COLUMNS)
                 table = pq.read_table(path, columns=list(keys))
-            except (OSError, ValueError, KeyError, pa.ArrowInvalid) as e:
+            except (OSError, ValueError, KeyError, pa.ArrowException) as e:
                 raise RecordingError(f"cannot read {path}: {e}", fix="pass a LeRobot v3.0 dataset folder") from None
+            _check_nulls(table, path, [key for key in keys if key != "tasks"])
             rows += table.to_pylist()
         rows = sorted((r for r in rows if r["episode_index"] < self.total_episodes), key=lambda r: r["episode_index"])
         if [r["episode_index"] for r in rows] != list(range(self.total_episodes)):
@@ -370,10 +427,12 @@ class LeRobotDataset:
             if f.metadata.num_rows > MAX_FILE_ROWS:
                 raise RecordingError(f"{path} has {f.metadata.num_rows} rows, over {MAX_FILE_ROWS}",
                                      fix="split the dataset's data files")
+            _check_schema(f.schema_arrow, path, DATA_COLUMNS)
             groups = self._row_groups(f, k)
             table = f.read_row_groups(groups) if groups is not None else f.read()
-        except (OSError, ValueError, pa.ArrowInvalid) as e:
+        except (OSError, ValueError, pa.ArrowException) as e:
             raise RecordingError(f"cannot read {path}: {e}", fix="the dataset is damaged; record it again") from None
+        _check_nulls(table, path, list(DATA_COLUMNS))
         index = np.asarray(table.column("episode_index").to_numpy(zero_copy_only=False))
         table = table.filter(pa.array(index == k))
         if table.num_rows != length:
@@ -470,7 +529,7 @@ class DatasetWriter:
                                  fix="record into a new folder, or with the same robot and --fps")
         self.info = dict(ds.info)
         self.tasks = list(ds.tasks)
-        table = self.pq.read_table(self.root / EPISODES_PATH.format(chunk_index=0, file_index=0))
+        table = _read_table(self.root / EPISODES_PATH.format(chunk_index=0, file_index=0))
         self.episode_rows = [r for r in table.to_pylist() if r["episode_index"] < ds.total_episodes]
         # an episode cut short before its commit: its rows go before anything else is written
         if len(self.episode_rows) != table.num_rows:
@@ -478,7 +537,8 @@ class DatasetWriter:
         last = self.episode_rows[-1] if self.episode_rows else None
         if last is not None:
             path = self._data_path(last)
-            data = self.pq.read_table(path)
+            data = _read_table(path)
+            _check_schema(data.schema, path, DATA_COLUMNS)
             if data.num_rows != last["dataset_to_index"] - self._file_start(last):
                 self._write_data(path, self._committed(data))
         for stray in sorted((self.root / "data").glob("*/*.parquet")):  # a new file of an episode never committed
@@ -576,7 +636,7 @@ class DatasetWriter:
             if file == CHUNKS_SIZE:
                 chunk, file = chunk + 1, 0
             return chunk, file, None
-        return chunk, file, self._committed(self.pq.read_table(path))
+        return chunk, file, self._committed(_read_table(path))
 
     def _write_data(self, path: Path, table: pa.Table) -> None:
         """The data file, one row group per episode (a reader of one episode reads its group alone)."""

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -199,3 +201,57 @@ def test_an_episode_built_with_values_that_are_not_finite_gives_no_path() -> Non
     e = lr.Episode(0, "pick", 30, JOINTS, np.arange(4) / 30, np.arange(4), np.arange(4), {"action": np.zeros((4, 3))})
     with pytest.raises(RecordingError, match=r"^episode 0: action is 4 × 3 values, not one per frame \(4\) and joint"):
         e.path()
+
+
+def damage(root: Path, name: str, change: Callable[[Any], Any]) -> None:
+    """Rewrite the parquet file ``name`` (``data`` or ``episodes``) with ``change(table)``."""
+    path = root / ("data/chunk-000/file-000.parquet" if name == "data" else "meta/episodes/chunk-000/file-000.parquet")
+    pq.write_table(change(pq.read_table(path)), path)
+
+
+def set_column(key: str, values: list[Any], type_: object) -> Callable[[Any], Any]:
+    return lambda t: t.set_column(t.column_names.index(key), key, pa.array(values * t.num_rows, type_))
+
+
+@pytest.mark.parametrize(("name", "change", "message"), [
+    ("data", lambda t: t.drop_columns(["timestamp"]), "data/chunk-000/file-000.parquet has no column 'timestamp'"),
+    ("data", lambda t: t.drop_columns(["frame_index"]), "file-000.parquet has no column 'frame_index'"),
+    ("data", set_column("episode_index", ["0"], pa.string()),
+     "file-000.parquet: column 'episode_index' is of type string, not integers"),
+    ("data", set_column("task_index", [None], pa.int64()), "file-000.parquet: column 'task_index' has 20 null values"),
+    ("episodes", set_column("length", [None], pa.int64()), "file-000.parquet: column 'length' has 1 null values"),
+    ("episodes", set_column("length", ["20"], pa.string()),
+     "file-000.parquet: column 'length' is of type string, not integers"),
+    ("episodes", set_column("episode_index", [None], pa.int64()),
+     "file-000.parquet: column 'episode_index' has 1 null values"),
+    ("episodes", set_column("episode_index", ["0"], pa.string()),
+     "file-000.parquet: column 'episode_index' is of type string, not integers"),
+])
+def test_a_damaged_data_or_episodes_file_is_refused_by_name(tmp_path: Path, name: str, change: Callable[[Any], Any],
+                                                            message: str) -> None:
+    DatasetWriter(tmp_path, JOINTS, 30).save_episode("pick", frames(20))
+    damage(tmp_path, name, change)
+    with pytest.raises(RecordingError, match=re.escape(message)):
+        read_dataset(tmp_path).episode(0)
+
+
+def test_a_damaged_info_json_or_truncated_data_file_is_refused_by_name(tmp_path: Path) -> None:
+    DatasetWriter(tmp_path, JOINTS, 30).save_episode("pick", frames(20))
+    info = tmp_path / "meta/info.json"
+    good = info.read_text()
+    info.write_text("[" * 200_000)  # deeper than Python's JSON parser goes
+    with pytest.raises(RecordingError, match=r"info\.json: its JSON is nested too deep"):
+        read_dataset(tmp_path)
+    doc = json.loads(good)
+    doc["features"]["action"]["shape"] = [True]
+    info.write_text(json.dumps(doc))
+    with pytest.raises(RecordingError, match=r"the action's shape \[True\] is not a vector"):
+        read_dataset(tmp_path)
+    info.write_text(good)
+    data = tmp_path / "data/chunk-000/file-000.parquet"
+    with data.open("r+b") as f:
+        f.truncate(200)
+    with pytest.raises(RecordingError, match="^" + re.escape(f"cannot read {data}: ")):
+        DatasetWriter(tmp_path, JOINTS, 30)
+    with pytest.raises(RecordingError, match="^" + re.escape(f"cannot read {data}: ")):
+        read_dataset(tmp_path).episode(0)

@@ -26,7 +26,9 @@ to :data:`DATA_FILE_MB` (as LeRobot's own), then the next one starts.
 **Bounds.** A reader refuses, naming the bound, before reading in full: JSON files over
 :data:`MAX_JSON_BYTES`, more than :data:`MAX_EPISODES` episodes, vectors wider than
 :data:`MAX_JOINTS`, an episode longer than :data:`~akarm.motion.bounds.MAX_PATH_SAMPLES` frames or
-:data:`~akarm.motion.bounds.MAX_DURATION` s, a data file of more than :data:`MAX_FILE_ROWS` rows.
+:data:`~akarm.motion.bounds.MAX_DURATION` s, a data file of more than :data:`MAX_FILE_ROWS` rows,
+more than :data:`MAX_PARQUET_BYTES` uncompressed of a Parquet file's columns that are read (only the
+columns akarm uses are read: a column of anything else costs nothing).
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from akarm.errors import ArgumentError, RecordingError
-from akarm.files import atomic_write, check_writable
+from akarm.files import atomic_write, check_writable, number, over
 from akarm.motion.bounds import MAX_DURATION, MAX_PATH_SAMPLES
 from akarm.motion.recording import PathRecording
 
@@ -51,7 +53,8 @@ if TYPE_CHECKING:
     import pyarrow as pa
 
 __all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS", "MAX_JSON_BYTES",
-           "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset", "read_dataset"]
+           "MAX_PARQUET_BYTES", "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset",
+           "read_dataset"]
 
 CODEBASE_VERSION = "v3.0"
 #: The per-joint features of a frame: key → what it holds (info.json's features, float32 per joint).
@@ -73,6 +76,9 @@ MAX_EPISODES = 100_000
 MAX_JOINTS = 64
 #: Rows in one data file (a LeRobot data file of 100 MB holds a few million).
 MAX_FILE_ROWS = 4 * MAX_PATH_SAMPLES
+#: Bytes, uncompressed, of what is read of one Parquet file: the columns akarm reads, in the row groups
+#: it reads (an episode of 2 000 000 frames of 6 joints is about 300 MB; a data file is 100 MB compressed).
+MAX_PARQUET_BYTES = 512 << 20
 QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # the quantiles LeRobot's stats carry (q01 ... q99)
 SCALARS = {"timestamp": "float32", "frame_index": "int64", "episode_index": "int64", "index": "int64",
            "task_index": "int64"}
@@ -247,11 +253,31 @@ def _check_nulls(table: pa.Table, path: Path, columns: Sequence[str]) -> None:
                                  fix="the dataset is damaged; record it again")
 
 
+def _check_bytes(meta: Any, path: Path, columns: Sequence[str] | None, groups: Sequence[int] | None = None) -> None:
+    """Refuse a Parquet file (its metadata ``meta``) whose ``columns`` (``None``: all) in its row groups
+    ``groups`` (``None``: all) hold more than :data:`MAX_PARQUET_BYTES` uncompressed."""
+    total = 0
+    for g in range(meta.num_row_groups) if groups is None else groups:
+        group = meta.row_group(g)
+        for i in range(group.num_columns):
+            column = group.column(i)
+            leaf = column.path_in_schema  # "action.list.element" of column "action"
+            if columns is None or any(leaf == name or leaf.startswith(name + ".") for name in columns):
+                total += column.total_uncompressed_size
+    if total > MAX_PARQUET_BYTES:
+        raise RecordingError(over(f"{path}: what akarm reads of it is {number(total)} bytes uncompressed",
+                                  MAX_PARQUET_BYTES, "bytes", "MAX_PARQUET_BYTES"),
+                             fix="is it the right file? a LeRobot data file holds 100 MB")
+
+
 def _read_table(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
-    """A parquet file (only ``columns``, if given), a RecordingError if it cannot be read."""
+    """A parquet file (only ``columns``, if given) within :data:`MAX_PARQUET_BYTES`, a RecordingError
+    if it cannot be read."""
     pa, pq = _arrow()
     try:
-        return pq.read_table(path, columns=None if columns is None else list(columns))
+        f = pq.ParquetFile(path)
+        _check_bytes(f.metadata, path, columns)
+        return f.read(columns=None if columns is None else list(columns))
     except (OSError, ValueError, KeyError, pa.ArrowException) as e:
         raise RecordingError(f"cannot read {path}: {e}", fix="the dataset is damaged; record it again") from None
 
@@ -348,7 +374,7 @@ class LeRobotDataset:
             raise RecordingError(f"{self.root / INFO} has no features", fix="pass a LeRobot v3.0 dataset folder")
         self.features: dict[str, Any] = features
         self.joint_names = self._names()
-        self.tasks = self._tasks(pq)
+        self.tasks = self._tasks(pa, pq)
         self.episodes = self._episodes(pa, pq)
 
     def _names(self) -> tuple[str, ...]:
@@ -366,20 +392,22 @@ class LeRobotDataset:
         # LeRobot's robots name positions "<motor>.pos": the joint is the motor
         return tuple(n[:-4] if n.endswith(".pos") else n for n in names)
 
-    def _tasks(self, pq: Any) -> list[str]:
+    def _tasks(self, pa: Any, pq: Any) -> list[str]:
         path = self.root / TASKS
         if not path.is_file():
             return []
         try:
-            meta = pq.read_metadata(path)
-            if meta.num_rows > MAX_EPISODES:
-                raise RecordingError(f"{path} has {meta.num_rows} tasks, over {MAX_EPISODES}",
+            f = pq.ParquetFile(path)
+            if f.metadata.num_rows > MAX_EPISODES:
+                raise RecordingError(f"{path} has {f.metadata.num_rows} tasks, over {MAX_EPISODES}",
                                      fix="pass a LeRobot v3.0 dataset folder")
-            table = pq.read_table(path)
-        except (OSError, ValueError) as e:
+            if "task" not in f.schema_arrow.names or "task_index" not in f.schema_arrow.names:
+                raise RecordingError(f"{path} has no task and task_index columns",
+                                     fix="pass a LeRobot v3.0 dataset folder")
+            _check_bytes(f.metadata, path, ["task", "task_index"])
+            table = f.read(columns=["task", "task_index"])
+        except (OSError, ValueError, KeyError, pa.ArrowException) as e:
             raise RecordingError(f"cannot read {path}: {e}", fix="pass a LeRobot v3.0 dataset folder") from None
-        if "task" not in table.column_names or "task_index" not in table.column_names:
-            raise RecordingError(f"{path} has no task and task_index columns", fix="pass a LeRobot v3.0 dataset folder")
         by_index = dict(zip(table.column("task_index").to_pylist(), table.column("task").to_pylist(), strict=True))
         return [str(by_index.get(k, "")) for k in range(len(by_index))]
 
@@ -389,11 +417,13 @@ class LeRobotDataset:
         keys = tuple(EPISODE_COLUMNS)
         for path in sorted(folder.glob("*/*.parquet")) if folder.is_dir() else []:
             try:
-                if pq.read_metadata(path).num_rows > MAX_EPISODES:
+                f = pq.ParquetFile(path)
+                if f.metadata.num_rows > MAX_EPISODES:
                     raise RecordingError(f"{path} lists more than {MAX_EPISODES} episodes",
                                          fix="pass a LeRobot v3.0 dataset folder")
-                _check_schema(pq.read_schema(path), path, EPISODE_COLUMNS)
-                table = pq.read_table(path, columns=list(keys))
+                _check_schema(f.schema_arrow, path, EPISODE_COLUMNS)
+                _check_bytes(f.metadata, path, keys)
+                table = f.read(columns=list(keys))
             except (OSError, ValueError, KeyError, pa.ArrowException) as e:
                 raise RecordingError(f"cannot read {path}: {e}", fix="pass a LeRobot v3.0 dataset folder") from None
             _check_nulls(table, path, [key for key in keys if key != "tasks"])
@@ -428,8 +458,13 @@ class LeRobotDataset:
                 raise RecordingError(f"{path} has {f.metadata.num_rows} rows, over {MAX_FILE_ROWS}",
                                      fix="split the dataset's data files")
             _check_schema(f.schema_arrow, path, DATA_COLUMNS)
+            width = len(self.joint_names)
+            vectors = [key for key in self.features if key in f.schema_arrow.names and key not in SCALARS
+                       and isinstance(self.features[key], dict) and self.features[key].get("shape") == [width]]
+            columns = [*DATA_COLUMNS, *vectors]  # only these: another column (images, anything) is not read
             groups = self._row_groups(f, k)
-            table = f.read_row_groups(groups) if groups is not None else f.read()
+            _check_bytes(f.metadata, path, columns, groups)
+            table = f.read_row_groups(groups, columns=columns) if groups is not None else f.read(columns=columns)
         except (OSError, ValueError, pa.ArrowException) as e:
             raise RecordingError(f"cannot read {path}: {e}", fix="the dataset is damaged; record it again") from None
         _check_nulls(table, path, list(DATA_COLUMNS))
@@ -444,11 +479,8 @@ class LeRobotDataset:
         expected = np.arange(length) / self.fps
         if not np.allclose(timestamp, expected, atol=1e-4, rtol=0):
             raise RecordingError(f"episode {k}'s timestamps do not follow {self.fps} fps", fix="record it again")
-        features = {}
-        width = len(self.joint_names)
-        for key in self.features:
-            if key in table.column_names and key not in SCALARS and self.features[key].get("shape") == [width]:
-                features[key] = _vectors(table.column(key), width, f"episode {k}'s {key} in {path}")[order]
+        features = {key: _vectors(table.column(key), width, f"episode {k}'s {key} in {path}")[order]
+                    for key in vectors}
         tasks = row.get("tasks") or []
         task_index = table.column("task_index").to_numpy(zero_copy_only=False)
         task = tasks[0] if tasks else (self.tasks[int(task_index[0])] if len(self.tasks) > int(task_index[0]) else "")

@@ -255,3 +255,26 @@ def test_a_damaged_info_json_or_truncated_data_file_is_refused_by_name(tmp_path:
         DatasetWriter(tmp_path, JOINTS, 30)
     with pytest.raises(RecordingError, match="^" + re.escape(f"cannot read {data}: ")):
         read_dataset(tmp_path).episode(0)
+
+
+def test_only_the_columns_akarm_uses_are_read_within_max_parquet_bytes(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    DatasetWriter(tmp_path, JOINTS, 30).save_episode("pick", frames(20))
+    data = tmp_path / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(data)
+    junk = pa.array([bytes(1 << 20)] * table.num_rows, pa.binary())  # 20 MiB of zeros: a few kB in zstd
+    pq.write_table(table.append_column("junk", junk), data, compression="zstd", use_dictionary=False)
+    assert data.stat().st_size < 100_000
+    monkeypatch.setattr(lr, "MAX_PARQUET_BYTES", 1 << 20)
+    assert len(read_dataset(tmp_path).episode(0)) == 20  # the junk column is not read, nor counted
+
+    def message(limit: str) -> str:
+        return re.escape(f"{data}: what akarm reads of it is ") + r"[\d ]+" + re.escape(
+            f" bytes uncompressed, over the limit of {limit} bytes (MAX_PARQUET_BYTES)")
+
+    with pytest.raises(RecordingError, match=message("1 048 576")):
+        DatasetWriter(tmp_path, JOINTS, 30)  # the writer rewrites every column: it reads them all
+    ds = read_dataset(tmp_path)
+    monkeypatch.setattr(lr, "MAX_PARQUET_BYTES", 1000)  # now the episode's own columns are past it
+    with pytest.raises(RecordingError, match=message("1 000")):
+        ds.episode(0)

@@ -54,7 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS", "MAX_JSON_BYTES",
            "MAX_PARQUET_BYTES", "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset",
-           "read_dataset"]
+           "read_dataset", "to_float32"]
 
 CODEBASE_VERSION = "v3.0"
 #: The per-joint features of a frame: key → what it holds (info.json's features, float32 per joint).
@@ -122,9 +122,21 @@ class EpisodeFrames:
         return int(np.shape(self.state)[0])
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The vector features by key (:data:`VECTORS`), float32."""
-        return {key: np.asarray(v, dtype=np.float32) for key, v in
+        """The vector features by key (:data:`VECTORS`), float32 (:func:`to_float32`)."""
+        return {key: to_float32(v) for key, v in
                 zip(VECTORS, (self.state, self.velocity, self.effort, self.action), strict=True)}
+
+
+def to_float32(values: Any) -> np.ndarray:
+    """``values`` as float32, each rounded toward zero where the nearest float32 is farther from zero:
+    a value within a range that contains 0 stays within it (a joint held at its limit, 2.4 rad, would
+    read back as 2.4000000954 and be refused by the replay's limit check)."""
+    exact = np.asarray(values, dtype=np.float64)
+    out = exact.astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        grown = np.isfinite(out) & (np.abs(out.astype(np.float64)) > np.abs(exact))
+    out[grown] = np.nextafter(out[grown], np.float32(0))
+    return out
 
 
 @dataclass(frozen=True)

@@ -58,9 +58,9 @@ def test_three_episodes_read_back_with_pyarrow_alone_in_lerobots_layout(tmp_path
     np.testing.assert_array_equal(t[ep_index == 1], (np.arange(55) / 30).astype(np.float32))  # fps matches
     np.testing.assert_array_equal(data.column("frame_index").to_numpy()[ep_index == 2], np.arange(31))
     action = np.array(data.column("action").to_pylist(), dtype=np.float32)
-    np.testing.assert_array_equal(action[ep_index == 1], eps[1].action.astype(np.float32))
+    np.testing.assert_array_equal(action[ep_index == 1], lr.to_float32(eps[1].action))
     state = np.array(data.column("observation.state").to_pylist(), dtype=np.float32)
-    np.testing.assert_array_equal(state[:40], eps[0].state.astype(np.float32))
+    np.testing.assert_array_equal(state[:40], lr.to_float32(eps[0].state))
     assert pq.ParquetFile(tmp_path / "data/chunk-000/file-000.parquet").metadata.num_row_groups == 3
 
     episodes = pq.read_table(tmp_path / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
@@ -70,7 +70,7 @@ def test_three_episodes_read_back_with_pyarrow_alone_in_lerobots_layout(tmp_path
     assert tasks.column("task").to_pylist() == ["pick", "place"] and tasks.column("task_index").to_pylist() == [0, 1]
     assert json.loads(tasks.schema.metadata[b"pandas"])["index_columns"] == ["task"]  # pandas (LeRobot) sees the index
     stats = json.loads((tmp_path / "meta/stats.json").read_text())
-    everything = np.concatenate([e.action for e in eps]).astype(np.float32).astype(float)
+    everything = lr.to_float32(np.concatenate([e.action for e in eps])).astype(float)
     np.testing.assert_allclose(stats["action"]["mean"], everything.mean(axis=0), rtol=1e-6)
     np.testing.assert_allclose(stats["action"]["std"], everything.std(axis=0), rtol=1e-6)
     np.testing.assert_allclose(stats["action"]["min"], everything.min(axis=0))
@@ -83,10 +83,10 @@ def test_the_reader_gives_an_episode_and_its_path_to_replay(tmp_path: Path) -> N
     assert (ds.total_episodes, ds.fps, ds.joint_names, ds.tasks) == (3, 50, JOINTS, ["pick", "place"])
     e = ds.episode(1)
     assert (e.index, e.task, len(e)) == (1, "place", 55)
-    np.testing.assert_array_equal(e.features["observation.velocity"], eps[1].velocity.astype(np.float32))
+    np.testing.assert_array_equal(e.features["observation.velocity"], lr.to_float32(eps[1].velocity))
     path = e.path()
     assert path.joint_names == JOINTS and path.duration == pytest.approx(54 / 50, abs=1e-6)
-    np.testing.assert_array_equal(path.q, eps[1].action.astype(np.float32).astype(float))
+    np.testing.assert_array_equal(path.q, lr.to_float32(eps[1].action).astype(float))
     with pytest.raises(RecordingError, match="no episode 3: it has 3"):
         ds.episode(3)
 
@@ -278,3 +278,38 @@ def test_only_the_columns_akarm_uses_are_read_within_max_parquet_bytes(tmp_path:
     monkeypatch.setattr(lr, "MAX_PARQUET_BYTES", 1000)  # now the episode's own columns are past it
     with pytest.raises(RecordingError, match=message("1 000")):
         ds.episode(0)
+
+
+def test_an_episode_held_at_a_joints_limit_reads_back_within_it_and_replays(tmp_path: Path) -> None:
+    from akarm import load_robot
+    from akarm.motion.recording import PathPlan, check_path
+    from akarm.motion.trajectory import JointLimits
+
+    from ..conftest import ROBOTS
+
+    config = load_robot(ROBOTS / "planar2.yaml")
+    limits = JointLimits(config.joint_names, *(np.array([getattr(j.limits, k) for j in config.joints]) for k in
+                                               ("lower", "upper", "velocity", "acceleration", "jerk")))
+    upper, lower = limits.upper[1], limits.lower[0]
+    assert float(np.float32(upper)) > upper  # 2.4 rad: its nearest float32 is past the limit
+    t = np.arange(120) / 30
+    elbow = np.minimum(upper, upper - 0.05 + 0.025 * t)  # teleop's np.clip at the edge: exactly the limit
+    shoulder = np.maximum(lower, lower + 0.05 - 0.025 * t)
+    action = np.column_stack([shoulder, elbow])
+    DatasetWriter(tmp_path, config.joint_names, 30).save_episode("edge", EpisodeFrames(action, action, 0 * action,
+                                                                                       action))
+    path = read_dataset(tmp_path).episode(0).path()
+    assert path.q[:, 1].max() <= upper and path.q[:, 0].min() >= lower
+    assert path.q[:, 1].max() == pytest.approx(upper, abs=1e-6)
+    check_path(PathPlan(path, 0.0, 1.0), limits)  # refused (2.4000000954 rad) before
+
+
+def test_to_float32_rounds_toward_zero_only_where_the_cast_grew_the_value() -> None:
+    x = np.array([2.4, -2.4, 0.1, -0.1, 0.5, 0.0, 1e39, np.nan])
+    with np.errstate(over="ignore"):
+        y = lr.to_float32(x)
+    assert y.dtype == np.float32
+    assert np.all(np.abs(y[:6].astype(float)) <= np.abs(x[:6]))
+    assert y[4] == np.float32(0.5) and y[5] == 0.0                  # exact values are kept
+    assert np.all(np.abs(y[:4].astype(float) - x[:4]) <= np.spacing(np.abs(y[:4])))  # one float32 step at most
+    assert np.isinf(y[6]) and np.isnan(y[7])                          # still refused as not finite

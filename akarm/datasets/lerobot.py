@@ -18,7 +18,8 @@ joint names. Written with pyarrow (the ``data`` extra).
 
 **Never half-written.** An episode is committed by rewriting, each atomically (:mod:`akarm.files`),
 the data file it goes into, the episodes file, the tasks file, stats.json, and last info.json, whose
-totals are the commit: a reader believes info.json. An episode cut short (Ctrl-C, a crash) before its
+totals are the commit: a reader believes info.json (a new dataset's, of no episodes, is written when
+its writer is made, so that the first episode is no different). An episode cut short (Ctrl-C, a crash) before its
 info.json was written is not in the dataset; the rows it may have left in a data or episodes file are
 dropped when a writer opens the dataset again (before anything else is written). A data file grows
 to :data:`DATA_FILE_MB` (as LeRobot's own), then the next one starts.
@@ -563,6 +564,9 @@ class DatasetWriter:
                          "splits": {}, "data_path": DATA_PATH, "video_path": None, "features": _feature_spec(names)}
             self.tasks: list[str] = []
             self.episode_rows: list[dict[str, Any]] = []
+            # a dataset of no episodes, committed now: an episode cut short before its own commit (the
+            # first one too) leaves rows that reopening drops, never a folder of files without info.json
+            _write_json(self.root / INFO, self.info)
 
     def _open_existing(self, robot_type: str | None) -> None:
         ds = LeRobotDataset(self.root)
@@ -573,10 +577,12 @@ class DatasetWriter:
                                  fix="record into a new folder, or with the same robot and --fps")
         self.info = dict(ds.info)
         self.tasks = list(ds.tasks)
-        table = _read_table(self.root / EPISODES_PATH.format(chunk_index=0, file_index=0))
-        self.episode_rows = [r for r in table.to_pylist() if r["episode_index"] < ds.total_episodes]
+        episodes = self.root / EPISODES_PATH.format(chunk_index=0, file_index=0)
+        table = _read_table(episodes) if ds.total_episodes or episodes.exists() else None
+        rows = table.to_pylist() if table is not None else []
+        self.episode_rows = [r for r in rows if r["episode_index"] < ds.total_episodes]
         # an episode cut short before its commit: its rows go before anything else is written
-        if len(self.episode_rows) != table.num_rows:
+        if len(self.episode_rows) != len(rows):
             self._write_episodes()
         last = self.episode_rows[-1] if self.episode_rows else None
         if last is not None:
@@ -698,8 +704,11 @@ class DatasetWriter:
         atomic_write(path, write)
 
     def _write_episodes(self) -> None:
-        table = self.pa.Table.from_pylist(self.episode_rows)
-        _write_parquet(self.root / EPISODES_PATH.format(chunk_index=0, file_index=0), table)
+        path = self.root / EPISODES_PATH.format(chunk_index=0, file_index=0)
+        if not self.episode_rows:  # the first episode was cut short: a dataset of none has no episodes file
+            path.unlink(missing_ok=True)
+            return
+        _write_parquet(path, self.pa.Table.from_pylist(self.episode_rows))
 
     def _dataset_stats(self) -> dict[str, dict[str, list[float]]]:
         out: dict[str, dict[str, list[float]]] = {}

@@ -313,3 +313,30 @@ def test_to_float32_rounds_toward_zero_only_where_the_cast_grew_the_value() -> N
     assert y[4] == np.float32(0.5) and y[5] == 0.0                  # exact values are kept
     assert np.all(np.abs(y[:4].astype(float) - x[:4]) <= np.spacing(np.abs(y[:4])))  # one float32 step at most
     assert np.isinf(y[6]) and np.isnan(y[7])                          # still refused as not finite
+
+
+def test_a_crash_in_the_first_episodes_commit_leaves_a_dataset_of_none_that_reopens(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    w = DatasetWriter(tmp_path, JOINTS, 30)
+    ds = read_dataset(tmp_path)  # a new writer commits a dataset of no episodes at once
+    assert (ds.total_episodes, ds.total_frames, ds.joint_names, ds.episodes) == (0, 0, JOINTS, [])
+    real = lr._write_json
+
+    def crash_at_the_commit(path: Path, doc: object) -> Path:
+        if path.name == "info.json":
+            raise KeyboardInterrupt  # the power is cut between the data files and the first commit
+        return real(path, doc)
+
+    monkeypatch.setattr(lr, "_write_json", crash_at_the_commit)
+    with pytest.raises(KeyboardInterrupt):
+        w.save_episode("pick", frames(20))
+    monkeypatch.undo()
+    assert (tmp_path / "data/chunk-000/file-000.parquet").exists()
+    assert read_dataset(tmp_path).total_episodes == 0
+    w = DatasetWriter(tmp_path, JOINTS, 30)  # refused before: "is not empty and holds no LeRobot dataset"
+    assert w.total_episodes == 0
+    assert not (tmp_path / "data/chunk-000/file-000.parquet").exists()  # the cut episode's rows are dropped
+    assert not (tmp_path / "meta/episodes/chunk-000/file-000.parquet").exists()
+    assert w.save_episode("place", frames(15)) == 0
+    ds = read_dataset(tmp_path)
+    assert (ds.total_episodes, len(ds.episode(0)), ds.episode(0).task) == (1, 15, "place")

@@ -121,7 +121,7 @@ def test_the_recorder_takes_a_frame_per_fps_tick_and_commits_an_episode_whole(tm
     assert sum(taken) == 25 and rec.frames == 25 and rec.seconds == pytest.approx(0.5)
     assert [k for k, x in enumerate(taken) if x][:3] == [0, 10, 20]  # the step at each 1/50 s
     rec.discard()                                                    # r: nothing of it written
-    assert not rec.recording and not (tmp_path / "meta/info.json").exists()
+    assert not rec.recording and read_dataset(tmp_path).total_episodes == 0 and not (tmp_path / "data").exists()
     rec.begin("wave", 20.0)
     for k in range(100):
         rec.add(step(20.0 + k * 0.002))

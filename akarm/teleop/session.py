@@ -160,6 +160,18 @@ class Teleop:
         ArgumentError: the same Arm twice, arms on different clocks, a bad gain, limit or speed.
     """
 
+    @staticmethod
+    def _force_limits(force_limit: float | Sequence[float], n: int) -> np.ndarray:
+        """``force_limit`` as one limit per leader joint (``n``); ArgumentError unless one number or ``n``."""
+        given = None
+        if not isinstance(force_limit, str | bytes):
+            with contextlib.suppress(TypeError, ValueError):
+                given = np.asarray(force_limit, dtype=float)
+        if given is None or given.ndim > 1 or (given.ndim == 1 and len(given) != n):
+            raise ArgumentError(f"force limit {force_limit!r}: one force limit, or one per leader joint ({n}), "
+                                "in N·m", fix="e.g. 1.5, or a list of one per leader joint")
+        return np.broadcast_to(given, (n,)).copy()
+
     def __init__(self, leader: Arm, follower: Arm, pairing: Pairing | None = None, *, force_feedback: float = 0.0,
                  force_limit: float | Sequence[float] | None = None, engage_speed: float = 0.25,
                  damping: float = 0.1, say: Callable[[str], None] | None = None) -> None:
@@ -178,8 +190,7 @@ class Teleop:
         if not (isinstance(engage_speed, int | float) and 0 < engage_speed <= 1):
             raise ArgumentError(f"engage_speed {engage_speed!r} must be in (0, 1]", fix="e.g. 0.25")
         torque = np.array([j.limits.torque for j in leader.config.joints], dtype=float)
-        limit = DEFAULT_FORCE_SHARE * torque if force_limit is None else \
-            np.broadcast_to(np.asarray(force_limit, dtype=float), torque.shape).copy()
+        limit = DEFAULT_FORCE_SHARE * torque if force_limit is None else self._force_limits(force_limit, len(torque))
         if not np.all(np.isfinite(limit) & (limit >= 0)):
             raise ArgumentError(f"force limit {force_limit!r} must be ≥ 0 N·m, one or one per leader joint",
                                 fix="e.g. 1.5")

@@ -130,3 +130,21 @@ def test_the_recorder_takes_a_frame_per_fps_tick_and_commits_an_episode_whole(tm
     assert len(ep) == 10 and ep.task == "wave"
     np.testing.assert_allclose(ep.features["action"][:, 0], 20.0 + np.arange(10) * 0.02 + 1, rtol=1e-6)
     np.testing.assert_allclose(ep.features["observation.effort"][:, 1], -3 * (20.0 + np.arange(10) * 0.02), rtol=1e-6)
+
+
+@pytest.mark.parametrize("force_limit", [[1.0, 2.0, 3.0], "strong", "1.5", [[1.0]], [[1.0, 2.0]], None])
+def test_a_bad_force_limit_is_an_argument_error(force_limit: object) -> None:
+    import akarm
+    from akarm.teleop import Teleop
+
+    from .conftest import ROBOTS
+
+    config = akarm.load_robot(ROBOTS / "planar2.yaml")
+    leader = akarm.Arm(config.with_bus(interface="virtual", channel="unit-force-limit-l"))
+    follower = akarm.Arm(config.with_bus(interface="virtual", channel="unit-force-limit-f"))
+    if force_limit is None:  # one, or one per leader joint: accepted
+        assert Teleop(leader, follower, force_limit=0.5).force_limit.tolist() == [0.5, 0.5]
+        assert Teleop(leader, follower, force_limit=[0.5, 0.25]).force_limit.tolist() == [0.5, 0.25]
+        return
+    with pytest.raises(ArgumentError, match=r"one force limit, or one per leader joint \(2\), in N·m"):
+        Teleop(leader, follower, force_limit=force_limit)  # type: ignore[arg-type]

@@ -22,14 +22,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
+from akarm.files import FileProblem, YamlLimits, load_yaml
 
-__all__ = ["MAX_MAP_BYTES", "Pair", "Pairing"]
+__all__ = ["MAP_FILE_LIMITS", "MAX_MAP_BYTES", "MAX_MAP_NODES", "Pair", "Pairing"]
 
 #: A mapping file larger than this is refused unread.
 MAX_MAP_BYTES = 1 << 20
+#: Values in a mapping file, every alias counted as the whole value it repeats.
+MAX_MAP_NODES = 100_000
+#: How a mapping file is read (nesting within :data:`akarm.files.MAX_YAML_DEPTH`, as every YAML file).
+MAP_FILE_LIMITS = YamlLimits("mapping file", MAX_MAP_BYTES, "MAX_MAP_BYTES", MAX_MAP_NODES, "MAX_MAP_NODES")
 
 
 @dataclass(frozen=True)
@@ -96,15 +100,13 @@ class Pairing:
         """
         p = Path(path)
 
-        def problem(what: str, fix: str) -> ConfigError:
-            return ConfigError([ConfigProblem(str(p), None, what, fix)])
+        def problem(what: str, fix: str, line: int | None = None) -> ConfigError:
+            return ConfigError([ConfigProblem(str(p), line, what, fix)])
 
         try:
-            if p.stat().st_size > MAX_MAP_BYTES:
-                raise problem(f"the mapping file is over {MAX_MAP_BYTES} bytes", "a mapping file names joint pairs")
-            doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
-            raise problem(f"cannot read the mapping file: {e}", "give a YAML file with `pairs:`") from None
+            doc = load_yaml(p, MAP_FILE_LIMITS)
+        except FileProblem as e:
+            raise problem(e.what, e.fix, e.line) from None
         items = doc.get("pairs") if isinstance(doc, dict) else None
         if not isinstance(items, list) or not items:
             raise problem("no `pairs:` list", "pairs: [{leader: JOINT, follower: JOINT, scale: 1.0, offset: 0.0}]")
@@ -116,7 +118,10 @@ class Pairing:
                               "each pair is {leader: JOINT, follower: JOINT} with optional scale and offset")
             index = []
             for side, names in (("leader", leader_names), ("follower", follower_names)):
-                name = str(item[side])
+                name = item[side]
+                if not isinstance(name, str):
+                    raise problem(f"pair {k + 1}: the {side} joint {name!r} is not a joint name",
+                                  f"{side} joints: {', '.join(names)}")
                 if name not in names:
                     raise problem(f"pair {k + 1}: the {side} has no joint {name!r}{did_you_mean(name, names)}",
                                   f"{side} joints: {', '.join(names)}")

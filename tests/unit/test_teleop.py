@@ -42,7 +42,15 @@ def test_joints_pair_in_order_or_as_a_mapping_file_says(tmp_path: Path) -> None:
     ("pairs:\n  - {leader: shoulder, follower: left_elbow, scale: x}\n", "must be numbers"),
     ("pairs:\n  - {leader: shoulder}\n", "each pair is"),
     ("pairs: []\n", "no `pairs:` list"),
-    ("pairs: [\n", "cannot read the mapping file"),
+    ("pairs: [\n", "map.yaml:2: not valid YAML"),
+    ("pairs:\n  - {leader: 1, follower: left_elbow}\n", "pair 1: the leader joint 1 is not a joint name"),
+    ("pairs:\n  - {leader: shoulder, follower: [left_elbow]}\n",
+     r"pair 1: the follower joint \['left_elbow'\] is not a joint name"),
+    ("x: " + "[" * 40 + "]" * 40 + "\n", r"over the limit of 32 levels \(MAX_YAML_DEPTH\)"),
+    ("a0: &a0 [x, x, x, x, x, x, x, x, x]\n" + "".join(f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]\n"
+                                                     for k in range(1, 6)),
+     r"over the limit of 100 000 values \(MAX_MAP_NODES\)"),
+    ("# " + "x" * (1 << 20) + "\n", r"over the limit of 1 048 576 bytes \(MAX_MAP_BYTES\)"),
 ])
 def test_a_bad_mapping_file_is_refused_naming_the_pair(tmp_path: Path, text: str, match: str) -> None:
     path = tmp_path / "map.yaml"

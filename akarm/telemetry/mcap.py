@@ -16,11 +16,13 @@ they read back to the last bit. Written with the ``mcap`` package (the ``data`` 
 aligned from after its 4-byte encapsulation header).
 
 Read back within bounds (:data:`MAX_CYCLES` cycles per arm, :data:`MAX_JOINTS` joints, names of
-:data:`MAX_NAME_BYTES`), refused by name before anything past them is decoded.
+:data:`MAX_NAME_BYTES`, a file of :data:`MAX_MCAP_BYTES`, a chunk or record of :data:`MAX_MCAP_CHUNK_BYTES`
+uncompressed), refused by name before anything past them is decoded or decompressed.
 """
 
 from __future__ import annotations
 
+import importlib
 import io
 import math
 import os
@@ -33,9 +35,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from akarm.errors import RecordingError
-from akarm.files import atomic_write
+from akarm.files import atomic_write, number, over
 
-__all__ = ["FIELDS", "JOINT_STATE", "JOINT_STATE_SCHEMA", "MAX_CYCLES", "MAX_JOINTS", "MAX_NAME_BYTES", "TOPICS",
+__all__ = ["FIELDS", "JOINT_STATE", "JOINT_STATE_SCHEMA", "MAX_CYCLES", "MAX_JOINTS", "MAX_MCAP_BYTES",
+           "MAX_MCAP_CHUNK_BYTES", "MAX_NAME_BYTES", "TOPICS",
            "ArmLog", "Cycles", "decode_joint_state", "encode_joint_state", "read_mcap", "save_mcap", "topic"]
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -114,6 +117,10 @@ MAX_CYCLES = 2_000_000
 MAX_JOINTS = 64
 #: Bytes per joint name or frame id.
 MAX_NAME_BYTES = 256
+#: Bytes of an MCAP file (an hour at 500 Hz of one 6-joint arm, as akarm writes it, is about 170 MB).
+MAX_MCAP_BYTES = 1 << 30
+#: Bytes of one chunk uncompressed, or of one record (the mcap writer's chunks are 1 MiB, ROS 2's a few).
+MAX_MCAP_CHUNK_BYTES = 64 << 20
 _HEADER = b"\x00\x01\x00\x00"  # CDR, little endian
 
 
@@ -270,20 +277,23 @@ def read_mcap(path: str | os.PathLike[str]) -> dict[str, ArmLog]:
         RecordingError: not an MCAP file, no joint states in it, past a bound, or messages that disagree
             (joint names, lengths, a topic with other stamps than its arm's joint_states).
     """
-    reader_mod, _ = _mcap()
+    _mcap()
     p = Path(path)
     per: dict[str, dict[str, list[tuple[int, list[str], tuple[np.ndarray, ...]]]]] = {}
     try:
         with p.open("rb") as f:
-            reader = reader_mod.make_reader(f)
-            summary = reader.get_summary()
-            if summary is not None and summary.statistics is not None and \
-                    summary.statistics.message_count > MAX_CYCLES * len(TOPICS) * 4:
-                raise RecordingError(f"{p} holds {summary.statistics.message_count} messages, more than "
-                                     f"{MAX_CYCLES} cycles of 4 arms", fix="split the log")
-            for schema, channel, message in reader.iter_messages(log_time_order=False):
+            size = os.fstat(f.fileno()).st_size
+            if size > MAX_MCAP_BYTES:
+                raise RecordingError(over(f"{p} is {number(size)} bytes", MAX_MCAP_BYTES, "bytes", "MAX_MCAP_BYTES"),
+                                     fix="split the log")
+            kept = 0
+            for schema, channel, message in _messages(p, f):
                 if schema is None or schema.name != JOINT_STATE or channel.message_encoding != "cdr":
                     continue
+                kept += 1
+                if kept > MAX_CYCLES * len(TOPICS) * 4:
+                    raise RecordingError(f"{p} holds more than {number(MAX_CYCLES * len(TOPICS) * 4)} joint states: "
+                                         f"more than {number(MAX_CYCLES)} cycles of 4 arms", fix="split the log")
                 arm, name = _split(channel.topic)
                 if name is None:
                     continue
@@ -302,6 +312,73 @@ def read_mcap(path: str | os.PathLike[str]) -> dict[str, ArmLog]:
         raise RecordingError(f"{p} has no sensor_msgs/msg/JointState on a joint_states topic",
                              fix="pass an .mcap written by --log or ros2 bag record /joint_states")
     return {arm: _log(p, arm, topics) for arm, topics in sorted(per.items()) if "joint_states" in topics}
+
+
+def _messages(p: Path, f: Any) -> Any:
+    """(schema, channel, message) of every message in the MCAP file ``f``, in file order; each chunk's
+    size uncompressed checked against :data:`MAX_MCAP_CHUNK_BYTES` before it is decompressed (and its
+    decompression stopped there whatever its data says), every record's before it is read."""
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    schemas: dict[int, Any] = {}
+    channels: dict[int, Any] = {}
+
+    def records(chunk: Any) -> list[Any]:
+        if chunk.uncompressed_size > MAX_MCAP_CHUNK_BYTES:
+            raise RecordingError(over(f"{p} has a chunk of {number(chunk.uncompressed_size)} bytes uncompressed",
+                                      MAX_MCAP_CHUNK_BYTES, "bytes", "MAX_MCAP_CHUNK_BYTES"),
+                                 fix="is it the right file? write it with smaller chunks")
+        data = _decompress(p, chunk.compression, chunk.data)
+        if len(data) != chunk.uncompressed_size:
+            raise RecordingError(f"{p} has a chunk of {number(len(data))} bytes that says it has "
+                                 f"{number(chunk.uncompressed_size)}", fix="the file is damaged")
+        plain = Chunk(compression="", data=data, message_end_time=chunk.message_end_time,
+                      message_start_time=chunk.message_start_time, uncompressed_crc=0,
+                      uncompressed_size=len(data))
+        return list(breakup_chunk(plain))
+
+    def flat() -> Any:
+        for record in StreamReader(f, emit_chunks=True, record_size_limit=MAX_MCAP_CHUNK_BYTES).records:
+            if isinstance(record, Chunk):
+                yield from records(record)
+            else:
+                yield record
+
+    for record in flat():
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+        elif isinstance(record, Message):
+            channel = channels.get(record.channel_id)
+            if channel is None:
+                raise RecordingError(f"{p} has a message on channel {record.channel_id}, which it does not define",
+                                     fix="the file is damaged")
+            yield schemas.get(channel.schema_id), channel, record
+
+
+def _decompress(p: Path, compression: str, data: bytes) -> bytes:
+    """A chunk's records: at most :data:`MAX_MCAP_CHUNK_BYTES` + 1 bytes of them are ever decompressed."""
+    limit = MAX_MCAP_CHUNK_BYTES + 1
+    if compression == "":
+        return data
+    if compression == "zstd":
+        import zstandard
+
+        out = bytearray()
+        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data), read_across_frames=True) as r:
+            while len(out) < limit:
+                part = r.read(limit - len(out))
+                if not part:
+                    break
+                out += part
+        return bytes(out)
+    if compression == "lz4":
+        lz4_frame: Any = importlib.import_module("lz4.frame")  # (a dependency of mcap, without type hints)
+
+        return bytes(lz4_frame.LZ4FrameDecompressor().decompress(data, max_length=limit))
+    raise RecordingError(f"{p} has a chunk compressed with {compression!r}", fix="write it with zstd or lz4")
 
 
 def _split(name: str) -> tuple[str, str | None]:

@@ -265,6 +265,7 @@ def test_the_readmes_limits_table_holds_every_limit_with_its_value() -> None:
     from akarm import files
     from akarm.datasets import lerobot
     from akarm.robotfile import nodes
+    from akarm.telemetry import mcap
     from akarm.teleop import pairing
 
     constants = {name: getattr(module, name) for module in (files, nodes, urdf_mod, motors, rec, bounds, telemetry)
@@ -272,6 +273,7 @@ def test_the_readmes_limits_table_holds_every_limit_with_its_value() -> None:
     constants.pop("MAX_TRAJECTORY_POINTS")  # a planner's bound (akarm.motion.bounds), not a file's
     constants["MAX_PARQUET_BYTES"] = lerobot.MAX_PARQUET_BYTES
     constants.update(MAX_MAP_BYTES=pairing.MAX_MAP_BYTES, MAX_MAP_NODES=pairing.MAX_MAP_NODES)
+    constants.update(MAX_MCAP_BYTES=mcap.MAX_MCAP_BYTES, MAX_MCAP_CHUNK_BYTES=mcap.MAX_MCAP_CHUNK_BYTES)
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     rows = text.split("<!-- limits:", 1)[1].split("\n\n", 1)[0].splitlines()[3:]  # after the comment and header
     units = {"MiB": 1 << 20, "h": 3600}

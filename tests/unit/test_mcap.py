@@ -116,3 +116,36 @@ def test_damaged_or_oversized_files_are_refused_by_name(tmp_path: Path, monkeypa
         tm.decode_joint_state(huge)
     with pytest.raises(RecordingError, match="not little-endian CDR"):
         tm.decode_joint_state(b"\x00\x00\x00\x00" + wide[4:])
+
+
+def write_mcap(path: Path, data: bytes, compression: str = "zstd") -> Path:
+    """One JointState message of ``data`` (its bytes as they are) in one chunk compressed with ``compression``."""
+    from mcap.writer import CompressionType, Writer
+
+    with path.open("wb") as f:
+        w = Writer(f, compression=CompressionType[compression.upper()], chunk_size=1 << 30)
+        w.start(profile="ros2", library="test")
+        schema = w.register_schema(name=tm.JOINT_STATE, encoding="ros2msg", data=tm.JOINT_STATE_SCHEMA.encode())
+        channel = w.register_channel("/joint_states", "cdr", schema)
+        w.add_message(channel, log_time=0, data=data, publish_time=0)
+        w.finish()
+    return path
+
+
+def test_a_compressed_chunk_or_a_file_past_its_limit_is_refused_before_decompressing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(tm, "MAX_MCAP_CHUNK_BYTES", 1 << 20)
+    for compression in ("zstd", "lz4"):
+        bomb = write_mcap(tmp_path / f"bomb-{compression}.mcap", b"\x00\x01\x00\x00" + bytes(4 << 20), compression)
+        assert bomb.stat().st_size < 100_000  # 4 MiB of zeros, compressed
+        with pytest.raises(RecordingError, match=r"has a chunk of 4 194 [\d ]+ bytes uncompressed, over the limit of "
+                                                 r"1 048 576 bytes \(MAX_MCAP_CHUNK_BYTES\)"):
+            load_mcap(bomb)
+        state = tm.encode_joint_state(2_000_000, ["j"], [0.5], [0.25], [1.0])
+        log = load_mcap(write_mcap(tmp_path / f"one-{compression}.mcap", state, compression))[""]
+        assert log.joint_names == ("j",) and log.q.tolist() == [[0.5]] and log.t.tolist() == [0.002]
+    path = telemetry(n=50).save(tmp_path / "run.mcap")
+    monkeypatch.setattr(tm, "MAX_MCAP_BYTES", 1000)
+    with pytest.raises(RecordingError, match=r"run\.mcap is [\d ]+ bytes, over the limit of 1 000 bytes "
+                                             r"\(MAX_MCAP_BYTES\)"):
+        load_mcap(path)

@@ -27,12 +27,15 @@ from akarm.files import FileProblem, atomic_write, number, over, read_csv_table
 
 Values = Sequence[float] | np.ndarray
 
-__all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog", "load", "load_mcap"]
+__all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_JOINTS", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog",
+           "check_joints", "load", "load_mcap"]
 
 #: Bytes of a telemetry file: a CSV's, or an NPZ's arrays uncompressed.
 MAX_TELEMETRY_BYTES = 512 << 20
 #: Numbers in a telemetry file, cycles × (1 + 7 × joints): 25 minutes of 6 joints at 500 Hz (256 MB).
 MAX_TELEMETRY_VALUES = 32_000_000
+#: Joints of one arm in a telemetry file (a plot draws three panels a joint).
+MAX_TELEMETRY_JOINTS = 64
 
 #: The per-joint fields of a record, with their units.
 FIELDS = (("q_des", "rad"), ("dq_des", "rad/s"), ("q", "rad"), ("dq", "rad/s"), ("tau", "N·m"),
@@ -130,6 +133,16 @@ def load(path: str | os.PathLike[str]) -> TelemetryLog:
     return TelemetryLog(names, data[:, 0], *cols)
 
 
+def check_joints(count: int) -> None:
+    """Refuse (:class:`~akarm.files.FileProblem`) a telemetry file of no joint, or of more than
+    :data:`MAX_TELEMETRY_JOINTS`."""
+    if count == 0:
+        raise FileProblem("the telemetry file has no joints", "pass a file written by Arm.telemetry().save()")
+    if count > MAX_TELEMETRY_JOINTS:
+        raise FileProblem(over(f"the telemetry file has {number(count)} joints", MAX_TELEMETRY_JOINTS, "joints",
+                               "MAX_TELEMETRY_JOINTS"), "is it the right file?")
+
+
 def _check_header(header: list[str]) -> None:
     if not header or header[0] != "t [s]":
         raise FileProblem("not an akarm telemetry CSV (no 't [s]' header)",
@@ -138,6 +151,7 @@ def _check_header(header: list[str]) -> None:
     if (len(header) - 1) % fields or not all("." in h for h in header[1:]):
         raise FileProblem(f"not an akarm telemetry CSV (its {len(header)} columns are not 't [s]' and "
                           f"{fields} fields per joint)", "pass a file written by Arm.telemetry().save()")
+    check_joints((len(header) - 1) // fields)
 
 
 def _load_npz(p: Path) -> TelemetryLog:
@@ -165,6 +179,7 @@ def _load_npz(p: Path) -> TelemetryLog:
     if t.ndim != 1 or any(a.shape != (len(t), len(names)) for a in arrays):
         raise FileProblem("its arrays do not fit together (t: one value a cycle; every field: one a cycle and joint)",
                           "pass a .npz written by akarm")
+    check_joints(len(names))
     return TelemetryLog(names, t, *arrays)
 
 
@@ -188,8 +203,13 @@ def load_mcap(path: str | os.PathLike[str]) -> dict[str, TelemetryLog]:
     for a file of one unnamed arm (what ``Arm.telemetry().save("run.mcap")`` writes)."""
     from akarm.telemetry.mcap import read_mcap
 
-    return {arm: TelemetryLog(a.joint_names, a.t, *(a.fields[f] for f, _ in FIELDS))
-            for arm, a in read_mcap(path).items()}
+    arms = read_mcap(path)
+    for arm, a in arms.items():
+        try:
+            check_joints(len(a.joint_names))
+        except FileProblem as e:
+            raise RecordingError(f"{path}{f' (arm {arm})' if arm else ''}: {e.what}", fix=e.fix) from None
+    return {arm: TelemetryLog(a.joint_names, a.t, *(a.fields[f] for f, _ in FIELDS)) for arm, a in arms.items()}
 
 
 _STAMP = struct.Struct("=d")

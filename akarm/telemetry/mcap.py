@@ -38,8 +38,8 @@ from akarm.errors import RecordingError
 from akarm.files import atomic_write, number, over
 
 __all__ = ["FIELDS", "JOINT_STATE", "JOINT_STATE_SCHEMA", "MAX_CYCLES", "MAX_JOINTS", "MAX_MCAP_BYTES",
-           "MAX_MCAP_CHUNK_BYTES", "MAX_NAME_BYTES", "TOPICS",
-           "ArmLog", "Cycles", "decode_joint_state", "encode_joint_state", "read_mcap", "save_mcap", "topic"]
+           "MAX_MCAP_CHUNK_BYTES", "MAX_NAME_BYTES", "TOPICS", "ArmLog", "Cycles", "check_arm_name",
+           "decode_joint_state", "encode_joint_state", "read_mcap", "save_mcap", "topic"]
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 #: sensor_msgs/msg/JointState with its dependencies, as ROS 2 writes a ``ros2msg`` schema.
@@ -240,8 +240,7 @@ def save_mcap(path: str | os.PathLike[str], logs: Cycles | Mapping[str, Cycles])
     _, writer_mod = _mcap()
     arms: dict[str, Cycles] = dict(logs) if isinstance(logs, Mapping) else {"": logs}
     for name in arms:
-        if name and not name.replace("_", "").isalnum():
-            raise RecordingError(f"arm name {name!r} cannot be a topic prefix", fix="use letters, digits and _")
+        check_arm_name(name)
     events: list[tuple[int, int, int]] = []  # (stamp ns, arm number, cycle)
     for a, log in enumerate(arms.values()):
         stamps = np.round(np.asarray(log.t, dtype=float) * 1e9).astype(np.int64)
@@ -267,6 +266,12 @@ def save_mcap(path: str | os.PathLike[str], logs: Cycles | Mapping[str, Cycles])
         w.finish()
 
     return atomic_write(path, write)
+
+
+def check_arm_name(name: str, where: str = "") -> None:
+    """Refuse (RecordingError) an arm name that cannot be a topic prefix: letters, digits and _ (or ``""``)."""
+    if name and not name.replace("_", "").isalnum():
+        raise RecordingError(f"{where}arm name {name!r} cannot be a topic prefix", fix="use letters, digits and _")
 
 
 def read_mcap(path: str | os.PathLike[str]) -> dict[str, ArmLog]:
@@ -297,6 +302,7 @@ def read_mcap(path: str | os.PathLike[str]) -> dict[str, ArmLog]:
                 arm, name = _split(channel.topic)
                 if name is None:
                     continue
+                check_arm_name(arm, f"{p}: ")
                 rows = per.setdefault(arm, {}).setdefault(name, [])
                 if len(rows) >= MAX_CYCLES:
                     raise RecordingError(f"{p}: {channel.topic} has more than {MAX_CYCLES} messages",

@@ -28,7 +28,7 @@ import numpy as np
 
 from akarm.errors import RecordingError
 from akarm.files import atomic_write
-from akarm.telemetry.log import TelemetryLog
+from akarm.telemetry.log import MAX_TELEMETRY_JOINTS, TelemetryLog
 
 __all__ = ["plot_log"]
 
@@ -79,6 +79,9 @@ def plot_log(log: TelemetryLog, path: str | os.PathLike[str], *, title: str | No
     if len(log) == 0:
         raise RecordingError("the telemetry log has no cycles: nothing to plot",
                              fix="record some motion first (the arm records every cycle while open)")
+    if not 0 < len(log.joint_names) <= MAX_TELEMETRY_JOINTS:
+        raise RecordingError(f"the telemetry log has {len(log.joint_names)} joints: a plot draws 1 to "
+                             f"{MAX_TELEMETRY_JOINTS} (MAX_TELEMETRY_JOINTS)", fix="plot a log of one arm's joints")
     Figure, FigureCanvasAgg = figure_classes()
 
     names = log.joint_names

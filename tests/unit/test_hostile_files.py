@@ -5,6 +5,7 @@ hostile files, timed and measured in processes of their own: tests/system/test_h
 from __future__ import annotations
 
 import io
+import re
 import sys
 import zipfile
 from pathlib import Path
@@ -258,6 +259,19 @@ def test_telemetry_that_is_not_telemetry(tmp_path: Path) -> None:
     path.write_bytes(b"PK not a zip")
     with pytest.raises(RecordingError, match="cannot read the telemetry file"):
         telemetry.load(path)
+
+
+def test_a_telemetry_file_of_no_joint_or_too_many_is_refused(tmp_path: Path) -> None:
+    for joints in (0, 65):
+        names = tuple(f"j{k}" for k in range(joints))
+        z = np.zeros((3, joints))
+        log = telemetry.TelemetryLog(names, np.arange(3) * 0.002, z, z, z, z, z, z, z)
+        for suffix in (".csv", ".npz"):
+            path = log.save(tmp_path / f"{joints}{suffix}")
+            what = "has no joints" if joints == 0 else \
+                "has 65 joints, over the limit of 64 joints (MAX_TELEMETRY_JOINTS)"
+            with pytest.raises(RecordingError, match=f"{path.name}: the telemetry file {re.escape(what)}"):
+                telemetry.load(path)
 
 
 # ---- the limits, documented in one place ---------------------------------------------------------

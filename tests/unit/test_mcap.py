@@ -149,3 +149,22 @@ def test_a_compressed_chunk_or_a_file_past_its_limit_is_refused_before_decompres
     with pytest.raises(RecordingError, match=r"run\.mcap is [\d ]+ bytes, over the limit of 1 000 bytes "
                                              r"\(MAX_MCAP_BYTES\)"):
         load_mcap(path)
+
+
+def test_an_mcap_of_no_joints_or_an_arm_name_that_is_not_a_topic_prefix_is_refused(tmp_path: Path) -> None:
+    z = np.zeros((3, 0))
+    path = tm.save_mcap(tmp_path / "zero.mcap", TelemetryLog((), np.arange(3) * 0.002, z, z, z, z, z, z, z))
+    with pytest.raises(RecordingError, match=r"zero\.mcap: the telemetry file has no joints"):
+        load_mcap(path)
+    from mcap.writer import Writer
+
+    path = tmp_path / "nul.mcap"
+    with path.open("wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        schema = w.register_schema(name=tm.JOINT_STATE, encoding="ros2msg", data=tm.JOINT_STATE_SCHEMA.encode())
+        channel = w.register_channel("/a\x00b/joint_states", "cdr", schema)
+        w.add_message(channel, log_time=0, publish_time=0, data=tm.encode_joint_state(0, ["j"], [0.0], [0.0], [0.0]))
+        w.finish()
+    with pytest.raises(RecordingError, match=r"nul\.mcap: arm name 'a\\x00b' cannot be a topic prefix"):
+        load_mcap(path)

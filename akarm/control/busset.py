@@ -132,21 +132,23 @@ class BusSet:
             except Exception as e:  # the bus is gone (shut down, unplugged, the interface down)
                 self._lose(name, e, now)
 
-    def send(self, j: Joint, msg: can.Message) -> None:
-        """Send ``msg`` on joint ``j``'s bus; a refusal is counted (many in a row: the bus is lost)."""
+    def send(self, j: Joint, msg: can.Message) -> bool:
+        """Send ``msg`` on joint ``j``'s bus; a refusal is counted (many in a row: the bus is lost).
+        Whether the bus took it (``False``: refused, or the buses are closed)."""
         bus = self._bus_of[j.index]
         if bus is None:
-            return
+            return False
         try:
             bus.send(msg)
         except Exception as e:  # a full TX queue or an unplugged adapter: counted; many in a row = lost
             self._refused(j, e)
-            return
+            return False
         self._failures[j.bus] = 0
         j.sent()
         if self._logger is not None:
             msg.timestamp = time.time()
             self._logger.on_message_received(msg)
+        return True
 
     def send_frames(self, frames: Sequence[Frame]) -> None:
         """:meth:`send` for each joint's frame given by its fields, one a joint in config order
@@ -179,15 +181,24 @@ class BusSet:
         if failures >= SEND_FAILURES:
             self._lose(j.bus, error, self._clock())
 
-    def release_all(self, *, suppress: bool = False) -> None:
-        """Send every joint its exit (MIT) or release (servo) frames; ``suppress``: whatever raises, go on."""
+    def release_all(self, *, suppress: bool = False) -> bool:
+        """Send every joint its exit (MIT) or release (servo) frames; ``suppress``: whatever raises, go on.
+
+        Whether every bus that is not lost took every frame (a stop counts a release only then: a
+        frame a full transmit queue refused is not one a driver heard; a lost bus's are tried all the
+        same, and its stop is a fault)."""
+        taken = True
         for j in self.joints:
             for f in j.release_frames():
+                ok = False
                 if suppress:
                     with contextlib.suppress(Exception):
-                        self.send(j, f)
+                        ok = self.send(j, f)
                 else:
-                    self.send(j, f)
+                    ok = self.send(j, f)
+                if not ok and j.bus not in self._lost:
+                    taken = False
+        return taken
 
     def _lose(self, name: str, error: BaseException, now: float) -> None:
         if name in self._lost:

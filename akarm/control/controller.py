@@ -55,7 +55,16 @@ from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
 from akarm.control.turns import PositionMemory, stays_put
 from akarm.dynamics.model import RobotModel
-from akarm.errors import AkarmError, ArgumentError, BusLost, CollisionError, LoopStall, SafetyStop, StateError
+from akarm.errors import (
+    AkarmError,
+    ArgumentError,
+    BusLost,
+    CollisionError,
+    LoopCrashed,
+    LoopStall,
+    SafetyStop,
+    StateError,
+)
 from akarm.motion.trajectory import Plan, Planner, release
 from akarm.telemetry.log import Telemetry, TelemetryLog
 
@@ -180,6 +189,7 @@ class Controller:
         self._positions_known = False  # the readings passed the turn check: a stop may remember them
         self._stop_q = [0.0] * n  # each joint's reading when the stop began
         self._releases = 0  # the cycles the exit frames were sent on, this stop
+        self._damp_time = options.stop_damping_time  # s of damping this stop (none for a refused enable)
         self._stop_stale = [False] * n  # its feedback went silent during the stop: remember _stop_q
 
     def _make_reflex(self) -> CollisionReflex:
@@ -255,8 +265,9 @@ class Controller:
         finally:
             self.loop.stop()
             with self.lock:
-                if self.modes.mode.powered:  # the stop did not run to its end (a stalled or dead loop): exit now
-                    self.bus.release_all(suppress=True)
+                if self.modes.mode.powered:  # the stop did not run to its end (a stalled or dead loop): exit now,
+                    for _ in range(RELEASES):  # as often as a stop would
+                        self.bus.release_all(suppress=True)
                 self.modes.go(Mode.CLOSED)
             self.bus.close()
 
@@ -382,7 +393,7 @@ class Controller:
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
                       longest + self.options.settle_timeout + 2.0, "the joints to answer and the arm to settle")
         if self.enable_error is not None:
-            self.loop.wait_cycle(0.1)  # deliver the exit frames
+            self.wait_disabled()  # the exit frames, on RELEASES cycles, delivered
             raise self.enable_error
         self._forget_positions()
         self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
@@ -402,14 +413,16 @@ class Controller:
                           "the arm to disable", raise_fault=False)
             self.loop.wait_cycle(0.1)
 
-    def _begin_stop(self, fault: SafetyStop | None = None) -> None:
-        """Start damping, then exit (caller holds the lock or is the loop)."""
+    def _begin_stop(self, fault: SafetyStop | None = None, damping: float | None = None) -> None:
+        """Start damping (for ``damping`` s; default: the options' stop_damping_time), then exit
+        (caller holds the lock or is the loop)."""
         if fault is not None and self.fault is None:
             self.fault = fault
         mode = self.modes.mode
         if mode is Mode.STOPPING or not mode.powered or mode is Mode.FAULT:
             return
         self.modes.go(Mode.STOPPING)
+        self._damp_time = self.options.stop_damping_time if damping is None else damping
         self._t_stop = min(self.plan_now(), self._t_plan)
         now = self.clock.now()
         self._stop_q = [j.state.position for j in self.joints]
@@ -832,17 +845,22 @@ class Controller:
         self.modes.go(Mode.ACTIVE)
 
     def _enable_failed(self, refusal: Refusal) -> None:
-        if refusal.release:
-            self.bus.release_all()
+        """The enable was refused: if anything was sent, the exit frames go out as a stop's do, on
+        :data:`RELEASES` cycles (no damping: nothing held the arm yet); then DISABLED."""
         self.enable_error = refusal.error
+        if refusal.release:
+            self._begin_stop(damping=0.0)
+            self._cycle_stopping(self.clock.now())
+            return
         self.supervisor.disarm()
         self.ramp.zero()
         self.modes.go(Mode.DISABLED)
 
     def _cycle_stopping(self, now: float) -> None:
         """Damping (kp = 0, feed-forward fading out) for stop_damping_time (of plan time), then the
-        exit frames, on :data:`RELEASES` cycles in a row."""
-        T = self.options.stop_damping_time
+        exit frames, on :data:`RELEASES` cycles that every bus took them (a cycle whose frames a full
+        transmit queue refused does not count; refusals that go on lose the bus: a fault)."""
+        T = self._damp_time
         s = (self._t_plan - self._t_stop) / T if T > 0 else 1.0
         stale = self._stop_stale
         for i, j in enumerate(self.joints):
@@ -856,9 +874,9 @@ class Controller:
                 send(j, j.damp(self._damping[i], tau[i]))
             self._record(now, self.des[0], np.zeros(self.n), tau)
             return
-        self.bus.release_all()
-        self._releases += 1
-        if self._releases < RELEASES:
+        if self.bus.release_all():
+            self._releases += 1
+        if self._releases < RELEASES:  # (a lost bus's refusals do not hold it up: release_all)
             return
         self.ramp.zero()
         self.supervisor.disarm()

@@ -91,7 +91,7 @@ class Enabler:
     """
 
     def __init__(self, joints: Sequence[Joint], buses: Mapping[str, BusConfig],
-                 send: Callable[[Joint, can.Message], None], supervisor: Supervisor,
+                 send: Callable[[Joint, can.Message], object], supervisor: Supervisor,
                  gravity: Callable[[Sequence[float]], np.ndarray],
                  commanded: Callable[[float, Sequence[float], list[float]], None], *,
                  damping: Sequence[float], timeouts: Sequence[float], period: float, settle_speed: float,

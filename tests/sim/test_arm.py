@@ -281,6 +281,55 @@ def test_an_exit_the_driver_misses_does_not_leave_it_powered(channel, monkeypatc
         assert sim.joint("elbow").enabled is (releases == 1)
 
 
+def _exits_after(sim, since: int, joint: str) -> list[float]:
+    """When the simulator took an EXIT frame for ``joint``, from its ``since``-th logged frame on."""
+    frames, _ = sim.logged_frames(since)
+    return [f.t for f in frames if f.to_motor and f.joint == joint and bytes(f.data) == akarm.protocol.mit.EXIT]
+
+
+def test_a_refused_enable_sends_the_exit_frames_on_as_many_cycles_as_a_stop(channel) -> None:
+    """An enable refused after ENTER (here: the elbow swings and does not settle in time) sent the exit
+    frames on one cycle: a driver that missed them stayed in motor mode, and close() sent nothing more
+    (the arm was DISABLED)."""
+    with rig("planar2", channel, settle_timeout=0.05, sim_options={"log_frames": True}) as (arm, sim):
+        sim.set_state(np.array([0.0, 0.0]), np.array([0.0, 3.0]))
+        with pytest.raises(akarm.NotSettled):
+            arm.enable()
+        assert arm.mode is akarm.Mode.DISABLED
+        for name in arm.names:
+            times = _exits_after(sim, 0, name)
+            assert len(set(times)) == akarm.control.controller.RELEASES, (name, times)
+            assert not sim.joint(name).enabled
+
+
+def test_exit_frames_a_full_transmit_queue_refused_are_sent_again(channel) -> None:
+    """The adapter's transmit queue refused the exit frames of a disable for three cycles (fewer refusals
+    than lose the bus): the stop counted them as sent, went DISABLED and left both drivers powered."""
+    import can
+
+    with rig("planar2", channel, q0=[0.0, 0.0], sim_options={"log_frames": True}) as (arm, sim):
+        arm.enable()
+        period = 1.0 / arm.config.rate_hz
+        arm.disable(wait=False)
+        arm.sleep(0.3 - 1.5 * period)  # the damping's last cycle
+        _, since = sim.logged_frames()
+        bus = arm.observe.buses["arm"]
+        send, refused = bus.send, []
+
+        def full_queue(msg: can.Message, timeout: float | None = None) -> None:
+            if len(refused) < 12:  # three cycles of two joints' exit frames (and their neutral commands)
+                refused.append(msg)
+                raise can.CanOperationError("Transmit buffer full")
+            send(msg, timeout)
+
+        bus.send = full_queue
+        arm.sleep(0.1)
+        assert len(refused) == 12 and arm.mode is akarm.Mode.DISABLED and arm.fault is None
+        for name in arm.names:
+            assert len(set(_exits_after(sim, since, name))) == akarm.control.controller.RELEASES, name
+            assert not sim.joint(name).enabled, name
+
+
 def test_exception_inside_with_block_leaves_the_arm_disabled(channel) -> None:
     cfg = akarm.load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
     with SimulatedRobot(cfg, realtime=False) as sim:

@@ -68,6 +68,7 @@ __all__ = [
     "FrameError",
     "ImplausibleFeedback",
     "LimitError",
+    "LoopCrashed",
     "LoopStall",
     "ModeMismatch",
     "ModelError",
@@ -539,6 +540,12 @@ class LoopStall(SafetyStop):
         self.stalled = stalled
         self.limit = limit
         super().__init__(what, joint=joint, fix=fix)
+
+
+class LoopCrashed(SafetyStop):
+    """The control loop's thread died of an error in akarm itself (a bug): the arm was damped and
+    disabled by the loop's last act, and stays in fault (no loop runs any more) until it is closed.
+    Its ``__cause__`` is the error."""
 
 
 class DriverReset(SafetyStop):

@@ -30,6 +30,7 @@ The loop thread holds only the controller, never the Arm, so an Arm dropped whil
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import threading
 import time
@@ -74,6 +75,8 @@ if TYPE_CHECKING:
     from akarm.motion.trajectory import Timed
 
 __all__ = ["PLAN_ATTEMPTS", "RELEASES", "STAGES", "WAIT_SLICE", "WAKE_BACKSTOP", "Controller"]
+
+log = logging.getLogger(__name__)
 
 STAGES = ("receive", "trajectory", "safety", "feedforward", "send", "telemetry")
 #: Plans made for one motion at most before it is refused: each one that comes too late to take over
@@ -275,16 +278,44 @@ class Controller:
         return self.loop.thread is threading.current_thread()
 
     def _crashed(self, exc: BaseException) -> None:
-        """The loop died of a bug: tell every motor to go limp, as a last resort; then end the motions,
-        which wakes their callers (they raise the crash)."""
+        """The loop died of a bug (on its thread, after the cycle that raised): stop the arm as a stop
+        does, damping then exit frames on :data:`RELEASES` cycles, without the cycle that failed (the
+        stop's own steps, at the loop's period, in this thread); if they fail too, the exit frames at
+        once, a few times. Then the arm is in FAULT with the crash (enable refuses: the loop is gone),
+        and the motions end, which wakes their callers (they raise the crash)."""
+        crash = LoopCrashed(f"the control loop crashed ({type(exc).__name__}: {exc}): this is a bug in akarm; the "
+                            "arm was damped and disabled", fix="close the arm and open it again; report the bug "
+                            "with the traceback the log shows")
+        crash.__cause__ = exc
         try:
-            self.bus.release_all()
-        finally:
             if self.lock.acquire(timeout=1.0):  # (the cycle that raised let go of it)
                 try:
-                    self.motions.cancel()
+                    self._begin_stop(crash)
                 finally:
                     self.lock.release()
+            deadline = time.monotonic() + self.options.stop_damping_time + (RELEASES + 5) * self.period
+            while self.modes.mode is Mode.STOPPING and time.monotonic() < deadline:
+                with self.lock:
+                    self._t_plan += self.period
+                    self._cycle_stopping(self.clock.now())
+                time.sleep(self.period)
+        except BaseException:  # the stop's own steps failed: the exit frames alone
+            log.exception("stopping after the control loop crashed failed; sending the exit frames")
+        finally:
+            try:
+                if self.modes.mode.powered:
+                    for _ in range(RELEASES):
+                        self.bus.release_all(suppress=True)
+                        time.sleep(self.period)
+            finally:
+                if self.lock.acquire(timeout=1.0):
+                    try:
+                        self.fault = self.fault or crash
+                        if self.modes.mode is not Mode.FAULT:
+                            self.modes.go(Mode.FAULT)
+                        self.motions.cancel()
+                    finally:
+                        self.lock.release()
 
     def _bus_lost(self, stop: BusLost) -> None:
         """A bus failed under the arm (the bus set says so once): stop, or FAULT if nothing was powered."""

@@ -21,7 +21,7 @@ from akarm.control.cpuidle import PM_QOS_PATH
 from akarm.control.loop import TIMER_SLACK, ControlLoop, request_realtime, timer_slack
 from akarm.sim import SimulatedRobot
 
-from .conftest import ROBOTS
+from .conftest import ROBOTS, wait_until
 
 
 @pytest.fixture
@@ -239,3 +239,50 @@ def test_a_caller_waiting_for_a_move_learns_of_a_crash_of_the_loop_at_once(chann
             time.sleep(0.005)
         assert motion.done and motion.superseded  # the crash ended it: what woke the caller
         assert not loop.running
+
+
+def test_a_crash_of_the_loop_damps_then_disables_the_arm_and_leaves_it_in_fault(channel):
+    """The crashed loop sent the exit frames once, straight from a held pose (no damping: the arm
+    dropped), a driver that missed them stayed powered holding kp = 20 with no loop running, and the
+    arm still said it was enabled. Now its last act is a stop's own steps: damping for the stop's
+    time, then the exit frames on RELEASES cycles; then FAULT, with a LoopCrashed that enable raises."""
+    from akarm.control.controller import RELEASES
+    from akarm.protocol import mit
+
+    config = load_robot(ROBOTS / "planar2.yaml").with_bus(interface="virtual", channel=channel)
+    with SimulatedRobot(config, realtime=True, q0=[-math.pi / 2, 0.0], log_frames=True) as sim, \
+            Arm(config, remember_positions=False) as arm:
+        arm.enable()
+        arm.move_to([-math.pi / 2 + 0.3, 0.2], wait=False)
+        time.sleep(0.1)
+        sim.wait_received()
+        _, since = sim.logged_frames()
+        loop = arm.observe.loop
+        crashed = threading.Event()
+
+        def crash(now: float, slot: int) -> None:
+            crashed.set()
+            raise RuntimeError("a bug in a cycle")
+
+        cycle, loop.cycle = loop.cycle, crash
+        try:
+            assert crashed.wait(5.0)
+            assert wait_until(lambda: arm.mode is akarm.Mode.FAULT, 5.0), arm.mode
+        finally:
+            loop.cycle = cycle
+        assert isinstance(arm.fault, akarm.LoopCrashed) and isinstance(arm.fault.__cause__, RuntimeError)
+        assert not arm.enabled
+        sim.wait_received()
+        frames, _ = sim.logged_frames(since)
+        model = config.joints[1].motor
+        elbow = [f for f in frames if f.to_motor and f.joint == "elbow"]
+        exits = [f.t for f in elbow if bytes(f.data) == mit.EXIT]
+        commands = [(f.t, mit.decode_command(model, bytes(f.data))) for f in elbow
+                    if mit.special_frame(bytes(f.data)) is None]
+        damping = [t for t, c in commands if c.kp == 0.0 and c.kd > 0.0]  # (the exit's neutral command: kd 0)
+        assert len(set(exits)) >= RELEASES, exits
+        assert damping and max(damping) - min(damping) > 0.2, "damped for the stop's time before the exit"
+        assert max(damping) < min(exits)
+        assert not any(s.enabled for s in sim.driver_states())
+        with pytest.raises(akarm.LoopCrashed):
+            arm.enable()

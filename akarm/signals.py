@@ -1,9 +1,9 @@
-"""Signals that end a program: SIGTERM and SIGHUP handled like Ctrl-C, so an arm is damped and disabled.
+"""Signals that end a program: SIGTERM, SIGHUP, SIGQUIT handled like Ctrl-C, so an arm is damped and disabled.
 
 Python turns Ctrl-C (SIGINT) into :class:`KeyboardInterrupt`, which unwinds ``with arm:`` blocks
 and ``finally`` clauses: the arm is damped and disabled on the way out. SIGTERM (``kill``, systemd,
-a process manager, ``timeout``) and SIGHUP (a closed terminal) instead end a Python program at
-once, leaving the motors holding their last command. :func:`install` makes them raise
+a process manager, ``timeout``), SIGHUP (a closed terminal) and SIGQUIT (Ctrl-\\) instead end a
+Python program at once, leaving the motors holding their last command. :func:`install` makes them raise
 :class:`Terminated`, a :class:`KeyboardInterrupt`, in the main thread, so every way out of a
 program unwinds the same way. It only replaces the default action (a program's own handlers are
 left alone), and :class:`~akarm.Arm` installs it while it is open; the ``akarm`` command installs
@@ -22,15 +22,17 @@ import threading
 from collections.abc import Iterator
 from types import FrameType
 
-__all__ = ["Terminated", "deferred", "exit_code", "install", "uninstall"]
+__all__ = ["Terminated", "deferred", "exit_code", "install", "installed", "uninstall"]
 
-#: The signals turned into :class:`Terminated` (those this platform has).
-HANDLED: tuple[signal.Signals, ...] = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))
+#: The signals turned into :class:`Terminated` (those this platform has): SIGQUIT too (Ctrl-\, whose
+#: default is to end the program at once, with a core dump, and the motors powered).
+HANDLED: tuple[signal.Signals, ...] = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGQUIT")
+                                            if hasattr(signal, n))
 _STOPPING = (signal.SIGINT, *HANDLED)
 
 
 class Terminated(KeyboardInterrupt):
-    """The program was told to end by a signal (SIGTERM, SIGHUP): unwinds like Ctrl-C.
+    """The program was told to end by a signal (SIGTERM, SIGHUP, SIGQUIT): unwinds like Ctrl-C.
 
     Attributes:
         signum: the signal's number.
@@ -56,8 +58,8 @@ _replaced: list[signal.Signals] = []
 
 
 def install() -> bool:
-    """Make SIGTERM and SIGHUP raise :class:`Terminated` in the main thread, where their action is
-    still the default. Counted: each call needs an :func:`uninstall`. Returns False (and does
+    """Make SIGTERM, SIGHUP and SIGQUIT raise :class:`Terminated` in the main thread, where their
+    action is still the default. Counted: each call needs an :func:`uninstall`. Returns False (and does
     nothing) outside the main thread, where Python cannot set handlers."""
     global _users
     if threading.current_thread() is not threading.main_thread():
@@ -70,6 +72,12 @@ def install() -> bool:
                     _replaced.append(sig)
         _users += 1
     return True
+
+
+def installed() -> bool:
+    """Whether SIGTERM, SIGHUP and SIGQUIT are handled now, by :func:`install` or by the program itself
+    (none of them ends the program at once)."""
+    return all(signal.getsignal(sig) is not signal.SIG_DFL for sig in HANDLED)
 
 
 def uninstall() -> None:

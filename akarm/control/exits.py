@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import atexit
 import threading
+import warnings
 import weakref
 from collections.abc import Callable
 
@@ -51,35 +52,48 @@ class Exits:
         self._signals_installed = False  # this controller counts in akarm.signals' handlers
 
     def opened(self) -> None:
-        """The controller is open: the interpreter's exit closes it; SIGTERM and SIGHUP raise."""
+        """The controller is open: the interpreter's exit closes it; SIGTERM, SIGHUP and SIGQUIT raise
+        (from the main thread; an Arm opened in another thread warns where they would end the program
+        at once, unless they are handled already: :func:`akarm.signals.install` from the main thread)."""
         _open.add(self)
         self._signals_installed = signals.install()
+        if not self._signals_installed and not signals.installed():
+            warnings.warn("this Arm was opened outside the main thread, where Python cannot set signal "
+                          "handlers: SIGTERM, SIGHUP and SIGQUIT would end the program with the motors "
+                          "powered; call akarm.signals.install() once from the main thread first (or open the "
+                          "Arm there)", UnsafeExitWarning, stacklevel=4)
 
     def close(self, warn: str | None = None) -> None:
         """Run the shutdown once (see the module's docstring). Never raises its errors; signals are
         held back until it is done."""
-        with self._lock:
-            if not self._is_open():
-                return
-            closing = self._closing
-            if not closing:
-                self._closing = threading.Event()
-        if closing:  # another thread closes it: return once it is closed (the loop's own thread cannot wait)
-            if not self._on_loop_thread():
-                closing.wait(self._patience)
-            return
-        with signals.deferred(reraise=threading.current_thread() is threading.main_thread() and warn is None):
-            try:
-                self._shutdown(warn)
-            finally:
-                _open.discard(self)
-                if self._signals_installed:
-                    self._signals_installed = False
-                    signals.uninstall()
+        uninstall = False
+        try:
+            # signals are held back before the close is claimed: an interrupt between the two would
+            # leave it claimed and never run (every later close, the interpreter's exit's too, waiting
+            # for it, and the motors powered)
+            with signals.deferred(reraise=threading.current_thread() is threading.main_thread() and warn is None):
                 with self._lock:
-                    done, self._closing = self._closing, None
-                if done:
-                    done.set()
+                    if not self._is_open():
+                        return
+                    closing = self._closing
+                    if not closing:
+                        self._closing = threading.Event()
+                if closing:  # another thread closes it: return once closed (the loop's own thread cannot wait)
+                    if not self._on_loop_thread():
+                        closing.wait(self._patience)
+                    return
+                try:
+                    self._shutdown(warn)
+                finally:
+                    _open.discard(self)
+                    uninstall, self._signals_installed = self._signals_installed, False
+                    with self._lock:
+                        done, self._closing = self._closing, None
+                    if done:
+                        done.set()
+        finally:
+            if uninstall:  # (after the held signals' handlers are back: the default action is restored)
+                signals.uninstall()
 
     def close_collected(self) -> None:
         """The Arm was garbage-collected while open: close, with a warning if it was still enabled.

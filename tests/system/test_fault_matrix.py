@@ -138,7 +138,7 @@ def _wait_for_line(stream, word: str, timeout: float = 60.0) -> str:
     raise AssertionError(f"{word!r} never appeared")
 
 
-SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT]
 
 
 def _interrupt(proc: subprocess.Popen[str], ready: str, sig: int, wire: Wire, cfg: RobotConfig,

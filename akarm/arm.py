@@ -52,6 +52,7 @@ from akarm.errors import (
     SafetyStop,
     StateError,
     did_you_mean,
+    finite_number,
 )
 from akarm.motion import recording as rec_mod
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
@@ -330,10 +331,16 @@ class Arm:
                 checked by eye (or the joints were zeroed).
 
         Raises:
+            ArgumentError: a ``timeout`` that is not a finite number ≥ 0, an ``accept_position`` that is
+                not a bool (nothing is sent, the mode is unchanged).
             FeedbackTimeout: a joint did not answer (it names the joint; nothing is left enabled).
             TurnCountLost: a joint reads whole rotor turns from where it stopped (nothing was enabled).
             SafetyStop: what else refused it (the arm is left disabled).
         """
+        if timeout is not None:
+            timeout = finite_number(timeout, "enable timeout", at_least=0.0, unit="s",
+                                    fix="give the seconds to wait for the joints' replies, e.g. 0.5, or None "
+                                        "for the timing profile's")
         if not isinstance(accept_position, bool):
             raise ArgumentError(f"accept_position must be True or False, got {accept_position!r}")
         self._ctl.enable(timeout, accept_position)

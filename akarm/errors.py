@@ -49,6 +49,8 @@ raises on purpose; anything else escaping akarm is a bug.
 from __future__ import annotations
 
 import difflib
+import math
+import numbers
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -95,6 +97,7 @@ __all__ = [
     "UnreachableError",
     "WiringError",
     "did_you_mean",
+    "finite_number",
 ]
 
 
@@ -583,3 +586,29 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str:
     tail of an error's text for a misspelt name (a joint, a key, a motor model)."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def finite_number(value: object, name: str, *, at_least: float | None = None, above: float | None = None,
+                  at_most: float | None = None, unit: str = "", joint: str | None = None, fix: str = "") -> float:
+    """``value`` as a float when it is a finite real number (not a bool, not text) within the bounds
+    given (``at_least`` ≤ value, ``above`` < value, value ≤ ``at_most``), else :class:`ArgumentError`
+    naming ``name`` (and ``joint``), what is wrong, and ``fix`` (by default: the range wanted). The
+    one check of a number argument at akarm's boundaries, so that no bad value reaches a comparison,
+    a loop or numpy inside."""
+    wanted = []
+    if at_least is not None:
+        wanted.append(f"at least {at_least:g}")
+    if above is not None:
+        wanted.append(f"more than {above:g}")
+    if at_most is not None:
+        wanted.append(f"at most {at_most:g}")
+    unit_text = f" ({unit})" if unit else ""
+    need = f"a finite number{unit_text}" + (f", {' and '.join(wanted)}" if wanted else "")
+    fix = fix or f"give {need}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ArgumentError(f"{name} must be {need}, got {value!r}", joint=joint, fix=fix)
+    x = float(value)
+    if not (math.isfinite(x) and (at_least is None or x >= at_least) and (above is None or x > above)
+            and (at_most is None or x <= at_most)):
+        raise ArgumentError(f"{name} must be {need}, got {value!r}", joint=joint, fix=fix)
+    return x

@@ -1,16 +1,61 @@
 """Option handling the verbs share: python-can keyword arguments, renamed options, output files checked
-before anything moves, and positional values that may be negative."""
+before anything moves, positional values that may be negative, and the argparse types of durations
+and counts (refused while the command line is parsed, before anything is loaded, opened or sent)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["TELEMETRY_SUFFIXES", "add_bus_kwargs", "check_output", "negative_values_are_positional", "renamed"]
+__all__ = ["MAX_SECONDS", "TELEMETRY_SUFFIXES", "add_bus_kwargs", "check_output", "count", "delay", "duration",
+           "negative_values_are_positional", "renamed"]
+
+#: s, the longest duration an option takes (a week): more than any wait or run a verb is given, and far
+#: below what a sleep can take (``time.sleep(1e300)`` raises OverflowError)
+MAX_SECONDS = 7 * 24 * 3600.0
+
+
+def _seconds(text: str, at_least: float | None, above: float | None) -> float:
+    from akarm.errors import ArgumentError, finite_number
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    try:
+        return finite_number(value, repr(text), at_least=at_least, above=above, at_most=MAX_SECONDS, unit="s")
+    except ArgumentError as e:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a finite number of seconds, {'more than' if above is not None else 'at least'} 0 "
+            f"and at most {MAX_SECONDS:g} (a week)") from e
+
+
+def duration(text: str) -> float:
+    """argparse type of a duration option (a time-out, an interval, a run's length): a finite number of
+    seconds more than 0, at most :data:`MAX_SECONDS`."""
+    return _seconds(text, None, 0.0)
+
+
+def delay(text: str) -> float:
+    """argparse type of a pause that may be none (a time to listen, to wait): a finite number of
+    seconds, at least 0, at most :data:`MAX_SECONDS`."""
+    return _seconds(text, 0.0, None)
+
+
+def count(text: str) -> int:
+    """argparse type of a count (readings, episodes): a whole number, at least 1."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number, at least 1")
+    return n
 
 
 class _BusKwargs(argparse.Action):

@@ -17,6 +17,7 @@ import argparse
 import sys
 
 from akarm.cli.common import add_robot_arguments, load_from_args
+from akarm.cli.options import delay, duration
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,19 +26,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("joint", metavar="JOINT", help="the joint to zero")
     parser.add_argument("--permanent", action="store_true",
                         help="servo joints: keep the origin across power cycles (saved in flash)")
-    parser.add_argument("--wait", type=float, default=1.5, metavar="S",
+    parser.add_argument("--wait", type=delay, default=1.5, metavar="S",
                         help="MIT: seconds the driver is left alone after ZERO (default 1.5)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    parser.add_argument("--timeout", type=duration, default=1.0, metavar="S",
                         help="seconds to wait for an answer (default 1.0)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Zero the joint; print the motor position read back."""
     from akarm.control.probe import Probe
-    from akarm.errors import AkarmError
 
-    if args.wait < 0 or not args.timeout > 0:
-        raise AkarmError("--wait must not be negative and --timeout must be positive")
     config = load_from_args(args)
     from akarm.buses.ownership import refuse_if_served
 

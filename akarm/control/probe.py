@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 from akarm.buses.bus import close_buses, open_bus
-from akarm.errors import AkarmError, BusError, StateError
+from akarm.errors import AkarmError, BusError, StateError, finite_number
 from akarm.protocol import mit, servo
 
 if TYPE_CHECKING:
@@ -464,11 +464,15 @@ class Probe:
         moved meanwhile).
 
         Raises:
+            ArgumentError: a ``wait`` that is not a finite number ≥ 0 s, a ``timeout`` not one > 0 s
+                (nothing is sent).
             AkarmError: the joint does not answer, does not come back, is being driven by a
                 controller, or is a MIT V3 board (no zero frame); the message names the joint.
         """
         from akarm.control.joints import JointState
 
+        wait = finite_number(wait, "zero wait", at_least=0.0, unit="s")
+        timeout = finite_number(timeout, "zero timeout", above=0.0, unit="s")
         j = self.joint(name)
         c = j.config
         where = f"{j.mode} ID {c.can_id} on bus {j.bus!r}"

@@ -3,6 +3,8 @@ former option names, one word per meaning (the verbs run: tests/system/test_cli_
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from akarm.cli import VERBS, build_parser, main
@@ -89,3 +91,37 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     assert loop_options(args) == {"timing": "slow", "stall_limit": 0.5}
     args = build_parser().parse_args(["replay", "robots/arm6.yaml", "x.yaml"])
     assert loop_options(args) == {"timing": "normal", "stall_limit": None}  # None: the profile's
+
+
+# ----------------------------------------------------------------------------- durations and counts
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["zero", PLANAR2, "elbow", "--wait", "nan"], "argument --wait: 'nan' is not a finite number of seconds, at "
+                                                  "least 0"),
+    (["zero", PLANAR2, "elbow", "--wait", "inf"], "argument --wait: 'inf' is not a finite number of seconds"),
+    (["zero", PLANAR2, "elbow", "--wait", "-1"], "argument --wait: '-1' is not a finite number of seconds"),
+    (["zero", PLANAR2, "elbow", "--timeout", "0"], "argument --timeout: '0' is not a finite number of seconds, more "
+                                                    "than 0"),
+    (["zero", PLANAR2, "elbow", "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
+])
+def test_bad_durations_are_refused_while_parsing(argv: list[str], message: str,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """Refused by argparse: before the robot file is read, a bus opened or a frame sent."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and message in err and "Traceback" not in err
+
+
+def test_a_zero_wait_is_a_duration_the_probe_checks_too() -> None:
+    from akarm.control.probe import Probe
+    from akarm.errors import ArgumentError
+    from akarm.robotfile.load import load_robot
+
+    config = load_robot(PLANAR2).with_bus(interface="virtual", channel="zero-args")
+    with Probe(config, ["elbow"]) as probe:
+        with pytest.raises(ArgumentError, match=r"zero wait must be a finite number \(s\), at least 0, got inf"):
+            probe.zero("elbow", wait=math.inf)
+        with pytest.raises(ArgumentError, match=r"zero timeout must be a finite number \(s\), more than 0, got nan"):
+            probe.zero("elbow", timeout=math.nan)

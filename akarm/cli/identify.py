@@ -32,9 +32,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--speed", type=float, metavar="F", help="time scaling of the excitation, 0 < F <= 1 "
                         "(default: as fast as the joint limits and half the torque limits allow)")
-    parser.add_argument("--seconds", type=float, default=30.0, metavar="S", help="excitation length, s (default 30)")
+    parser.add_argument("--seconds", type=float, default=30.0, metavar="S",
+                        help="excitation length, 8-600 s (default 30)")
     parser.add_argument("--amplitude", type=float, default=0.5, metavar="RAD",
-                        help="largest excursion of each joint from where it starts, rad (default 0.5)")
+                        help="largest excursion of each joint from where it starts, 0 < RAD <= π (default 0.5)")
     parser.add_argument("--no-payload", action="store_true", help="do not identify a payload (use the file's)")
     parser.add_argument("--no-offsets", action="store_true", help="do not fit a torque offset per joint")
     parser.add_argument("--payload-only", action="store_true",
@@ -47,12 +48,14 @@ def run(args: argparse.Namespace) -> int:
     """Enable, identify, report (or save), disable."""
     from akarm.errors import ArgumentError
     from akarm.identify import Identification, estimate_payload, identify
-    from akarm.identify.fit import yaml_payload
+    from akarm.identify.fit import check_excitation, yaml_payload
 
     if args.speed is not None and not 0 < args.speed <= 1:
         raise ArgumentError(f"--speed {args.speed} must be in (0, 1]", fix="e.g. --speed 0.5")
     if args.payload_only and args.no_payload:
         raise ArgumentError("--payload-only and --no-payload contradict each other")
+    if not args.payload_only:  # before the arm is enabled, not once the excitation is planned
+        check_excitation(args.amplitude, args.seconds, names=("--amplitude", "--seconds"))
     config = load_from_args(args)
     with controlled(config) as arm:
         if not args.no_payload:  # an unknown payload is an external torque: the reflex would stop the arm

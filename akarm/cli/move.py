@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from akarm.cli.options import negative_values_are_positional
+    from akarm.cli.options import finite, negative_values_are_positional
 
     add_robot_arguments(parser)
     parser.add_argument("target", metavar="TARGET", nargs="*",
@@ -48,10 +48,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "after a pose name or alone (the other joints stay where they are)")
     negative_values_are_positional(parser)
     _intermixed(parser)
-    parser.add_argument("--xyz", type=float, nargs=3, metavar=("X", "Y", "Z"),
+    parser.add_argument("--xyz", type=finite, nargs=3, metavar=("X", "Y", "Z"),
                         help="instead of TARGET: move the tool frame to this position (m, base frame); its "
                              "orientation stays as it is unless --rpy gives one")
-    parser.add_argument("--rpy", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+    parser.add_argument("--rpy", type=finite, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                         help="with --xyz: the tool's orientation, rad (URDF convention: Rz(yaw) Ry(pitch) Rx(roll))")
     parser.add_argument("--linear", action="store_true", help="with --xyz: move the tool in a straight line")
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",

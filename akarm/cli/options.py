@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["MAX_SECONDS", "TELEMETRY_SUFFIXES", "add_bus_kwargs", "check_output", "count", "delay", "duration",
-           "negative_values_are_positional", "renamed"]
+           "finite", "negative_values_are_positional", "renamed"]
 
 #: s, the longest duration an option takes (a week): more than any wait or run a verb is given, and far
 #: below what a sleep can take (``time.sleep(1e300)`` raises OverflowError)
@@ -45,6 +45,17 @@ def delay(text: str) -> float:
     """argparse type of a pause that may be none (a time to listen, to wait): a finite number of
     seconds, at least 0, at most :data:`MAX_SECONDS`."""
     return _seconds(text, 0.0, None)
+
+
+def finite(text: str) -> float:
+    """argparse type of a value that may be any finite number (a coordinate, an angle)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
 
 
 def count(text: str) -> int:

@@ -51,7 +51,7 @@ from akarm.config import Friction, Payload
 from akarm.control.collision import MomentumObserver
 from akarm.dynamics.gravity import sample_box
 from akarm.dynamics.model import ArrayLike, RobotModel
-from akarm.errors import ArgumentError, LimitError, StateError
+from akarm.errors import LimitError, StateError, finite_number
 from akarm.motion.recording import PathRecording
 from akarm.motion.trajectory import JointLimits
 from akarm.robotfile.save import JointValues, flow_collision, flow_friction, flow_payload, save_values
@@ -65,6 +65,7 @@ __all__ = [
     "Identification",
     "JointFit",
     "PayloadFit",
+    "check_excitation",
     "estimate_payload_at_rest",
     "excitation",
     "fit",
@@ -201,6 +202,19 @@ def _envelope(t: np.ndarray, duration: float, derivative: int = 0) -> np.ndarray
     return value
 
 
+def check_excitation(amplitude: float, duration: float, *,
+                     names: tuple[str, str] = ("amplitude", "duration")) -> tuple[float, float]:
+    """``(amplitude, duration)`` as floats when an excitation can have them: an amplitude in (0, π] rad,
+    a duration of 8-600 s (what :func:`excitation` takes; ``akarm identify`` checks its options with it,
+    under their ``names``, before the arm is enabled).
+
+    Raises:
+        ArgumentError: either is not a finite number in its range (names it).
+    """
+    return (finite_number(amplitude, names[0], above=0.0, at_most=math.pi, unit="rad", fix="e.g. 0.5 rad"),
+            finite_number(duration, names[1], at_least=8.0, at_most=600.0, unit="s", fix="e.g. 30 s"))
+
+
 def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5, duration: float = 30.0,
                rate_hz: float = 500.0) -> PathRecording:
     """The excitation path around ``center`` (rad): see the module's docstring.
@@ -209,12 +223,9 @@ def excitation(limits: JointLimits, center: ArrayLike, *, amplitude: float = 0.5
         LimitError: the centre is outside a joint's range.
         ArgumentError: an amplitude or duration out of range.
     """
+    amplitude, duration = check_excitation(amplitude, duration)
     c = np.asarray(center, dtype=float)
     limits.check_position(c, what="the excitation's centre")
-    if not 0 < amplitude <= math.pi:
-        raise ArgumentError(f"amplitude {amplitude} must be in (0, π] rad", fix="e.g. 0.5")
-    if not 8.0 <= duration <= 600.0:
-        raise ArgumentError(f"duration {duration} s must be 8-600 s", fix="e.g. 30")
     margin = 0.05
     room = np.minimum(c - limits.lower, limits.upper - c) - margin
     amp = np.clip(np.minimum(amplitude, room), 0.0, None)

@@ -93,7 +93,7 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     assert loop_options(args) == {"timing": "normal", "stall_limit": None}  # None: the profile's
 
 
-# ----------------------------------------------------------------------------- durations and counts
+# ----------------------------------------------------------------------------- numbers: durations, coordinates
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -104,8 +104,11 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     (["zero", PLANAR2, "elbow", "--timeout", "0"], "argument --timeout: '0' is not a finite number of seconds, more "
                                                     "than 0"),
     (["zero", PLANAR2, "elbow", "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
+    (["move", PLANAR2, "--xyz", "nan", "0", "0.3"], "argument --xyz: 'nan' is not a finite number"),
+    (["move", PLANAR2, "--xyz", "0.3", "0", "0.3", "--rpy", "0", "inf", "0"], "argument --rpy: 'inf' is not a finite "
+                                                                             "number"),
 ])
-def test_bad_durations_are_refused_while_parsing(argv: list[str], message: str,
+def test_bad_numbers_are_refused_while_parsing(argv: list[str], message: str,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """Refused by argparse: before the robot file is read, a bus opened or a frame sent."""
     with pytest.raises(SystemExit) as e:
@@ -125,3 +128,24 @@ def test_a_zero_wait_is_a_duration_the_probe_checks_too() -> None:
             probe.zero("elbow", wait=math.inf)
         with pytest.raises(ArgumentError, match=r"zero timeout must be a finite number \(s\), more than 0, got nan"):
             probe.zero("elbow", timeout=math.nan)
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    (["--amplitude", "nan"], r"--amplitude must be a finite number \(rad\), more than 0 and at most 3.14159, got nan"),
+    (["--amplitude", "4"], r"--amplitude must be a finite number \(rad\), more than 0 and at most 3.14159, got 4.0"),
+    (["--seconds", "5"], r"--seconds must be a finite number \(s\), at least 8 and at most 600, got 5.0"),
+])
+def test_identify_checks_its_excitation_before_opening_the_arm(options: list[str], message: str,
+                                                                capsys: pytest.CaptureFixture[str],
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import re
+
+    from akarm.arm import Arm
+
+    def refuse(self: Arm) -> Arm:
+        raise AssertionError("the arm was opened (and would be enabled) before the options were checked")
+
+    monkeypatch.setattr(Arm, "open", refuse)
+    assert main(["identify", PLANAR2, "-i", "virtual", "-c", "identify-options", *options]) == 1
+    err = capsys.readouterr().err
+    assert re.search(message, err) and "(fix: e.g." in err and "Traceback" not in err

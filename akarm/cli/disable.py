@@ -15,6 +15,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_robot_arguments, load_from_args
+from akarm.cli.options import duration
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
     add_robot_arguments(parser)
-    parser.add_argument("--timeout", type=float, metavar="S",
+    parser.add_argument("--timeout", type=duration, metavar="S",
                         help="seconds to wait for the joints to answer (default: 0.25, or 2.5 periods of the "
                              "slowest servo status rate)")
 

@@ -26,6 +26,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from akarm.cli.common import add_robot_arguments, load_from_args
+from akarm.cli.options import delay
 
 if TYPE_CHECKING:
     from akarm.config import BusConfig, JointConfig
@@ -57,10 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser, robot_required=False)
     parser.add_argument("--ids", type=parse_ids, default=list(range(1, 128)), metavar="IDS",
                         help="CAN IDs to look for, e.g. 1-32 or 1,3,5-7 (default 1-127)")
-    parser.add_argument("--listen", type=float, default=0.3, metavar="S",
+    parser.add_argument("--listen", type=delay, default=0.3, metavar="S",
                         help="seconds to listen for servo status frames before querying (default 0.3: "
                              "motors sending at 4 Hz or more)")
-    parser.add_argument("--timeout", type=float, default=0.1, metavar="S",
+    parser.add_argument("--timeout", type=delay, default=0.1, metavar="S",
                         help="seconds to wait for MIT replies after the last query (default 0.1)")
 
 
@@ -110,10 +111,8 @@ def run(args: argparse.Namespace) -> int:
     """Scan the bus(es); print a table of what answered."""
     from akarm.cli.common import format_table
     from akarm.control.probe import scan
-    from akarm.errors import AkarmError, ArgumentError
+    from akarm.errors import AkarmError
 
-    if args.listen < 0 or args.timeout < 0:
-        raise ArgumentError("--listen and --timeout must not be negative")
     if args.robot is None:
         buses = [_bus_from_args(args)]
         joints = []

@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from akarm.cli.common import add_robot_arguments, format_table, load_from_args
+from akarm.cli.options import count, duration
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
@@ -32,10 +33,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_robot_arguments(parser)
     parser.add_argument("--json", action="store_true", help="print JSON (one object per reading) instead of a table")
     parser.add_argument("--watch", action="store_true", help="read again every --interval s until Ctrl-C")
-    parser.add_argument("--interval", type=float, default=0.5, metavar="S",
+    parser.add_argument("--interval", type=duration, default=0.5, metavar="S",
                         help="seconds between readings with --watch (default 0.5)")
-    parser.add_argument("--count", type=int, metavar="N", help="with --watch: stop after N readings")
-    parser.add_argument("--timeout", type=float, metavar="S",
+    parser.add_argument("--count", type=count, metavar="N", help="with --watch: stop after N readings")
+    parser.add_argument("--timeout", type=duration, metavar="S",
                         help="seconds to wait for the joints (default: 0.25, or 2.5 periods of the slowest servo "
                              "status rate)")
 
@@ -74,14 +75,6 @@ def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO,
         print(about["text"], file=out, flush=True)
 
 
-def check_options(args: argparse.Namespace) -> None:
-    """The options status checks before it reads anything (here or through akarm serve)."""
-    from akarm.errors import AkarmError
-
-    if args.watch and not args.interval > 0:
-        raise AkarmError(f"--interval {args.interval} must be positive", fix="e.g. --interval 0.5")
-
-
 def watch(args: argparse.Namespace, read: Callable[[], list[JointStatus]],
           about: Callable[[], dict[str, Any]] | None = None) -> list[JointStatus]:
     """Print ``read()`` once, or with --watch every --interval s (--count times, else until Ctrl-C);
@@ -111,7 +104,6 @@ def run(args: argparse.Namespace) -> int:
         return served
     from akarm.control.probe import Probe
 
-    check_options(args)
     config = load_from_args(args)
     with Probe(config) as probe:
         states = watch(args, lambda: probe.read_state(args.timeout))
@@ -132,7 +124,6 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
     are asked first, as without a server. Each reading says its age; a latched safety stop is shown."""
     from akarm.control.probe import JointStatus
 
-    check_options(args)
     last: dict[str, Any] = {}
 
     def read() -> list[JointStatus]:

@@ -104,6 +104,20 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     (["zero", PLANAR2, "elbow", "--timeout", "0"], "argument --timeout: '0' is not a finite number of seconds, more "
                                                     "than 0"),
     (["zero", PLANAR2, "elbow", "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
+    (["status", PLANAR2, "--watch", "--interval", "inf"], "argument --interval: 'inf' is not a finite number of "
+                                                          "seconds, more than 0"),
+    (["status", PLANAR2, "--watch", "--interval", "1e300"], "argument --interval: '1e300' is not a finite number of "
+                                                            "seconds, more than 0 and at most 604800"),
+    (["status", PLANAR2, "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
+    (["status", PLANAR2, "--timeout", "-1"], "argument --timeout: '-1' is not a finite number of seconds"),
+    (["status", PLANAR2, "--watch", "--count", "0"], "argument --count: '0' is not a whole number, at least 1"),
+    (["status", PLANAR2, "--watch", "--count", "-1"], "argument --count: '-1' is not a whole number, at least 1"),
+    (["scan", "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds, at least 0"),
+    (["scan", "--timeout", "inf"], "argument --timeout: 'inf' is not a finite number of seconds"),
+    (["scan", "--listen", "nan"], "argument --listen: 'nan' is not a finite number of seconds"),
+    (["disable", PLANAR2, "--timeout", "-1"], "argument --timeout: '-1' is not a finite number of seconds, more "
+                                              "than 0"),
+    (["disable", PLANAR2, "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
     (["move", PLANAR2, "--xyz", "nan", "0", "0.3"], "argument --xyz: 'nan' is not a finite number"),
     (["move", PLANAR2, "--xyz", "0.3", "0", "0.3", "--rpy", "0", "inf", "0"], "argument --rpy: 'inf' is not a finite "
                                                                              "number"),

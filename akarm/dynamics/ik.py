@@ -67,9 +67,10 @@ def _vector(x: Any, n: int, what: str) -> np.ndarray:
     try:
         v = np.asarray(x, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise ArgumentError(f"a {what} must be {n} numbers, not {x!r}") from None
+        raise ArgumentError(f"a {what} must be {n} numbers, not {x!r}", fix=f"give {n} numbers") from None
     if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise ArgumentError(f"a {what} must be {n} finite numbers, not {x!r}")
+        shown = [float(e) for e in v] if v.ndim == 1 and v.size <= 16 else x  # [nan, 0.0, 0.0], not a numpy repr
+        raise ArgumentError(f"a {what} must be {n} finite numbers, not {shown!r}", fix=f"give {n} finite numbers")
     return v
 
 

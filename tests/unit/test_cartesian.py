@@ -49,6 +49,13 @@ def test_what_is_not_a_pose_is_an_argument_error(bad: object) -> None:
         as_pose(bad, np.eye(4))
 
 
+def test_a_position_that_is_not_finite_is_shown_as_numbers_with_a_fix() -> None:
+    with pytest.raises(akarm.ArgumentError) as e:
+        as_pose(np.array([math.nan, 0.0, 0.3]), np.eye(4))
+    assert str(e.value) == ("a position (m) must be 3 finite numbers, not [nan, 0.0, 0.3] "
+                            "(fix: give 3 finite numbers)")
+
+
 def test_ik_solves_reachable_arm6_poses_within_a_micrometre() -> None:
     ik = solver(ARM6)
     rng = np.random.default_rng(7)

@@ -19,7 +19,7 @@ All positions are rad, velocities rad/s, torques N·m, times s, in config joint 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
 from typing import Any
@@ -409,6 +409,26 @@ class Arm:
             raise ArgumentError(f"target {x} is not a finite angle", joint=joint, fix="give an angle in rad")
         return x
 
+    @staticmethod
+    def _speed(speed: object) -> float:
+        """A move's ``speed`` (a fraction of the joint limits) as a float in (0, 1], or :class:`ArgumentError`."""
+        return finite_number(speed, "speed", above=0.0, at_most=1.0,
+                             fix="give a fraction of the joint limits, e.g. speed=0.5")
+
+    def _angles(self, values: object, what: str) -> np.ndarray:
+        """``values``: one finite angle per joint (rad, config order), else :class:`ArgumentError` naming ``what``."""
+        fix = "give one angle (rad) per joint in config order: " + ", ".join(self.names)
+        try:
+            if isinstance(values, str | bytes | Mapping):
+                raise TypeError
+            items = list(values)  # type: ignore[call-overload]
+        except TypeError:
+            raise ArgumentError(f"{what} must be one angle per joint, not {values!r}", fix=fix) from None
+        if len(items) != self.n:
+            raise ArgumentError(f"{what} has {len(items)} values, the arm has {self.n} joints", fix=fix)
+        return np.array([finite_number(v, what, joint=name, unit="rad", fix="give an angle in rad")
+                         for v, name in zip(items, self.names, strict=True)])
+
     def _start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
         return self._ctl.start(make_plan)
 
@@ -428,6 +448,7 @@ class Arm:
                 (checked before anything moves; names the joint). A move may start up to
                 ``range_margin`` outside a range, and come back into it.
         """
+        speed = self._speed(speed)
         q = self.target_positions(target)
         return self._run(self._start(lambda start, now: self.planner.move_from(start, q, now, speed)), wait)
 
@@ -440,6 +461,7 @@ class Arm:
         position on the path is outside a joint's range, and :class:`~akarm.ArgumentError` for more
         than :data:`~akarm.motion.bounds.MAX_KEYFRAMES` points (before looking at them).
         """
+        speed = self._speed(speed)
         _bounded(points, MAX_KEYFRAMES, "points", "move_through takes", "split the path into several moves")
         qs = [self.target_positions(p) for p in points]
         return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
@@ -476,6 +498,7 @@ class Arm:
 
         ``synchronize=False``: each joint heads for its target as fast as its own limits allow instead
         of all arriving together (tracking a stream, as :mod:`akarm.teleop` does)."""
+        speed = self._speed(speed)
         q = self.target_positions(target)
         return self._start(lambda start, now: self.planner.move_from(start, q, now, speed, synchronize))
 
@@ -523,11 +546,16 @@ class Arm:
 
     def tool_pose(self, q: Sequence[float] | None = None) -> np.ndarray:
         """The 4×4 pose of the YAML's ``tool_frame`` in the base frame (translation in m), at the
-        measured joint positions (or at ``q``, rad)."""
+        measured joint positions (or at ``q``, rad).
+
+        Raises:
+            ArgumentError: a ``q`` that is not one finite angle per joint (names the joint).
+        """
         if q is None:
-            with self._ctl.lock:
-                q = [j.state.position for j in self.joints]
-        return self.ik.model.tool_pose(q)
+            with self._ctl.lock:  # (only the reading under the loop's lock)
+                measured = [j.state.position for j in self.joints]
+            return self.ik.model.tool_pose(measured)
+        return self.ik.model.tool_pose(self._angles(q, "tool_pose q"))
 
     def _pose_target(self, pose: object) -> tuple[np.ndarray, np.ndarray, bool]:
         """(start q: the commanded position, the target 4×4, position only?) for a Cartesian move."""
@@ -549,6 +577,7 @@ class Arm:
             LimitError: the pose needs a joint past its range (names it), or the path does.
             SingularityError: the pose is reached only at a singularity.
         """
+        speed = self._speed(speed)
         q0, target, position_only = self._pose_target(pose)
         q = self.ik.solve(target, q0, position_only)
         return self.move_to(q, speed=speed, wait=wait)
@@ -569,6 +598,7 @@ class Arm:
                 reach, one past a joint's range (names the joint), a singularity on the way; each
                 says where on the line. Nothing moved.
         """
+        speed = self._speed(speed)
         q0, target, position_only = self._pose_target(pose)
         if self._ctl.moving:
             raise StateError("move_linear starts from rest and the arm is moving",
@@ -674,18 +704,21 @@ class Arm:
         exactly as :meth:`replay` would before moving. Keyframes are checked for position and
         planned (from rest at the first keyframe) so a path past a limit is found too.
         """
-        rec = self._recording(recording, speed)
+        rec, speed = self._recording(recording, speed)
         if isinstance(rec, rec_mod.Keyframes):
             qs = self._keyframe_positions(rec)
-            self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, min(speed, 1.0))
+            self.planner.through((qs[0], np.zeros(self.n), np.zeros(self.n)), qs, 0.0, speed)
         else:
             rec_mod.check_path(rec_mod.PathPlan(rec, 0.0, speed), self.limits)
         return rec
 
     def _recording(self, recording: rec_mod.Keyframes | rec_mod.PathRecording | str | PathLike[str],
-                   speed: float) -> rec_mod.Keyframes | rec_mod.PathRecording:
+                   speed: object) -> tuple[rec_mod.Keyframes | rec_mod.PathRecording, float]:
         """The recording (read if a file), for this arm's joints and within the sizes of
-        :mod:`akarm.motion.bounds` (:class:`~akarm.RecordingError` naming the bound, before anything else)."""
+        :mod:`akarm.motion.bounds` (:class:`~akarm.RecordingError` naming the bound, before anything else),
+        and the ``speed`` it is replayed at: a finite factor > 0, at most 1 for keyframes (a fraction of
+        the joint limits, as in :meth:`move_to`), else :class:`~akarm.ArgumentError` (before a file is read)."""
+        factor = finite_number(speed, "speed", above=0.0, fix="e.g. speed=0.5")
         rec = recording if isinstance(recording, rec_mod.Keyframes | rec_mod.PathRecording) else \
             rec_mod.load(recording, self.names)
         if tuple(rec.joint_names) != tuple(self.names):
@@ -695,17 +728,19 @@ class Arm:
             if len(rec.frames) > MAX_KEYFRAMES:
                 raise RecordingError(f"the recording has {len(rec.frames)} keyframes, more than the {MAX_KEYFRAMES} a "
                                      "replay takes (akarm.motion.bounds.MAX_KEYFRAMES)", fix="split it into several")
+            if factor > 1.0:
+                raise ArgumentError(f"keyframes are replayed at a fraction of the joint limits, in (0, 1]; got speed "
+                                    f"{speed!r}", fix="give a speed of at most 1 (1: as fast as the limits allow)")
         else:
             if len(rec.t) > MAX_PATH_SAMPLES:
                 raise RecordingError(f"the path has {len(rec.t)} samples, more than the {MAX_PATH_SAMPLES} a replay "
                                      "takes (akarm.motion.bounds.MAX_PATH_SAMPLES)", fix="split it into several")
-            if not (isinstance(speed, int | float) and speed > 0):
-                raise ArgumentError(f"speed must be a positive number, got {speed!r}", fix="e.g. speed=0.5")
-            if not rec.duration / speed <= MAX_DURATION:
-                raise RecordingError(f"the path would take {rec.duration / speed:.0f} s at speed {speed:g}, more than "
-                                     f"the {MAX_DURATION:g} s a motion may last (akarm.motion.bounds.MAX_DURATION)",
+            if not rec.duration / factor <= MAX_DURATION:
+                raise RecordingError(f"the path would take {rec.duration / factor:.0f} s at speed {factor:g}, more "
+                                     f"than the {MAX_DURATION:g} s a motion may last "
+                                     "(akarm.motion.bounds.MAX_DURATION)",
                                      fix="replay it faster, or split it into several")
-        return rec
+        return rec, factor
 
     def _keyframe_positions(self, rec: rec_mod.Keyframes) -> list[np.ndarray]:
         """The keyframes' positions, each checked against the joint ranges (:class:`~akarm.LimitError`)."""
@@ -724,21 +759,23 @@ class Arm:
         """Replay a recording (or a recording file), checked against every limit before anything moves.
 
         A soft start first moves, jerk-limited, from wherever the arm is to the first point.
-        Keyframes are then passed through as one smooth move (``speed`` as in :meth:`move_to`);
-        a path is followed at its recorded timing divided by ``speed`` (any positive factor).
+        Keyframes are then passed through as one smooth move (``speed`` as in :meth:`move_to`: a
+        fraction of the joint limits, in (0, 1]; more is refused, as a path too fast for the limits is);
+        a path is followed at its recorded timing divided by ``speed`` (any finite factor > 0).
 
         The plan is made in this thread while the arm goes on holding (or moving) under the control
         loop, and takes over when it is ready (a 5000-keyframe or one-hour recording takes seconds).
 
         Raises:
+            ArgumentError: a ``speed`` that is not a finite number > 0, or more than 1 for keyframes.
             RecordingError: an unreadable, truncated or mismatched file, or one past the sizes of
                 :mod:`akarm.motion.bounds` (names the bound).
             LimitError: the path breaks a limit after scaling; names the joint and the time, and
                 suggests the speed factor that would pass.
         """
-        rec = self._recording(recording, speed)
+        rec, speed = self._recording(recording, speed)
         if isinstance(rec, rec_mod.Keyframes):  # planned once, from where the arm is, through every keyframe
-            return self.move_through(self._keyframe_positions(rec), speed=min(speed, 1.0), wait=wait)
+            return self.move_through(self._keyframe_positions(rec), speed=speed, wait=wait)
         path = rec_mod.PathPlan(rec, 0.0, speed)  # made and checked once: taking over only shifts it in time
         rec_mod.check_path(path, self.limits)
 
@@ -873,6 +910,9 @@ class Arm:
                                             fix="joints are: " + ", ".join(self.names))
                     current[self.names.index(name)] = value
             elif thresholds is not None:
+                if isinstance(thresholds, str | bytes) or not isinstance(thresholds, Iterable):
+                    raise ArgumentError(f"collision thresholds must be one per joint or a {{joint: N·m}} mapping, not "
+                                        f"{thresholds!r}", fix="e.g. [10.0, None] in config order, or {'elbow': 10.0}")
                 current = list(thresholds)
             ctl.set_collision(current, reaction)
 
@@ -912,15 +952,19 @@ class Arm:
         """Wait ``seconds`` of the arm's clock while the loop keeps the arm under control.
 
         With a stepped (simulated) clock this is what advances time. Raises the arm's
-        :class:`~akarm.SafetyStop` if it stopped meanwhile.
+        :class:`~akarm.SafetyStop` if it stopped meanwhile, and :class:`~akarm.ArgumentError` for
+        ``seconds`` that are not a finite number ≥ 0.
         """
+        seconds = finite_number(seconds, "sleep seconds", at_least=0.0, unit="s", fix="e.g. arm.sleep(0.5)")
         end = self.clock.now() + seconds
         self._ctl.wait_for(lambda: self.clock.now() >= end - 1e-12, seconds + 5.0, "time to pass", until=end)
 
     def telemetry(self, since: float | None = None) -> TelemetryLog:
         """The recorded cycles since ``since`` (clock time, s; default: all kept), oldest first: desired
         and measured q, dq, τ, the feed-forward and the external torque estimate (:attr:`telemetry_seconds`
-        of them at most)."""
+        of them at most). A ``since`` that is not a finite number: :class:`~akarm.ArgumentError`."""
+        if since is not None:
+            since = finite_number(since, "telemetry since", unit="s, clock time", fix="e.g. arm.clock.now() - 5")
         return self._ctl.telemetry_log(since)
 
     @property

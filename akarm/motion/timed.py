@@ -44,6 +44,16 @@ def _vias(times: np.ndarray, q: np.ndarray, q0: np.ndarray, vmax: np.ndarray) ->
     return v
 
 
+def _floats(values: object, what: str, fix: str) -> np.ndarray:
+    """``values`` as a float array (a copy), or :class:`ArgumentError` saying ``what`` (text, None, ragged rows)."""
+    try:
+        if isinstance(values, str | bytes):
+            raise TypeError
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ArgumentError(f"{what}, got {values!r:.80}", fix=fix) from None
+
+
 def timed_plan(planner: Planner, start: State, t0: float,
                times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
                velocities: Sequence[Sequence[float]] | np.ndarray | None = None) -> Plan:
@@ -63,13 +73,13 @@ def timed_plan(planner: Planner, start: State, t0: float,
         LimitError: a point, or a position the path passes through, is outside a joint's range.
         ArgumentError: the points are malformed (names the problem). Nothing is started.
     """
-    q = np.array(positions, dtype=float)
     n = planner.dofs
+    q = _floats(positions, f"a timed trajectory needs points of {n} positions", "one position per joint, rad")
     if q.ndim != 2 or q.shape[1] != n or len(q) == 0:
         raise ArgumentError(f"a timed trajectory needs points of {n} positions", fix="one position per joint, rad")
     held = np.isnan(q)
     q[held] = np.broadcast_to(np.asarray(start[0], dtype=float), q.shape)[held]
-    ts = np.asarray(times, dtype=float)
+    ts = _floats(times, "the points' times must be numbers", "give each point a time_from_start, s")
     if ts.shape != (len(q),) or not np.all(np.isfinite(ts)) or np.any(ts < 0) or np.any(np.diff(ts) < 0):
         raise ArgumentError("the points' times must be finite, non-negative and increasing",
                             fix="give each point a time_from_start later than the previous one")
@@ -77,7 +87,7 @@ def timed_plan(planner: Planner, start: State, t0: float,
         planner.limits.check_position(p, what=f"point {k}")
     vmax = np.asarray(planner.limits.velocity, dtype=float)
     if velocities is not None:
-        given = np.array(velocities, dtype=float)
+        given = _floats(velocities, "velocities must be numbers", "leave velocities empty to have them estimated")
         if given.shape == q.shape:
             given[held] = 0.0
         if given.shape != q.shape or not np.all(np.isfinite(given)):

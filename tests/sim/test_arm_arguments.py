@@ -23,3 +23,69 @@ def test_enable_refuses_a_bad_timeout_before_the_mode_changes(lockstep, timeout)
         arm.enable(timeout=0.5)  # nothing was left half-done: a good enable still works
         assert arm.enabled
         assert np.all(np.isfinite(arm.state().q))
+
+
+SPEED = r"speed must be a finite number, more than 0 and at most 1, got "
+
+
+@pytest.mark.parametrize("speed", ["1", None, True, NAN, 0, 2.0])
+def test_a_move_refuses_a_speed_that_is_not_a_fraction_of_the_limits(lockstep, speed) -> None:
+    with lockstep("planar2", enable=True) as (arm, sim):
+        q = arm.state().q_des.copy()
+        for move in (lambda: arm.move_to("up", speed=speed), lambda: arm.stream_to("up", speed=speed),
+                     lambda: arm.move_through(["up", "home"], speed=speed),
+                     lambda: arm.move_to_pose(arm.tool_pose(), speed=speed)):
+            with pytest.raises(ArgumentError, match=SPEED) as e:
+                move()
+            assert "fraction of the joint limits" in e.value.fix
+        assert not arm.moving and np.array_equal(arm.state().q_des, q)
+
+
+@pytest.mark.parametrize("seconds", ["1", None, -1.0, NAN, math.inf])
+def test_sleep_refuses_what_is_not_a_finite_number_of_seconds(lockstep, seconds) -> None:
+    with lockstep("planar2") as (arm, sim):
+        t = arm.clock.now()
+        with pytest.raises(ArgumentError, match=r"sleep seconds must be a finite number \(s\), at least 0, got "):
+            arm.sleep(seconds)
+        assert arm.clock.now() == t
+
+
+def test_keyframes_replay_at_a_fraction_of_the_limits_as_the_docs_say(lockstep) -> None:
+    """Keyframes were replayed at min(speed, 1): speed=5 silently as 1 (a path takes any factor > 0)."""
+    from akarm.motion import recording as rec_mod
+
+    with lockstep("planar2", enable=True) as (arm, sim):
+        kf = rec_mod.Keyframes(arm.names, [rec_mod.Keyframe((0.0, 0.0)), rec_mod.Keyframe((0.3, 0.2))])
+        for replay in (arm.check_replay, arm.replay):
+            with pytest.raises(ArgumentError, match=r"keyframes are replayed at a fraction of the joint limits, in "
+                                                    r"\(0, 1\]; got speed 5"):
+                replay(kf, speed=5)
+            with pytest.raises(ArgumentError, match=r"speed must be a finite number, more than 0, got 'x'"):
+                replay(kf, speed="x")
+        path = rec_mod.PathRecording(arm.names, np.linspace(0, 1, 11), np.zeros((11, 2)))
+        assert arm.check_replay(path, speed=2.0) is path  # a path: its recorded timing, twice as fast
+        with pytest.raises(ArgumentError, match=r"speed must be a finite number, more than 0, got inf"):
+            arm.check_replay(path, speed=math.inf)
+        assert not arm.moving
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda arm: arm.set_collision(5), r"collision thresholds must be one per joint or a \{joint: N·m\} mapping, "
+                                       r"not 5"),
+    (lambda arm: arm.set_collision("ab"), r"collision thresholds must be one per joint"),
+    (lambda arm: arm.follow(["a"], [[0.0, 0.0]]), r"the points' times must be numbers, got \['a'\]"),
+    (lambda arm: arm.follow([1.0], [["a", 0.0]]), r"a timed trajectory needs points of 2 positions, got"),
+    (lambda arm: arm.follow([1.0], [[0.0, 0.0]], velocities="ab"), r"velocities must be numbers, got 'ab'"),
+    (lambda arm: arm.tool_pose("home"), r"tool_pose q must be one angle per joint, not 'home'"),
+    (lambda arm: arm.tool_pose([0.0]), r"tool_pose q has 1 values, the arm has 2 joints"),
+    (lambda arm: arm.tool_pose([NAN, 0.0]), r"joint 'shoulder': tool_pose q must be a finite number \(rad\), got nan"),
+    (lambda arm: arm.tool_pose([0.0, "x"]), r"joint 'elbow': tool_pose q must be a finite number \(rad\), got 'x'"),
+    (lambda arm: arm.telemetry(since="x"), r"telemetry since must be a finite number \(s, clock time\), got 'x'"),
+    (lambda arm: arm.telemetry(since=NAN), r"telemetry since must be a finite number"),
+])
+def test_arm_calls_refuse_bad_arguments_with_an_argument_error(lockstep, call, message) -> None:
+    with lockstep("planar2", enable=True) as (arm, sim):
+        thresholds = arm.collision_thresholds
+        with pytest.raises(ArgumentError, match=message) as e:
+            call(arm)
+        assert e.value.fix and not arm.moving and arm.collision_thresholds == thresholds

@@ -415,18 +415,19 @@ class Arm:
         return finite_number(speed, "speed", above=0.0, at_most=1.0,
                              fix="give a fraction of the joint limits, e.g. speed=0.5")
 
-    def _angles(self, values: object, what: str) -> np.ndarray:
-        """``values``: one finite angle per joint (rad, config order), else :class:`ArgumentError` naming ``what``."""
-        fix = "give one angle (rad) per joint in config order: " + ", ".join(self.names)
+    def _per_joint(self, values: object, what: str, *, unit: str = "rad", at_least: float | None = None) -> np.ndarray:
+        """``values``: one finite number per joint (``unit``, config order; each ≥ ``at_least`` if given), else
+        :class:`ArgumentError` naming ``what`` (and the joint)."""
+        fix = f"give one value ({unit}) per joint in config order: " + ", ".join(self.names)
         try:
             if isinstance(values, str | bytes | Mapping):
                 raise TypeError
             items = list(values)  # type: ignore[call-overload]
         except TypeError:
-            raise ArgumentError(f"{what} must be one angle per joint, not {values!r}", fix=fix) from None
+            raise ArgumentError(f"{what} must be one value per joint, not {values!r}", fix=fix) from None
         if len(items) != self.n:
             raise ArgumentError(f"{what} has {len(items)} values, the arm has {self.n} joints", fix=fix)
-        return np.array([finite_number(v, what, joint=name, unit="rad", fix="give an angle in rad")
+        return np.array([finite_number(v, what, joint=name, unit=unit, at_least=at_least)
                          for v, name in zip(items, self.names, strict=True)])
 
     def _start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
@@ -555,7 +556,7 @@ class Arm:
             with self._ctl.lock:  # (only the reading under the loop's lock)
                 measured = [j.state.position for j in self.joints]
             return self.ik.model.tool_pose(measured)
-        return self.ik.model.tool_pose(self._angles(q, "tool_pose q"))
+        return self.ik.model.tool_pose(self._per_joint(q, "tool_pose q"))
 
     def _pose_target(self, pose: object) -> tuple[np.ndarray, np.ndarray, bool]:
         """(start q: the commanded position, the target 4×4, position only?) for a Cartesian move."""
@@ -880,9 +881,13 @@ class Arm:
         compensates friction (``friction_feedforward``), takes Coulomb and viscous.
 
         Raises:
-            ArgumentError: not one finite value per joint.
+            ArgumentError: not one finite value per joint, a Coulomb or viscous friction below 0 (as the
+                robot file's ``friction:`` refuses it); names the joint.
         """
-        self._ctl.set_friction(coulomb, viscous, [0.0] * self.n if offset is None else offset)
+        c = self._per_joint(coulomb, "coulomb friction", unit="N·m", at_least=0.0)
+        b = self._per_joint(viscous, "viscous friction", unit="N·m·s/rad", at_least=0.0)
+        o = np.zeros(self.n) if offset is None else self._per_joint(offset, "friction offset", unit="N·m")
+        self._ctl.set_friction(c.tolist(), b.tolist(), o.tolist())
 
     @property
     def gains(self) -> tuple[np.ndarray, np.ndarray]:

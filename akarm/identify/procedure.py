@@ -195,8 +195,8 @@ def apply_identification(arm: Arm, result: Identification) -> None:
     Coulomb and viscous terms, not the offset)."""
     if result.payload is not None:
         arm.set_payload(result.payload.mass, result.payload.com)
-    if result.joints:
-        arm.set_friction([j.coulomb for j in result.joints], [j.viscous for j in result.joints],
+    if result.joints:  # a fit's noise can leave a joint without friction a little below 0: none
+        arm.set_friction([max(0.0, j.coulomb) for j in result.joints], [max(0.0, j.viscous) for j in result.joints],
                          [j.offset for j in result.joints])
 
 

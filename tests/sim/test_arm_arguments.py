@@ -76,7 +76,7 @@ def test_keyframes_replay_at_a_fraction_of_the_limits_as_the_docs_say(lockstep) 
     (lambda arm: arm.follow(["a"], [[0.0, 0.0]]), r"the points' times must be numbers, got \['a'\]"),
     (lambda arm: arm.follow([1.0], [["a", 0.0]]), r"a timed trajectory needs points of 2 positions, got"),
     (lambda arm: arm.follow([1.0], [[0.0, 0.0]], velocities="ab"), r"velocities must be numbers, got 'ab'"),
-    (lambda arm: arm.tool_pose("home"), r"tool_pose q must be one angle per joint, not 'home'"),
+    (lambda arm: arm.tool_pose("home"), r"tool_pose q must be one value per joint, not 'home'"),
     (lambda arm: arm.tool_pose([0.0]), r"tool_pose q has 1 values, the arm has 2 joints"),
     (lambda arm: arm.tool_pose([NAN, 0.0]), r"joint 'shoulder': tool_pose q must be a finite number \(rad\), got nan"),
     (lambda arm: arm.tool_pose([0.0, "x"]), r"joint 'elbow': tool_pose q must be a finite number \(rad\), got 'x'"),
@@ -89,3 +89,23 @@ def test_arm_calls_refuse_bad_arguments_with_an_argument_error(lockstep, call, m
         with pytest.raises(ArgumentError, match=message) as e:
             call(arm)
         assert e.value.fix and not arm.moving and arm.collision_thresholds == thresholds
+
+
+@pytest.mark.parametrize(("coulomb", "viscous", "offset", "message"), [
+    ([-0.1, 0.0], [0.0, 0.0], None, r"joint 'shoulder': coulomb friction must be a finite number \(N·m\), at least 0, "
+                                     r"got -0.1"),
+    ([0.1, 0.1], [0.0, -0.01], None, r"joint 'elbow': viscous friction must be a finite number \(N·m·s/rad\), at "
+                                      r"least 0, got -0.01"),
+    ([NAN, 0.0], [0.0, 0.0], None, r"joint 'shoulder': coulomb friction must be a finite number"),
+    ("ab", [0.0, 0.0], None, r"coulomb friction must be one value per joint, not 'ab'"),
+    ([0.1], [0.0, 0.0], None, r"coulomb friction has 1 values, the arm has 2 joints"),
+    ([0.1, 0.1], [0.0, 0.0], [NAN, 0.0], r"joint 'shoulder': friction offset must be a finite number \(N·m\), got nan"),
+])
+def test_set_friction_refuses_what_the_robot_file_refuses(lockstep, coulomb, viscous, offset, message) -> None:
+    with lockstep("planar2", enable=True) as (arm, sim):
+        with pytest.raises(ArgumentError, match=message) as e:
+            arm.set_friction(coulomb, viscous, offset)
+        assert e.value.fix
+        arm.set_friction([0.2, 0.1], [0.05, 0.02], [0.01, -0.01])  # a negative offset is a torque, not a friction
+        arm.sleep(0.05)
+        assert arm.enabled

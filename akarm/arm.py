@@ -223,6 +223,14 @@ class Arm:
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN,
                  remember_positions: bool | str | PathLike[str] = True) -> None:
+        for name, flag in (("realtime_priority", realtime_priority), ("friction_feedforward", friction_feedforward),
+                           ("busy_wait", busy_wait)):
+            if not isinstance(flag, bool | np.bool_):
+                raise ArgumentError(f"{name} must be True or False, got {flag!r}", fix=f"e.g. {name}=True")
+        if clock is not None and not (callable(getattr(clock, "now", None))
+                                      and callable(getattr(clock, "sleep_until", None)) and hasattr(clock, "stepped")):
+            raise ArgumentError(f"clock must be a clock (now(), sleep_until(t), stepped), got {clock!r}",
+                                fix="leave it out for the wall clock, or pass a simulator's: clock=sim.clock")
         self.timing = get_profile(timing)
         position_file: str | PathLike[str] | None
         if remember_positions is True and all(b.interface == "virtual" for b in config.buses.values()):
@@ -282,6 +290,7 @@ class Arm:
 
         Raises:
             BusError: a bus cannot be opened (the message says which, and how to create it).
+            RecordingError: ``can_log`` cannot be written (the buses are closed again).
             StateError: an ``akarm serve`` of another process drives one of the buses.
         """
         if self.mode is Mode.CLOSED:

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from akarm.errors import AkarmError
+from akarm.errors import ArgumentError
 
 if TYPE_CHECKING:
     from akarm.config import JointConfig, RobotConfig
@@ -112,7 +112,7 @@ def get_profile(profile: str | TimingProfile | None = None) -> TimingProfile:
     """The profile named ``profile`` (``None``: ``normal``); a :class:`TimingProfile` is returned as is.
 
     Raises:
-        AkarmError: no profile of that name (the message lists them).
+        ArgumentError: no profile of that name (the message lists them).
     """
     if isinstance(profile, TimingProfile):
         return profile
@@ -120,6 +120,6 @@ def get_profile(profile: str | TimingProfile | None = None) -> TimingProfile:
     try:
         return PROFILES[key]
     except KeyError:
-        raise AkarmError(f"no timing profile named {profile!r}",
-                         fix="use one of: " + "; ".join(f"{p.name} ({p.description})"
-                                                        for p in PROFILES.values())) from None
+        raise ArgumentError(f"no timing profile named {profile!r}",
+                            fix="use one of: " + "; ".join(f"{p.name} ({p.description})"
+                                                           for p in PROFILES.values())) from None

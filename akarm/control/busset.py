@@ -22,7 +22,7 @@ from akarm.buses.frames import Frame, message
 from akarm.buses.localbus import LocalBus
 from akarm.config import RobotConfig
 from akarm.control.joints import Joint, Router
-from akarm.errors import BusError, BusLost
+from akarm.errors import BusError, BusLost, RecordingError
 
 if TYPE_CHECKING:
     import can
@@ -78,6 +78,7 @@ class BusSet:
 
         Raises:
             BusError: a bus will not open (the others are closed again).
+            RecordingError: the CAN log cannot be written (every bus is closed again).
         """
         used = {j.bus for j in self.joints}
         try:
@@ -90,7 +91,13 @@ class BusSet:
         if self._can_log is not None:
             import can
 
-            self._logger = can.Logger(str(self._can_log))
+            try:
+                self._logger = can.Logger(str(self._can_log))
+            except (OSError, ValueError) as e:  # no such directory, no permission, a format python-can lacks
+                close_buses(self._buses)
+                raise RecordingError(f"cannot write the CAN log {str(self._can_log)!r}: {e}",
+                                     fix="give can_log a file in a directory that exists and can be written, "
+                                         "ending in .log, .asc, .blf, .csv, .txt, ...") from None
         routers = {name: Router([j for j in self.joints if j.bus == name]) for name in self._buses}
         # an akarm_local bus hands over a cycle's frames in one call, without a message each (unless
         # every frame is to be logged: the log takes messages)

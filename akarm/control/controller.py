@@ -67,7 +67,7 @@ from akarm.errors import (
     StateError,
 )
 from akarm.motion.trajectory import Plan, Planner, release
-from akarm.telemetry.log import Telemetry, TelemetryLog
+from akarm.telemetry.log import FIELDS, MAX_TELEMETRY_VALUES, Telemetry, TelemetryLog
 
 if TYPE_CHECKING:
     import can
@@ -133,6 +133,14 @@ class Controller:
         self.period = 1.0 / config.rate_hz
         self.lock = threading.RLock()
         self.modes = ModeMachine()
+        # the ring holds at most what a telemetry file may (MAX_TELEMETRY_VALUES): it can always be saved
+        # and read back, and a mistyped telemetry_seconds (1e12) is refused instead of a MemoryError
+        longest = MAX_TELEMETRY_VALUES / ((1 + len(FIELDS) * n) * config.rate_hz)
+        if options.telemetry_seconds > longest:
+            raise ArgumentError(f"telemetry_seconds {options.telemetry_seconds:g} is more than the telemetry ring "
+                                f"holds: {longest:.0f} s of {n} joints at {config.rate_hz:g} Hz "
+                                "(akarm.telemetry.log.MAX_TELEMETRY_VALUES numbers, what a telemetry file may hold)",
+                                fix=f"give telemetry_seconds of at most {longest:.0f}")
         self.telemetry = Telemetry(config.joint_names, max(1, int(options.telemetry_seconds * config.rate_hz)))
         joints = self.joints
 

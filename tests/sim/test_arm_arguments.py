@@ -109,3 +109,31 @@ def test_set_friction_refuses_what_the_robot_file_refuses(lockstep, coulomb, vis
         arm.set_friction([0.2, 0.1], [0.05, 0.02], [0.01, -0.01])  # a negative offset is a torque, not a friction
         arm.sleep(0.05)
         assert arm.enabled
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"telemetry_seconds": 1e12}, r"telemetry_seconds 1e\+12 is more than the telemetry ring holds: \d+ s of 2 joints "
+                                  r"at 500 Hz"),
+    ({"clock": "x"}, r"clock must be a clock \(now\(\), sleep_until\(t\), stepped\), got 'x'"),
+    ({"timing": "bogus"}, r"no timing profile named 'bogus'"),
+    ({"realtime_priority": "no"}, r"realtime_priority must be True or False, got 'no'"),
+    ({"friction_feedforward": "no"}, r"friction_feedforward must be True or False, got 'no'"),
+    ({"busy_wait": 1}, r"busy_wait must be True or False, got 1"),
+])
+def test_arm_options_of_the_wrong_kind_are_argument_errors(planar2, channel, options, message) -> None:
+    from akarm import Arm
+
+    with pytest.raises(ArgumentError, match=message) as e:
+        Arm(planar2.with_bus(interface="virtual", channel=channel), **options)
+    assert e.value.fix
+
+
+def test_a_can_log_that_cannot_be_written_closes_the_buses_it_opened(planar2, channel, tmp_path) -> None:
+    from akarm import Arm, RecordingError
+
+    arm = Arm(planar2.with_bus(interface="virtual", channel=channel), can_log=tmp_path / "missing" / "x.log")
+    with pytest.raises(RecordingError, match=r"cannot write the CAN log '.*/missing/x.log': .*No such file") as e:
+        arm.open()
+    assert "directory that exists" in e.value.fix
+    assert arm.mode is Mode.CLOSED and dict(arm.observe.buses) == {}
+    arm.close()

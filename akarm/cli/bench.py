@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
             sim = stack.enter_context(SimulatedRobot(config, realtime=True, q0=start, timing=args.profile))
         else:
             first = next(iter(config.poses), None)
-            more = ["-b", str(args.bitrate)] if args.bitrate else []
+            more = ["-b", str(args.bitrate)] if args.bitrate is not None else []
             if args.bus_kwargs:
                 more += ["--bus-kwargs", *(f"{k}={v}" for k, v in args.bus_kwargs.items())]
             sim = stack.enter_context(SimulatorProcess(args.robot, interface=interface, channel=channel, pose=first,

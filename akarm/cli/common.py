@@ -19,13 +19,14 @@ if TYPE_CHECKING:
 
 def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = True) -> None:
     """Add ``ROBOT`` (the YAML) and ``-i/--interface``, ``-c/--channel``, ``-b/--bitrate``, ``--bus-kwargs``."""
-    from akarm.cli.options import add_bus_kwargs
+    from akarm.cli.options import add_bus_kwargs, bitrate, interface
 
     parser.add_argument("robot", metavar="ROBOT.yaml", nargs=None if robot_required else "?",
                         help="the robot's YAML configuration")
-    parser.add_argument("-i", "--interface", help="python-can interface for every bus (e.g. socketcan, virtual)")
+    parser.add_argument("-i", "--interface", type=interface,
+                        help="python-can interface for every bus (e.g. socketcan, virtual)")
     parser.add_argument("-c", "--channel", help="channel (one bus), or NAME=CHANNEL[,NAME=CHANNEL...] per bus")
-    parser.add_argument("-b", "--bitrate", type=int, help="bit rate, bit/s")
+    parser.add_argument("-b", "--bitrate", type=bitrate, help="bit rate, bit/s (10000-1000000)")
     add_bus_kwargs(parser)
 
 
@@ -68,7 +69,7 @@ def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> Ro
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     kwargs = getattr(args, "bus_kwargs", None) or None
-    if args.interface or args.channel or args.bitrate or kwargs:
+    if args.interface is not None or args.channel or args.bitrate is not None or kwargs:
         config = config.with_bus(interface=args.interface, channel=parse_channel(args.channel),
                                  bitrate=args.bitrate, options=kwargs)
     return config

@@ -12,8 +12,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MAX_SECONDS", "TELEMETRY_SUFFIXES", "add_bus_kwargs", "check_output", "count", "delay", "duration",
-           "finite", "negative_values_are_positional", "renamed"]
+__all__ = ["MAX_SECONDS", "TELEMETRY_SUFFIXES", "add_bus_kwargs", "bitrate", "check_output", "count", "delay",
+           "duration", "finite", "interface", "negative_values_are_positional", "renamed"]
 
 #: s, the longest duration an option takes (a week): more than any wait or run a verb is given, and far
 #: below what a sleep can take (``time.sleep(1e300)`` raises OverflowError)
@@ -45,6 +45,30 @@ def delay(text: str) -> float:
     """argparse type of a pause that may be none (a time to listen, to wait): a finite number of
     seconds, at least 0, at most :data:`MAX_SECONDS`."""
     return _seconds(text, 0.0, None)
+
+
+def interface(text: str) -> str:
+    """argparse type of ``-i/--interface``: a python-can interface, checked as a bus's interface is
+    wherever it comes from (:func:`akarm.config.canconfig.interface_problem`)."""
+    from akarm.config.canconfig import interface_problem
+
+    if (problem := interface_problem(text)) is not None:
+        raise argparse.ArgumentTypeError(f"{problem[0]} ({problem[1]})")
+    return text
+
+
+def bitrate(text: str) -> int:
+    """argparse type of ``-b/--bitrate``: a whole number of bit/s in the range a bus may have
+    (:func:`akarm.config.canconfig.bitrate_problem`)."""
+    from akarm.config.canconfig import bitrate_problem
+
+    try:
+        value: int | str = int(text)
+    except ValueError:
+        value = text
+    if (problem := bitrate_problem(value)) is not None:
+        raise argparse.ArgumentTypeError(f"{problem[0]} ({problem[1]})")
+    return int(value)
 
 
 def finite(text: str) -> float:

@@ -41,7 +41,7 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from akarm.cli.options import add_bus_kwargs
+    from akarm.cli.options import add_bus_kwargs, bitrate, interface
 
     parser.add_argument("leader", metavar="LEADER.yaml", help="the leader's robot file (the arm a hand guides)")
     parser.add_argument("follower", metavar="FOLLOWER.yaml", help="the follower's robot file (the arm that copies)")
@@ -63,11 +63,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE.mcap", help="save both arms' telemetry as MCAP (for akarm plot)")
     parser.add_argument("--log-seconds", type=float, default=300.0, metavar="S",
                         help="how much of each arm's telemetry --log keeps, the last S seconds (default 300)")
-    parser.add_argument("-i", "--interface", help="python-can interface for both arms' buses")
+    parser.add_argument("-i", "--interface", type=interface, help="python-can interface for both arms' buses")
     parser.add_argument("-c", "--channel", help="both arms' channel (two arms on one bus), or NAME=CHANNEL,...")
     parser.add_argument("--leader-channel", metavar="C", help="the leader's channel (or NAME=CHANNEL,...), over -c")
     parser.add_argument("--follower-channel", metavar="C", help="the follower's channel (or NAME=CHANNEL,...), over -c")
-    parser.add_argument("-b", "--bitrate", type=int, help="bit rate of both arms' buses, bit/s")
+    parser.add_argument("-b", "--bitrate", type=bitrate, help="bit rate of both arms' buses, bit/s (10000-1000000)")
     add_bus_kwargs(parser)
     add_profile_argument(parser)
 
@@ -102,7 +102,7 @@ def _config(path: str, args: argparse.Namespace, channel: str | None) -> RobotCo
     parsed = parse_channel(channel or args.channel)
     if isinstance(parsed, dict) and not channel:  # -c NAME=CHANNEL,... names both arms' buses: this arm's
         parsed = {k: v for k, v in parsed.items() if k in config.buses}
-    if args.interface or parsed or args.bitrate or kwargs:
+    if args.interface is not None or parsed or args.bitrate is not None or kwargs:
         config = config.with_bus(interface=args.interface, channel=parsed, bitrate=args.bitrate, options=kwargs)
     return get_profile(args.profile).apply(config)
 

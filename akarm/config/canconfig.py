@@ -17,7 +17,32 @@ from typing import Any
 from akarm.config import BusConfig
 from akarm.errors import did_you_mean
 
-__all__ = ["RESERVED_BUS_KEYS", "python_can_settings", "resolve_bus"]
+__all__ = ["BITRATES", "RESERVED_BUS_KEYS", "bitrate_problem", "interface_problem", "python_can_settings",
+           "resolve_bus"]
+
+#: bit/s, the lowest and highest bit rate a bus may be given (classic CAN; AK drivers use 1000000)
+BITRATES = (10_000, 1_000_000)
+
+
+def interface_problem(interface: object) -> tuple[str, str] | None:
+    """``(what is wrong, the fix)`` when ``interface`` is not a python-can interface (one ``can.Bus``
+    could open), else ``None``: the check a bus's interface gets wherever it comes from (the robot
+    file, python-can's configuration, ``-i`` on the command line)."""
+    import can
+
+    if isinstance(interface, str) and interface in can.VALID_INTERFACES:
+        return None
+    return (f"{interface!r} is not a python-can interface{did_you_mean(str(interface), sorted(can.VALID_INTERFACES))}",
+            "python-can interfaces: " + ", ".join(sorted(can.VALID_INTERFACES)))
+
+
+def bitrate_problem(bitrate: object) -> tuple[str, str] | None:
+    """``(what is wrong, the fix)`` when ``bitrate`` is not a whole number of bit/s within
+    :data:`BITRATES`, else ``None`` (as :func:`interface_problem`, for the bit rate)."""
+    low, high = BITRATES
+    if isinstance(bitrate, int) and not isinstance(bitrate, bool) and low <= bitrate <= high:
+        return None
+    return f"bitrate must be a whole number within {low}..{high}, got {bitrate!r}", "AK drivers use 1000000 bit/s"
 
 
 def python_can_settings(context: str | None = None) -> dict[str, Any]:
@@ -70,7 +95,6 @@ def resolve_bus(name: str, given: Mapping[str, Any], settings: Mapping[str, Any]
         the bus (``None`` when it has problems) and its problems as ``(key, message, fix)``; ``key`` is
         where the problem is (``"interface"``, ``"bitrate"``, an option) or ``""``.
     """
-    import can
 
     found: list[tuple[str, str, str]] = []
     if settings is None:
@@ -92,14 +116,10 @@ def resolve_bus(name: str, given: Mapping[str, Any], settings: Mapping[str, Any]
     channel = pick("channel", "can0")
     bitrate = pick("bitrate", 1_000_000)
     where = " (from python-can's configuration: CAN_* variables or a can.conf/.canrc file)"
-    if interface not in can.VALID_INTERFACES:
-        found.append(("interface", f"bus {name!r}: {interface!r} is not a python-can interface"
-                      f"{did_you_mean(interface, sorted(can.VALID_INTERFACES))}"
-                      f"{where if 'interface' in taken else ''}",
-                      "python-can interfaces: " + ", ".join(sorted(can.VALID_INTERFACES))))
-    if isinstance(bitrate, bool) or not isinstance(bitrate, int) or not 10_000 <= bitrate <= 1_000_000:
-        found.append(("bitrate", f"bus {name!r}: bitrate must be a whole number within 10000..1000000, got "
-                      f"{bitrate!r}{where if 'bitrate' in taken else ''}", "AK drivers use 1000000 bit/s"))
+    if (problem := interface_problem(interface)) is not None:
+        found.append(("interface", f"bus {name!r}: {problem[0]}{where if 'interface' in taken else ''}", problem[1]))
+    if (problem := bitrate_problem(bitrate)) is not None:
+        found.append(("bitrate", f"bus {name!r}: {problem[0]}{where if 'bitrate' in taken else ''}", problem[1]))
     options = {k: v for k, v in given.items() if k not in ("interface", "channel", "bitrate")}
     if settings.get("interface") in (None, interface):  # python-can's extras are for its own interface
         for k, v in settings.items():

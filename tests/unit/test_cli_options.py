@@ -93,7 +93,7 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     assert loop_options(args) == {"timing": "normal", "stall_limit": None}  # None: the profile's
 
 
-# ----------------------------------------------------------------------------- numbers: durations, coordinates
+# ----------------------------------------------------------------------------- values: durations, coordinates, buses
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -118,11 +118,22 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     (["disable", PLANAR2, "--timeout", "-1"], "argument --timeout: '-1' is not a finite number of seconds, more "
                                               "than 0"),
     (["disable", PLANAR2, "--timeout", "nan"], "argument --timeout: 'nan' is not a finite number of seconds"),
+    (["move", PLANAR2, "home", "-b", "-5"], "argument -b/--bitrate: bitrate must be a whole number within "
+                                            "10000..1000000, got -5 (AK drivers use 1000000 bit/s)"),
+    (["check", PLANAR2, "-b", "0"], "argument -b/--bitrate: bitrate must be a whole number within 10000..1000000, "
+                                    "got 0"),
+    (["status", PLANAR2, "-b", "1e6"], "argument -b/--bitrate: bitrate must be a whole number within 10000..1000000, "
+                                       "got '1e6'"),
+    (["check", PLANAR2, "-i", "nosuchiface"], "argument -i/--interface: 'nosuchiface' is not a python-can interface "
+                                              "(python-can interfaces: "),
+    (["move", PLANAR2, "home", "-i", "socketcn"], "argument -i/--interface: 'socketcn' is not a python-can interface "
+                                                  "(did you mean 'socketcan'?)"),
+    (["teleop", PLANAR2, PLANAR2, "-b", "-1"], "argument -b/--bitrate: bitrate must be a whole number"),
     (["move", PLANAR2, "--xyz", "nan", "0", "0.3"], "argument --xyz: 'nan' is not a finite number"),
     (["move", PLANAR2, "--xyz", "0.3", "0", "0.3", "--rpy", "0", "inf", "0"], "argument --rpy: 'inf' is not a finite "
                                                                              "number"),
 ])
-def test_bad_numbers_are_refused_while_parsing(argv: list[str], message: str,
+def test_bad_option_values_are_refused_while_parsing(argv: list[str], message: str,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """Refused by argparse: before the robot file is read, a bus opened or a frame sent."""
     with pytest.raises(SystemExit) as e:

@@ -79,6 +79,8 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 #: rad: on a machine whose readings trail the commands (a timing profile with ``lag``), a move that waits
 #: returns once every joint reads this close to its command (or after twice the lag)
 ARRIVED = 0.005
+#: The smallest speed factor a move takes (a 1.5 rad move of planar2 lasts 6000 s at it).
+MIN_SPEED = 1e-4
 
 
 @dataclass(frozen=True)
@@ -420,8 +422,9 @@ class Arm:
 
     @staticmethod
     def _speed(speed: object) -> float:
-        """A move's ``speed`` (a fraction of the joint limits) as a float in (0, 1], or :class:`ArgumentError`."""
-        return finite_number(speed, "speed", above=0.0, at_most=1.0,
+        """A move's ``speed`` (a fraction of the joint limits) as a float in [:data:`MIN_SPEED`, 1], or
+        :class:`ArgumentError` (a speed near 0 scales the jerk limit by its cube: ruckig cannot plan it)."""
+        return finite_number(speed, "speed", at_least=MIN_SPEED, at_most=1.0,
                              fix="give a fraction of the joint limits, e.g. speed=0.5")
 
     def _per_joint(self, values: object, what: str, *, unit: str = "rad", at_least: float | None = None) -> np.ndarray:

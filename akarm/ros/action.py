@@ -13,6 +13,8 @@ The wire (rcl_action ``names.c``, ``default_qos.h``; rmw_cyclonedds_cpp ``rmw_no
 The semantics are JointTrajectoryController's (ros2_controllers ``joint_trajectory_controller.cpp``,
 ``tolerances.hpp``):
 
+- a goal too big for akarm's limits is refused from its size before it is decoded
+  (:func:`akarm.ros.trajectory.check_size`), as a topic message is;
 - a goal is checked as the ``joint_trajectory`` topic is (:func:`akarm.ros.trajectory.check_trajectory`):
   joints by name, a subset allowed; and its tolerances name joints of the arm. A goal that fails is
   accepted and aborted at once with ``INVALID_JOINTS``, ``INVALID_GOAL`` or ``OLD_HEADER_TIMESTAMP``
@@ -42,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import struct
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -53,7 +56,7 @@ import numpy as np
 from akarm.errors import AkarmError
 from akarm.ros import action_types as at
 from akarm.ros import msgs
-from akarm.ros.dds import Node, ServiceServer, latched_qos, qos, topic_name
+from akarm.ros.dds import Node, RawSample, ServiceServer, latched_qos, qos, topic_name
 from akarm.ros.trajectory import (
     GOAL_TOLERANCE_VIOLATED,
     INVALID_GOAL,
@@ -63,6 +66,7 @@ from akarm.ros.trajectory import (
     TimedPoints,
     TrajectoryRefused,
     check_joint_names,
+    check_size,
     check_trajectory,
 )
 
@@ -252,10 +256,10 @@ class ActionServer:
     def poll(self) -> None:
         """Answer the requests waiting, check the active goal and send its feedback, retry replies,
         forget old results, publish the status if it changed."""
-        for req in self.send_goal.take():
+        for raw in self.send_goal.take_raw():
             if self.heard is not None:
-                self.heard(f"{self.name} goal from {self.send_goal.caller(req)}")
-            self._on_send_goal(req)
+                self.heard(f"{self.name} goal from {self.send_goal.caller(raw)}")
+            self._take_goal(raw)
         for creq in self.cancel_goal.take():
             if self.heard is not None:
                 self.heard(f"{self.name} cancel from {self.cancel_goal.caller(creq)}")
@@ -303,7 +307,20 @@ class ActionServer:
                 self._pending.append((service, request, response, deadline))
 
     # -- goals -----------------------------------------------------------------------------------
-    def _on_send_goal(self, req: at.SendGoalRequest) -> None:
+    def _take_goal(self, raw: RawSample) -> None:
+        """A ``send_goal`` request as taken: one too big is accepted and aborted from its size alone (its
+        request header and goal ID read from the bytes; the rest never decoded), others decoded."""
+        try:
+            check_size(raw.data, 36, self.names)  # encapsulation, guid, seq, goal_id: the trajectory follows
+        except TrajectoryRefused as e:
+            guid, seq = struct.unpack_from("<Qq", raw.data, 4)
+            req = at.SendGoalRequest(guid, seq, at.UUID(list(raw.data[20:36])))
+            req.sample_info = raw.sample_info  # type: ignore[attr-defined]  # for the reply
+            self._on_send_goal(req, refused=e)
+            return
+        self._on_send_goal(self.send_goal.decode(raw))
+
+    def _on_send_goal(self, req: at.SendGoalRequest, refused: TrajectoryRefused | None = None) -> None:
         goal_id = bytes(req.goal_id.uuid)
         stamp = msgs.Time.from_seconds(time.time())
         if goal_id in self.goals:  # rcl_action refuses a goal ID it already has
@@ -313,6 +330,8 @@ class ActionServer:
         self._reply(self.send_goal, req, at.SendGoalResponse(accepted=True, stamp=stamp))
         self._changed = True
         try:
+            if refused is not None:
+                raise refused
             self._start(goal, req.goal)
         except TrajectoryRefused as e:
             e.report(self.server)

@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, cast
 
+from cyclonedds._clayer import ddspy_take  # type: ignore[import-not-found]  # the binding's C layer: no stubs
 from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
@@ -37,6 +38,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
+from akarm.control.loop import collector_paused
 from akarm.errors import AkarmError
 from akarm.ros import msgs
 
@@ -45,9 +47,11 @@ __all__ = [
     "RANGES",
     "Discovery",
     "Node",
+    "RawSample",
     "ServiceServer",
     "TriggerClient",
     "TriggerServer",
+    "decode",
     "discovery",
     "latched_qos",
     "qos",
@@ -55,6 +59,7 @@ __all__ = [
     "sample_info",
     "sender",
     "service_topics",
+    "take_raw",
     "topic_name",
 ]
 
@@ -252,6 +257,35 @@ def sample_info(sample: object) -> Any:
     return cast(Any, sample).sample_info
 
 
+@dataclass(frozen=True)
+class RawSample:
+    """A sample taken from a reader and not decoded yet: its CDR bytes (the 4-byte encapsulation first)
+    and its DDS sample info (:func:`sender` takes it as it takes a decoded sample)."""
+
+    data: bytes
+    sample_info: Any
+
+
+def take_raw(reader: DataReader, n: int = 16) -> list[RawSample]:
+    """Up to ``n`` samples of ``reader``, taken (they no longer trigger its conditions) and not decoded:
+    a sample's size can be checked before the pure-Python decoder spends time and objects on it (24 MB
+    of a million points took it 12 s). Samples without data (a writer gone) are left out."""
+    got = ddspy_take(reader._ref, ANY, n)  # private-ok: the binding's own handle of the reader
+    if isinstance(got, int):
+        raise DDSException(got, f"Occurred while taking data in {reader!r}")
+    return [RawSample(bytes(data), info) for data, info in got or () if info.valid_data]
+
+
+def decode(data_type: Any, raw: RawSample) -> Any:
+    """``raw``'s message, of ``data_type`` (its sample info attached, as the binding's own take does),
+    decoded with the garbage collector paused: a collection while the decoder makes its objects would
+    scan them all again and again, holding the interpreter lock (0.5 s pauses stopped the control loop)."""
+    with collector_paused():
+        msg = data_type.deserialize(raw.data)
+    msg.sample_info = raw.sample_info
+    return msg
+
+
 def sender(reader: DataReader, sample: object) -> str:
     """Who wrote ``sample`` (taken from ``reader``): ``participant GUID``, the DDS participant of the
     writer (as ``ros2 doctor`` and Cyclone DDS's traces name it), or ``"an unknown participant"``
@@ -352,6 +386,7 @@ class ServiceServer:
         self.name = ros_name(node.namespace, name)
         rq, rr = service_topics(node.namespace, name)
         q = qos(user_data=node.unique_id("serviceid"))
+        self._type = request_type
         self._reader = node.reader(rq, request_type, q)
         self._writer = node.writer(rr, response_type, q)
         self.condition = ReadCondition(self._reader, ANY)
@@ -375,9 +410,17 @@ class ServiceServer:
         """Who sent ``req``: its participant's GUID (see :func:`sender`)."""
         return sender(self._reader, req)
 
+    def take_raw(self) -> list[RawSample]:
+        """The requests waiting, not decoded yet (taken: they no longer trigger :attr:`condition`)."""
+        return take_raw(self._reader, 16)
+
+    def decode(self, raw: RawSample) -> Any:
+        """A request taken by :meth:`take_raw`, decoded (see :func:`decode`)."""
+        return decode(self._type, raw)
+
     def take(self) -> list[Any]:
-        """The requests waiting (taken: they no longer trigger :attr:`condition`)."""
-        return [r for r in self._reader.take(16) if sample_info(r).valid_data]
+        """The requests waiting, decoded (taken: they no longer trigger :attr:`condition`)."""
+        return [self.decode(raw) for raw in self.take_raw()]
 
     def reply(self, request: Any, response: Any, wait: float = 0.1) -> str:
         """Send ``response`` (its ``guid`` and ``seq`` are set from ``request``'s) to the client that sent

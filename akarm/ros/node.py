@@ -38,9 +38,9 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 from akarm.errors import AkarmError
 from akarm.ros import msgs
 from akarm.ros.action import ActionServer
-from akarm.ros.dds import ANY, Discovery, Node, TriggerServer, sample_info, sender
+from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
-from akarm.ros.trajectory import TrajectoryRefused, check_trajectory
+from akarm.ros.trajectory import TrajectoryRefused, check_size, check_trajectory
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
@@ -164,9 +164,8 @@ class RosNode:
         self._waitset.wait(int(min(wait, 1.0) * 1e9))
         if not self._running.is_set():
             return
-        for msg in self._traj.take(16):
-            if sample_info(msg).valid_data:
-                self.follow_topic(msg)
+        for raw in take_raw(self._traj, 16):
+            self.take_topic(raw)
         self.action.poll()
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
             for req in s.take():  # joint_states must go on meanwhile
@@ -180,6 +179,18 @@ class RosNode:
             self.publish_status()
             next_status = now + self.status_period
         self._next = [next_js, next_status]
+
+    def take_topic(self, raw: RawSample) -> None:
+        """A ``joint_trajectory`` sample as taken: refused from its size before it is decoded (counted
+        and reported as the server's refusals are), else decoded and :meth:`follow_topic`."""
+        try:
+            check_size(raw.data, 4, self.names)
+        except TrajectoryRefused as e:
+            e.report(self.server)
+            self._heard(f"joint_trajectory from {sender(self._traj, raw)}: {len(raw.data)} bytes: refused "
+                        f"({type(e).__name__}: {e.what})")
+            return
+        self.follow_topic(decode(msgs.JointTrajectory, raw))
 
     def follow_topic(self, msg: msgs.JointTrajectory) -> None:
         """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:

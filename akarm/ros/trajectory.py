@@ -12,6 +12,8 @@ the result code the action reports (:class:`TrajectoryRefused`):
   rest, more points than :data:`akarm.motion.bounds.MAX_TRAJECTORY_POINTS`;
 - ``OLD_HEADER_TIMESTAMP``: a stamped trajectory whose every point is already in the past.
 
+:func:`check_size` refuses a message too big for those limits from its bytes, before it is decoded.
+
 Accelerations are checked for their count only (the jerk-limited planner makes its own); efforts
 are not used.
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 import bisect
 import contextlib
 import math
+import struct
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["GOAL_TOLERANCE_VIOLATED", "INVALID_GOAL", "INVALID_JOINTS", "OLD_HEADER_TIMESTAMP",
            "PATH_TOLERANCE_VIOLATED", "SUCCESSFUL", "TimedPoints", "TrajectoryRefused", "check_joint_names",
-           "check_trajectory", "trajectory_arrays"]
+           "check_size", "check_trajectory", "max_message_bytes", "trajectory_arrays"]
 
 # control_msgs/action/FollowJointTrajectory's result codes
 SUCCESSFUL = 0
@@ -151,6 +154,54 @@ def _check_point(k: int, p: msgs.JointTrajectoryPoint, names: list[str], index: 
                                         "them for MoveIt: joint_limits.yaml)")
 
 
+def max_message_bytes(joints: int) -> int:
+    """The most bytes a ``JointTrajectory`` (or a FollowJointTrajectory goal) that akarm takes for an arm of
+    ``joints`` joints can have: :data:`~akarm.motion.bounds.MAX_TRAJECTORY_POINTS` points, each with four
+    sequences of ``joints`` doubles (positions, velocities, accelerations, efforts: a length, padding,
+    the values) and its time, and 64 KiB for the rest (joint names, ``frame_id``, a goal's tolerances)."""
+    return MAX_TRAJECTORY_POINTS * (4 * (8 + 8 * joints) + 16) + 65536
+
+
+def _too_many_points(n: int) -> TrajectoryRefused:
+    return TrajectoryRefused(f"the trajectory has {n} points, more than the {MAX_TRAJECTORY_POINTS} akarm takes",
+                             INVALID_GOAL, fix="send it in parts, or with fewer points")
+
+
+def check_size(data: bytes, offset: int, names: Sequence[str]) -> None:
+    """Refuse, from its CDR bytes and before decoding it, a ``JointTrajectory`` that starts at ``offset`` of
+    the sample ``data`` (4 on a topic, after the encapsulation) and that :func:`check_trajectory` would
+    refuse for its size, for an arm whose joints are ``names``: more bytes than :func:`max_message_bytes`,
+    more joint names than the arm has joints (``INVALID_JOINTS``), more points than
+    :data:`~akarm.motion.bounds.MAX_TRAJECTORY_POINTS` (read from the sequence's length). Decoding
+    a message costs about 1 s per 100 000 points in pure Python, and millions of objects (whose
+    garbage collections stopped the control loop). A sample cut short is left to the decoder.
+
+    Raises:
+        TrajectoryRefused: what is too big (``INVALID_GOAL``, ``INVALID_JOINTS``). Nothing is decoded.
+    """
+    limit = max_message_bytes(len(names))
+    if len(data) > limit:
+        raise TrajectoryRefused(f"the message is {len(data)} bytes, more than the {limit} that a trajectory of "
+                                f"{MAX_TRAJECTORY_POINTS} points for this arm's {len(names)} joints takes",
+                                INVALID_GOAL, fix="send it in parts, or with fewer points")
+    try:  # CDR: alignment counts from the end of the encapsulation (4: a multiple of 4 already)
+        pos = offset + 8  # header.stamp (sec, nanosec)
+        pos += 4 + struct.unpack_from("<I", data, pos)[0]  # header.frame_id
+        pos = (pos + 3) & ~3
+        count = struct.unpack_from("<I", data, pos)[0]
+        if count > len(names):
+            raise TrajectoryRefused(f"the trajectory names {count} joints; this arm has {len(names)}", INVALID_JOINTS,
+                                    fix="name each joint once: " + ", ".join(names))
+        pos += 4
+        for _ in range(count):
+            pos = (pos + 4 + struct.unpack_from("<I", data, pos)[0] + 3) & ~3
+        points = struct.unpack_from("<I", data, pos)[0]
+    except struct.error:
+        return  # cut short: the decoder refuses it
+    if points > MAX_TRAJECTORY_POINTS:
+        raise _too_many_points(points)
+
+
 def check_trajectory(msg: msgs.JointTrajectory, names: Sequence[str], limits: JointLimits,
                      now: float | None = None) -> TimedPoints:
     """Check ``msg`` for the arm whose joints are ``names`` (config order) with ``limits``, as
@@ -171,8 +222,7 @@ def check_trajectory(msg: msgs.JointTrajectory, names: Sequence[str], limits: Jo
     check_joint_names(joint_names, names)
     points = list(msg.points)
     if len(points) > MAX_TRAJECTORY_POINTS:
-        raise TrajectoryRefused(f"the trajectory has {len(points)} points, more than the {MAX_TRAJECTORY_POINTS} "
-                                "akarm takes", INVALID_GOAL, fix="send it in parts, or with fewer points")
+        raise _too_many_points(len(points))
     index = [names.index(n) for n in joint_names]
     tfs: list[float] = []
     for k, p in enumerate(points):

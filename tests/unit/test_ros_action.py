@@ -24,7 +24,9 @@ from akarm.ros.trajectory import (
     INVALID_JOINTS,
     OLD_HEADER_TIMESTAMP,
     TrajectoryRefused,
+    check_size,
     check_trajectory,
+    max_message_bytes,
 )
 
 from ..rosdefs import CANCEL, FJT, serialize, typestore
@@ -240,3 +242,49 @@ def test_a_violation_names_the_first_joint_past_its_tolerance_and_0_is_not_check
     assert violation(names, np.array([0.0, -0.02, 0.0]), np.zeros(3), pos, vel) == \
         "joint 'b': position error -0.0200 rad is past the tolerance 0.01 rad"
     assert "joint 'c': velocity error +0.2000 rad/s" in violation(names, np.zeros(3), np.array([0, 0, 0.2]), pos, vel)
+
+
+# -- sizes, from the bytes ---------------------------------------------------------------------------
+def full_points(n: int, joints: int) -> list[msgs.JointTrajectoryPoint]:
+    """``n`` points with every field filled (the most bytes a trajectory akarm takes can have)."""
+    return [msgs.JointTrajectoryPoint([0.1] * joints, [0.0] * joints, [0.0] * joints, [0.0] * joints,
+                                      msgs.Duration(k + 1, 0)) for k in range(n)]
+
+
+def test_the_largest_trajectory_akarm_takes_passes_the_size_check_and_one_more_point_does_not() -> None:
+    msg = traj(NAMES, full_points(MAX_TRAJECTORY_POINTS, len(NAMES)))
+    msg.header.frame_id = "world" * 1000
+    data = msg.serialize()
+    assert len(data) <= max_message_bytes(len(NAMES))
+    check_size(data, 4, NAMES)
+    msg.points.append(msg.points[-1])
+    with pytest.raises(TrajectoryRefused, match="10001 points, more than the 10000") as e:
+        check_size(msg.serialize(), 4, NAMES)
+    assert e.value.code == INVALID_GOAL
+
+
+@pytest.mark.parametrize("frame_id", ["", "a", "ab", "abc", "abcd", "map" * 7])
+@pytest.mark.parametrize("names", [["elbow"], ["wrist_roll", "elbow", "shoulder_pan"], NAMES])
+def test_the_points_are_counted_from_the_bytes_after_any_frame_id_and_names(frame_id: str, names: list[str]) -> None:
+    n = MAX_TRAJECTORY_POINTS + 1
+    msg = msgs.JointTrajectory(msgs.Header(msgs.Time(3, 4), frame_id), names,
+                               [point([0.0] * len(names), 1.0)] * n)
+    with pytest.raises(TrajectoryRefused, match=f"{n} points"):
+        check_size(msg.serialize(), 4, NAMES)
+    goal = at.SendGoalRequest(1, 2, at.UUID(list(range(16))), at.FollowJointTrajectoryGoal(msg)).serialize()
+    with pytest.raises(TrajectoryRefused, match=f"{n} points"):
+        check_size(goal, 36, NAMES)  # the trajectory after the request header and the goal ID
+    msg.points = msg.points[:3]
+    check_size(msg.serialize(), 4, NAMES)
+
+
+def test_too_many_bytes_or_names_are_refused_from_the_size_alone() -> None:
+    limit = max_message_bytes(len(NAMES))
+    with pytest.raises(TrajectoryRefused, match=f"{limit + 4} bytes, more than the {limit}") as e:
+        check_size(bytes(limit + 4), 4, NAMES)
+    assert e.value.code == INVALID_GOAL and e.value.fix
+    msg = traj([f"j{k}" for k in range(100_000)], [])
+    with pytest.raises(TrajectoryRefused, match="names 100000 joints; this arm has 6") as e:
+        check_size(msg.serialize(), 4, NAMES)
+    assert e.value.code == INVALID_JOINTS
+    check_size(traj(NAMES, [point([0.0] * 6, 1.0)]).serialize()[:30], 4, NAMES)  # cut short: the decoder's

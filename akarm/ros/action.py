@@ -14,7 +14,8 @@ The semantics are JointTrajectoryController's (ros2_controllers ``joint_trajecto
 ``tolerances.hpp``):
 
 - a goal too big for akarm's limits is refused from its size before it is decoded
-  (:func:`akarm.ros.trajectory.check_size`), as a topic message is;
+  (:func:`akarm.ros.trajectory.check_size`), as a topic message is, and so is one that does not
+  decode (a string that is not UTF-8): accepted and aborted with ``INVALID_GOAL``;
 - a goal is checked as the ``joint_trajectory`` topic is (:func:`akarm.ros.trajectory.check_trajectory`):
   joints by name, a subset allowed; and its tolerances name joints of the arm. A goal that fails is
   accepted and aborted at once with ``INVALID_JOINTS``, ``INVALID_GOAL`` or ``OLD_HEADER_TIMESTAMP``
@@ -53,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from akarm.errors import AkarmError
+from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import action_types as at
 from akarm.ros import msgs
 from akarm.ros.dds import Node, RawSample, ServiceServer, latched_qos, qos, topic_name
@@ -227,9 +228,10 @@ class ActionServer:
         self.distro = at.check_distro(distro)
         self.log = log or server.log
         base = self.name + "/_action/"
-        self.send_goal = ServiceServer(node, base + "send_goal", at.SendGoalRequest, at.SendGoalResponse)
-        self.cancel_goal = ServiceServer(node, base + "cancel_goal", at.CancelGoalRequest, at.CancelGoalResponse)
-        self.get_result = ServiceServer(node, base + "get_result", at.GetResultRequest, at.GetResultResponse)
+        bad = heard or self.log  # a request that does not decode: dropped, said with who sent it
+        self.send_goal = ServiceServer(node, base + "send_goal", at.SendGoalRequest, at.SendGoalResponse, bad)
+        self.cancel_goal = ServiceServer(node, base + "cancel_goal", at.CancelGoalRequest, at.CancelGoalResponse, bad)
+        self.get_result = ServiceServer(node, base + "get_result", at.GetResultRequest, at.GetResultResponse, bad)
         self._feedback_type = at.feedback_message_type(distro)
         self.feedback = node.writer(topic_name(node.namespace, base + "feedback"), self._feedback_type, qos())
         self.status = node.writer(topic_name(node.namespace, base + "status"), at.GoalStatusArray, latched_qos())
@@ -308,17 +310,23 @@ class ActionServer:
 
     # -- goals -----------------------------------------------------------------------------------
     def _take_goal(self, raw: RawSample) -> None:
-        """A ``send_goal`` request as taken: one too big is accepted and aborted from its size alone (its
-        request header and goal ID read from the bytes; the rest never decoded), others decoded."""
+        """A ``send_goal`` request as taken: one too big is accepted and aborted from its size alone, and
+        so is one that does not decode (a string that is not UTF-8), its request header and goal ID read
+        from the bytes (a request too short for them is dropped); others are decoded."""
         try:
             check_size(raw.data, 36, self.names)  # encapsulation, guid, seq, goal_id: the trajectory follows
-        except TrajectoryRefused as e:
+            req = self.send_goal.decode(raw)
+        except ArgumentError as e:
+            if len(raw.data) < 36:
+                self.send_goal.drop(raw, e)
+                return
             guid, seq = struct.unpack_from("<Qq", raw.data, 4)
             req = at.SendGoalRequest(guid, seq, at.UUID(list(raw.data[20:36])))
             req.sample_info = raw.sample_info  # type: ignore[attr-defined]  # for the reply
-            self._on_send_goal(req, refused=e)
+            refused = e if isinstance(e, TrajectoryRefused) else TrajectoryRefused(e.what, INVALID_GOAL, fix=e.fix)
+            self._on_send_goal(req, refused=refused)
             return
-        self._on_send_goal(self.send_goal.decode(raw))
+        self._on_send_goal(req)
 
     def _on_send_goal(self, req: at.SendGoalRequest, refused: TrajectoryRefused | None = None) -> None:
         goal_id = bytes(req.goal_id.uuid)

@@ -39,7 +39,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 from akarm.control.loop import collector_paused
-from akarm.errors import AkarmError
+from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import msgs
 
 __all__ = [
@@ -279,9 +279,19 @@ def take_raw(reader: DataReader, n: int = 16) -> list[RawSample]:
 def decode(data_type: Any, raw: RawSample) -> Any:
     """``raw``'s message, of ``data_type`` (its sample info attached, as the binding's own take does),
     decoded with the garbage collector paused: a collection while the decoder makes its objects would
-    scan them all again and again, holding the interpreter lock (0.5 s pauses stopped the control loop)."""
-    with collector_paused():
-        msg = data_type.deserialize(raw.data)
+    scan them all again and again, holding the interpreter lock (0.5 s pauses stopped the control loop).
+
+    Raises:
+        ArgumentError: the sample does not decode (a string that is not UTF-8, bytes cut short): one
+            sample's fault, which leaves the others taken with it as they are.
+    """
+    try:
+        with collector_paused():
+            msg = data_type.deserialize(raw.data)
+    except Exception as e:  # the binding's decoder: UnicodeDecodeError, struct.error, IndexError, ...
+        raise ArgumentError(f"a {data_type.__name__} of {len(raw.data)} bytes that does not decode "
+                            f"({type(e).__name__}: {str(e)[:200]})",
+                            fix="send well-formed CDR of the message's ROS 2 type (strings in UTF-8)") from None
     msg.sample_info = raw.sample_info
     return msg
 
@@ -382,8 +392,11 @@ class ServiceServer:
     :meth:`take` the requests when :attr:`condition` triggers a WaitSet, and :meth:`reply` to each.
     """
 
-    def __init__(self, node: Node, name: str, request_type: Any, response_type: Any) -> None:
+    def __init__(self, node: Node, name: str, request_type: Any, response_type: Any,
+                 bad: Callable[[str], None] | None = None) -> None:
         self.name = ros_name(node.namespace, name)
+        self.bad = bad  # told of each request dropped because it does not decode (with who sent it)
+        self.dropped = 0
         rq, rr = service_topics(node.namespace, name)
         q = qos(user_data=node.unique_id("serviceid"))
         self._type = request_type
@@ -419,8 +432,21 @@ class ServiceServer:
         return decode(self._type, raw)
 
     def take(self) -> list[Any]:
-        """The requests waiting, decoded (taken: they no longer trigger :attr:`condition`)."""
-        return [self.decode(raw) for raw in self.take_raw()]
+        """The requests waiting, decoded (taken: they no longer trigger :attr:`condition`). One that does
+        not decode is dropped alone (counted in :attr:`dropped`, told to ``bad``); the others are kept."""
+        taken = []
+        for raw in self.take_raw():
+            try:
+                taken.append(self.decode(raw))
+            except ArgumentError as e:
+                self.drop(raw, e)
+        return taken
+
+    def drop(self, raw: RawSample, e: AkarmError) -> None:
+        """Count a request that is not answered, and tell ``bad`` why and who sent it."""
+        self.dropped += 1
+        if self.bad is not None:
+            self.bad(f"{self.name}: a request from {self.caller(raw)} dropped: {e}")
 
     def reply(self, request: Any, response: Any, wait: float = 0.1) -> str:
         """Send ``response`` (its ``guid`` and ``seq`` are set from ``request``'s) to the client that sent
@@ -444,8 +470,9 @@ class TriggerServer(ServiceServer):
     Call :meth:`poll` (e.g. when :attr:`condition` triggers a WaitSet) to answer waiting requests.
     """
 
-    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]]) -> None:
-        super().__init__(node, name, msgs.TriggerRequest, msgs.TriggerResponse)
+    def __init__(self, node: Node, name: str, handler: Callable[[], tuple[bool, str]],
+                 bad: Callable[[str], None] | None = None) -> None:
+        super().__init__(node, name, msgs.TriggerRequest, msgs.TriggerResponse, bad)
         self.handler = handler
 
     def answer(self, req: msgs.TriggerRequest) -> bool:

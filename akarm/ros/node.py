@@ -35,12 +35,12 @@ from typing import TYPE_CHECKING
 
 from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 
-from akarm.errors import AkarmError
+from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import msgs
 from akarm.ros.action import ActionServer
 from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
-from akarm.ros.trajectory import TrajectoryRefused, check_size, check_trajectory
+from akarm.ros.trajectory import INVALID_GOAL, TrajectoryRefused, check_size, check_trajectory
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
@@ -92,9 +92,9 @@ class RosNode:
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
         self._traj = n.subscription("joint_trajectory", msgs.JointTrajectory)
-        self._services = [TriggerServer(n, "akarm/enable", self._enable), TriggerServer(n, "akarm/disable",
-                                                                                         self._disable),
-                          TriggerServer(n, "akarm/hold", self._hold)]
+        self._services = [TriggerServer(n, "akarm/enable", self._enable, self._heard),
+                          TriggerServer(n, "akarm/disable", self._disable, self._heard),
+                          TriggerServer(n, "akarm/hold", self._hold, self._heard)]
         self.action = ActionServer(n, self.server, controller, distro, heard=self._heard)
         self.discovery = DiscoveryInfo(n, node_name, distro)
         self.discovery.publish()  # every endpoint is open by now
@@ -181,16 +181,19 @@ class RosNode:
         self._next = [next_js, next_status]
 
     def take_topic(self, raw: RawSample) -> None:
-        """A ``joint_trajectory`` sample as taken: refused from its size before it is decoded (counted
-        and reported as the server's refusals are), else decoded and :meth:`follow_topic`."""
+        """A ``joint_trajectory`` sample as taken: refused from its size before it is decoded, or when it
+        does not decode (a string that is not UTF-8: that sample alone; counted and reported as the
+        server's refusals are), else decoded and :meth:`follow_topic`."""
         try:
             check_size(raw.data, 4, self.names)
-        except TrajectoryRefused as e:
-            e.report(self.server)
+            msg = decode(msgs.JointTrajectory, raw)
+        except ArgumentError as e:
+            refusal = e if isinstance(e, TrajectoryRefused) else TrajectoryRefused(e.what, INVALID_GOAL, fix=e.fix)
+            refusal.report(self.server)
             self._heard(f"joint_trajectory from {sender(self._traj, raw)}: {len(raw.data)} bytes: refused "
                         f"({type(e).__name__}: {e.what})")
             return
-        self.follow_topic(decode(msgs.JointTrajectory, raw))
+        self.follow_topic(msg)
 
     def follow_topic(self, msg: msgs.JointTrajectory) -> None:
         """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:

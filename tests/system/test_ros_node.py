@@ -3,6 +3,8 @@ with its node, and a DDS participant, all in this process (the server's log and 
 
 - A trajectory or a goal too big for akarm is refused from its bytes, before it is decoded:
   joint_states go on, the arm stays held, the refusal is counted.
+- A sample that does not decode (a name that is not UTF-8) is refused alone: the samples taken with it
+  are followed, a goal gets its answer, and a stream of them does not slow joint_states down.
 """
 
 from __future__ import annotations
@@ -187,3 +189,50 @@ def test_a_message_of_more_bytes_than_any_trajectory_akarm_takes_is_refused(rig:
     rig.client.write_raw(rig.client.trajectory, big.serialize())
     assert wait_until(lambda: rig.server.counts["refused"] > refused, 10)
     assert "bytes, more than the" in rig.server.last_refusal
+
+
+def not_utf8(data: bytes) -> bytes:
+    return data.replace(b"elbow", b"\xff\xfe\xfd\xfc\xfb")
+
+
+def test_a_message_that_does_not_decode_is_refused_alone_and_the_others_are_followed(rig: Rig) -> None:
+    c, counts = rig.client, dict(rig.server.counts)
+    for k in range(5):  # each valid one taken in a batch with a bad one, mostly (keep last 10: no more at once)
+        c.write_raw(c.trajectory, not_utf8(trajectory(["elbow"], [point([0.1], 1.0)]).serialize()))
+        c.trajectory.write(trajectory(["elbow"], [point([0.01 * k], 1.0)]))
+        time.sleep(0.05)
+    assert wait_until(lambda: rig.server.counts["accepted"] >= counts["accepted"] + 5, 10), rig.server.counts
+    assert rig.server.counts["refused"] == counts["refused"] + 5
+    assert "JointTrajectory of 72 bytes that does not decode (UnicodeDecodeError" in rig.server.last_refusal
+    assert any("joint_trajectory from participant" in line and "does not decode" in line for line in rig.log)
+
+
+def test_a_stream_of_samples_that_do_not_decode_leaves_joint_states_at_their_rate(rig: Rig) -> None:
+    c, refused = rig.client, rig.server.counts["refused"]
+    bad = not_utf8(trajectory(["elbow"], [point([0.1], 1.0)]).serialize())
+    t0 = time.monotonic()
+    for _ in range(50):
+        c.write_raw(c.trajectory, bad)
+        time.sleep(0.02)
+    t1 = time.monotonic()
+    time.sleep(0.2)
+    rate = len([t for t in c.js_times if t0 <= t <= t1]) / (t1 - t0)
+    assert rate > 80, f"joint_states at {rate:.0f} Hz (100 without the stream)"
+    assert wait_until(lambda: rig.server.counts["refused"] == refused + 50, 5), rig.server.counts
+
+
+def test_a_goal_that_does_not_decode_is_aborted_and_the_next_one_taken(rig: Rig) -> None:
+    c = rig.client
+    send = c.services["send_goal"][0]
+    bad_id, good_id = uuid.uuid4().bytes, uuid.uuid4().bytes
+    goal = at.FollowJointTrajectoryGoal(trajectory(["elbow"], [point([0.05], 0.5)]))
+    c.write_raw(send, not_utf8(c.request("send_goal", at.SendGoalRequest(0, 0, at.UUID(list(bad_id)), goal))))
+    bad_seq = c.seq
+    c.write_raw(send, c.request("send_goal", at.SendGoalRequest(0, 0, at.UUID(list(good_id)), goal)))
+    assert c.reply("send_goal", bad_seq).accepted  # type: ignore[attr-defined]
+    assert c.reply("send_goal", c.seq).accepted  # type: ignore[attr-defined]
+    res = c.result(bad_id)
+    assert res.status == 6 and res.result.error_code == -1, res  # ABORTED, INVALID_GOAL
+    assert "does not decode (UnicodeDecodeError" in res.result.error_string
+    res = c.result(good_id)
+    assert res.status == 4, res  # SUCCEEDED

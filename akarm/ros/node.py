@@ -198,9 +198,11 @@ class RosNode:
     def follow_topic(self, msg: msgs.JointTrajectory) -> None:
         """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:
         a stop); a refusal is reported by the server (its log, ``akarm/status``) and nothing moves. Logged
-        with the participant that sent it."""
+        with the participant that sent it (a joint name that is not printable, as Python writes it: a
+        line break or a terminal escape in it would forge the server's log lines)."""
         who = sender(self._traj, msg)
-        what = f"joint_trajectory from {who}: {len(msg.points)} points for {', '.join(msg.joint_names)[:200]}"
+        names = ", ".join(n if n.isprintable() else repr(n) for n in msg.joint_names[:20])[:200]
+        what = f"joint_trajectory from {who}: {len(msg.points)} points for {names}"
         try:
             points = check_trajectory(msg, self.server.arm.names, self.server.arm.limits)
         except TrajectoryRefused as e:

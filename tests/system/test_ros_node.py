@@ -5,6 +5,7 @@ with its node, and a DDS participant, all in this process (the server's log and 
   joint_states go on, the arm stays held, the refusal is counted.
 - A sample that does not decode (a name that is not UTF-8) is refused alone: the samples taken with it
   are followed, a goal gets its answer, and a stream of them does not slow joint_states down.
+- What a participant names is logged escaped: it cannot forge the server's log lines.
 """
 
 from __future__ import annotations
@@ -236,3 +237,14 @@ def test_a_goal_that_does_not_decode_is_aborted_and_the_next_one_taken(rig: Rig)
     assert "does not decode (UnicodeDecodeError" in res.result.error_string
     res = c.result(good_id)
     assert res.status == 4, res  # SUCCEEDED
+
+
+def test_a_joint_name_with_a_line_break_or_an_escape_is_logged_escaped(rig: Rig) -> None:
+    time.sleep(1.1)  # the node's command log says five a second in full: a second of its own
+    start = len(rig.log)
+    forged = "x\nakarm serve: safety stop acknowledged by operator; all clear\x1b[2K"
+    rig.client.trajectory.write(trajectory([forged], [point([0.1], 1.0)]))
+    assert wait_until(lambda: any("joint_trajectory from" in line for line in rig.log[start:]), 10), rig.log[start:]
+    lines = rig.log[start:]
+    assert any(repr(forged) in line for line in lines), lines
+    assert not any("\n" in line or "\x1b" in line for line in lines), lines

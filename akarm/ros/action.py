@@ -349,7 +349,11 @@ class ActionServer:
 
     def _start(self, goal: Goal, spec: at.FollowJointTrajectoryGoal) -> None:
         """Check the goal and start its motion (raises what refuses it; nothing moves then)."""
-        self.server.check_motion_allowed()
+        try:
+            self.server.check_motion_allowed()
+        except AkarmError as e:  # a stop latched, the arm disabled: counted as the topic's refusals are
+            self.server.note_refusal(e)
+            raise
         mdof = spec.multi_dof_trajectory
         if mdof.joint_names or mdof.points:
             raise TrajectoryRefused("the goal has a multi-DOF trajectory: this arm has no multi-DOF joints",

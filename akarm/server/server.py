@@ -493,11 +493,14 @@ class ArmServerCore:
                 self.counts["accepted"] += 1
                 return motion
         except AkarmError as e:
-            self._refused(e)
+            self.note_refusal(e)
             raise
 
-    def _refused(self, e: AkarmError) -> None:
-        """Count and report a refused trajectory: a line now, or (a flood of them) one a second with the count."""
+    def note_refusal(self, e: AkarmError) -> None:
+        """Count and report a refused trajectory (in ``akarm/status``: ``trajectories_refused``,
+        ``last_refusal``): a line now, or (a flood of them) one a second with the count. :meth:`follow`
+        and :meth:`refuse` call it; a frontend, for what it refuses itself (a goal that
+        :meth:`check_motion_allowed` refused)."""
         self.counts["refused"] += 1
         self.last_refusal = str(e)
         last, quiet = self._refusals_logged
@@ -512,7 +515,7 @@ class ArmServerCore:
     def refuse(self, what: str, fix: str = "") -> None:
         """Refuse a trajectory the caller found unusable: counted, reported, raised as ArgumentError."""
         e = ArgumentError(what, fix=fix)
-        self._refused(e)
+        self.note_refusal(e)
         raise e
 
     # -- the CLI's operations (JSON in, JSON out) --------------------------------------------------

@@ -6,6 +6,7 @@ with its node, and a DDS participant, all in this process (the server's log and 
 - A sample that does not decode (a name that is not UTF-8) is refused alone: the samples taken with it
   are followed, a goal gets its answer, and a stream of them does not slow joint_states down.
 - What a participant names is logged escaped: it cannot forge the server's log lines.
+- A goal refused because the arm is disabled is counted in the server's refusals, as a message is.
 """
 
 from __future__ import annotations
@@ -248,3 +249,18 @@ def test_a_joint_name_with_a_line_break_or_an_escape_is_logged_escaped(rig: Rig)
     lines = rig.log[start:]
     assert any(repr(forged) in line for line in lines), lines
     assert not any("\n" in line or "\x1b" in line for line in lines), lines
+
+
+def test_a_goal_refused_because_the_arm_is_disabled_is_counted_as_a_refusal(rig: Rig) -> None:
+    c = rig.client
+    rig.server.disable()
+    refused = rig.server.counts["refused"]
+    gid = uuid.uuid4().bytes
+    goal = at.FollowJointTrajectoryGoal(trajectory(["elbow"], [point([0.05], 0.5)]))
+    c.write_raw(c.services["send_goal"][0], c.request("send_goal", at.SendGoalRequest(0, 0, at.UUID(list(gid)), goal)))
+    res = c.result(gid)
+    assert res.status == 6 and res.result.error_code == -1, res  # ABORTED, INVALID_GOAL
+    assert "the arm is disabled" in res.result.error_string
+    assert rig.server.counts["refused"] == refused + 1
+    assert rig.server.last_refusal.startswith("the arm is disabled")
+    assert rig.server.status()["trajectories_refused"] == refused + 1

@@ -38,7 +38,11 @@ The semantics are JointTrajectoryController's (ros2_controllers ``joint_trajecto
 - a finished goal's result is kept :data:`RESULT_TIMEOUT` s (rcl_action's default), then forgotten;
   at most :data:`MAX_RESULTS` of them.
 
-Everything runs in the ROS 2 node's thread (:class:`akarm.ros.node.RosNode` calls :meth:`ActionServer.poll`).
+Everything runs in the ROS 2 node's thread (:class:`akarm.ros.node.RosNode` calls :meth:`ActionServer.poll`),
+which never waits for the server's command lock (an enable or a disable holds it for 0.3 s and more):
+a goal's start and the stops the action makes wait in a :class:`~akarm.ros.commands.CommandQueue`,
+shared with the ``joint_trajectory`` topic, in the order they came; the status, the feedback and the
+running goal's checks go on meanwhile.
 """
 
 from __future__ import annotations
@@ -57,6 +61,7 @@ import numpy as np
 from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import action_types as at
 from akarm.ros import msgs
+from akarm.ros.commands import CommandQueue
 from akarm.ros.dds import Node, RawSample, ServiceServer, latched_qos, qos, topic_name
 from akarm.ros.trajectory import (
     GOAL_TOLERANCE_VIOLATED,
@@ -221,8 +226,9 @@ class ActionServer:
 
     def __init__(self, node: Node, server: ArmServerCore, controller: str = "arm_controller",
                  distro: str = "jazzy", log: Callable[[str], None] | None = None,
-                 heard: Callable[[str], None] | None = None) -> None:
+                 heard: Callable[[str], None] | None = None, commands: CommandQueue | None = None) -> None:
         self.server = server
+        self.commands = commands if commands is not None else CommandQueue(server)  # waiting for the server
         self.heard = heard  # told of every goal and cancel taken, with the participant that sent it
         self.name = action_name(controller)
         self.distro = at.check_distro(distro)
@@ -250,7 +256,7 @@ class ActionServer:
     def next_due(self) -> float:
         """Monotonic time :meth:`poll` has work next (a check, a reply to retry, a result to forget)."""
         due = self._next_check if self.active is not None else math.inf
-        if self._pending or self._changed:
+        if self._pending or self._changed or len(self.commands):
             due = min(due, time.monotonic() + 0.005)
         ended = [g.ended for g in self.goals.values() if g.ended is not None]
         return min([due, *(t + RESULT_TIMEOUT for t in ended)])
@@ -258,6 +264,7 @@ class ActionServer:
     def poll(self) -> None:
         """Answer the requests waiting, check the active goal and send its feedback, retry replies,
         forget old results, publish the status if it changed."""
+        self.commands.run()  # what waited for the server, if it is free now
         for raw in self.send_goal.take_raw():
             if self.heard is not None:
                 self.heard(f"{self.name} goal from {self.send_goal.caller(raw)}")
@@ -289,10 +296,10 @@ class ActionServer:
                 self._changed = True
 
     def close(self) -> None:
-        """The server is stopping: abort the active goal (the arm is disabled by now) and say so."""
-        if self.active is not None:
-            self._end(self.active, ABORTED, PATH_TOLERANCE_VIOLATED,
-                      "akarm serve stopped: the arm was damped and disabled")
+        """The server is stopping: abort the active goal (the arm is disabled by now) and the goals that
+        waited to start, and say so."""
+        for goal in [g for g in self.goals.values() if not g.terminal]:
+            self._end(goal, ABORTED, PATH_TOLERANCE_VIOLATED, "akarm serve stopped: the arm was damped and disabled")
         with contextlib.suppress(Exception):
             self._retry_replies(math.inf)
             self.status.write(at.GoalStatusArray([at.GoalStatus(g.info(), g.status) for g in self.goals.values()]))
@@ -337,10 +344,22 @@ class ActionServer:
         goal = self.goals[goal_id] = Goal(goal_id, stamp)
         self._reply(self.send_goal, req, at.SendGoalResponse(accepted=True, stamp=stamp))
         self._changed = True
+        if refused is not None:
+            refused.report(self.server)
+            self._end(goal, ABORTED, refused.code, str(refused))
+            return
+        try:  # started when the server is free (now, unless an enable or a disable runs)
+            self.commands.add(lambda: self._begin(goal, req.goal), len(req.goal.trajectory.points))
+        except AkarmError as e:  # too much waits for the server
+            self.server.note_refusal(e)
+            self._end(goal, ABORTED, INVALID_GOAL, str(e))
+
+    def _begin(self, goal: Goal, spec: at.FollowJointTrajectoryGoal) -> None:
+        """(Holding the server's command lock) start the goal, unless it was canceled while it waited."""
+        if goal.terminal:
+            return
         try:
-            if refused is not None:
-                raise refused
-            self._start(goal, req.goal)
+            self._start(goal, spec)
         except TrajectoryRefused as e:
             e.report(self.server)
             self._end(goal, ABORTED, e.code, str(e))
@@ -384,10 +403,14 @@ class ActionServer:
         if status == ABORTED:
             self.log(f"akarm serve: {self.name} goal {goal.id.hex()[:8]} aborted: {text}")
 
-    def _stop_arm(self) -> None:
-        """Bring the arm to rest, jerk-limited, and hold (nothing if it is not enabled)."""
-        with contextlib.suppress(AkarmError):
-            self.server.follow([], [], [])
+    def _stop_arm(self, motion: Motion | None) -> None:
+        """Bring the arm to rest, jerk-limited, and hold (nothing if it is not enabled), when the server
+        is free: unless another command replaced ``motion`` (the goal's) meanwhile."""
+        def stop() -> None:
+            if motion is None or not motion.superseded:
+                with contextlib.suppress(AkarmError):
+                    self.server.follow([], [], [])
+        self.commands.add(stop, always=True)
 
     # -- cancel, result ----------------------------------------------------------------------------
     def _on_cancel(self, req: at.CancelGoalRequest) -> None:
@@ -409,7 +432,7 @@ class ActionServer:
             goal.status = CANCELING
             self._changed = True
             if goal is self.active:
-                self._stop_arm()
+                self._stop_arm(goal.motion)
             self._end(goal, CANCELED, SUCCESSFUL, "canceled: the arm stops, jerk-limited, and holds")
 
     def _result(self, goal: Goal) -> at.GetResultResponse:
@@ -452,7 +475,7 @@ class ActionServer:
         if t < plan.t_end:
             bad = violation(self.names, err_q, err_dq, tol.path_position, tol.path_velocity)
             if bad is not None:
-                self._stop_arm()
+                self._stop_arm(motion)
                 self._end(goal, ABORTED, PATH_TOLERANCE_VIOLATED, f"path tolerance violated: {bad}")
                 return
         else:
@@ -463,7 +486,7 @@ class ActionServer:
                 return
             late = t - plan.t_end
             if tol.goal_time > 0.0 and late > tol.goal_time:
-                self._stop_arm()
+                self._stop_arm(motion)
                 self._end(goal, ABORTED, GOAL_TOLERANCE_VIOLATED,
                           f"goal tolerance not met {late:.3f} s after the trajectory's end (goal_time_tolerance "
                           f"{tol.goal_time:g} s): {bad}")

@@ -20,7 +20,10 @@ sent: a disabled arm's silent joints show their age. Whom the node talks to is :
 with the DDS participant that sent it.
 
 One thread waits on a DDS WaitSet for trajectories and service requests and publishes on time;
-service requests are answered in threads of their own (enabling and disabling take a while).
+service requests are answered in threads of their own (enabling and disabling take a while). That
+thread never waits for the server's command lock, which an enable or a disable holds throughout:
+trajectories and goals wait for it in a :class:`~akarm.ros.commands.CommandQueue`, in order, while
+``joint_states`` and the running goal's checks go on.
 
 :class:`RosNode` is a :class:`~akarm.server.server.Frontend` of the server; :class:`akarm.ArmServer`
 (:mod:`akarm.serving`) puts the two together.
@@ -38,6 +41,7 @@ from cyclonedds.core import DDSException, GuardCondition, ReadCondition, WaitSet
 from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import msgs
 from akarm.ros.action import ActionServer
+from akarm.ros.commands import RETRY, CommandQueue
 from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
 from akarm.ros.trajectory import INVALID_GOAL, TrajectoryRefused, check_size, check_trajectory
@@ -92,10 +96,11 @@ class RosNode:
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
         self._traj = n.subscription("joint_trajectory", msgs.JointTrajectory)
+        self.commands = CommandQueue(self.server)  # the topic's and the action's, in order
         self._services = [TriggerServer(n, "akarm/enable", self._enable, self._heard),
                           TriggerServer(n, "akarm/disable", self._disable, self._heard),
                           TriggerServer(n, "akarm/hold", self._hold, self._heard)]
-        self.action = ActionServer(n, self.server, controller, distro, heard=self._heard)
+        self.action = ActionServer(n, self.server, controller, distro, heard=self._heard, commands=self.commands)
         self.discovery = DiscoveryInfo(n, node_name, distro)
         self.discovery.publish()  # every endpoint is open by now
         self._traj_cond = ReadCondition(self._traj, ANY)
@@ -161,6 +166,8 @@ class RosNode:
     def _serve_once(self) -> None:
         next_js, next_status = self._next
         wait = max(0.0, min(next_js, next_status, self.action.next_due()) - time.monotonic())
+        if len(self.commands):  # waiting for the server's command lock: try again soon
+            wait = min(wait, RETRY)
         self._waitset.wait(int(min(wait, 1.0) * 1e9))
         if not self._running.is_set():
             return
@@ -183,7 +190,8 @@ class RosNode:
     def take_topic(self, raw: RawSample) -> None:
         """A ``joint_trajectory`` sample as taken: refused from its size before it is decoded, or when it
         does not decode (a string that is not UTF-8: that sample alone; counted and reported as the
-        server's refusals are), else decoded and :meth:`follow_topic`."""
+        server's refusals are), else decoded and :meth:`follow_topic` when the server is free (now,
+        unless an enable or a disable runs: then after it, in order with the action's goals)."""
         try:
             check_size(raw.data, 4, self.names)
             msg = decode(msgs.JointTrajectory, raw)
@@ -193,7 +201,11 @@ class RosNode:
             self._heard(f"joint_trajectory from {sender(self._traj, raw)}: {len(raw.data)} bytes: refused "
                         f"({type(e).__name__}: {e.what})")
             return
-        self.follow_topic(msg)
+        try:
+            self.commands.add(lambda: self.follow_topic(msg), len(msg.points))
+        except AkarmError as e:  # too much waits for the server
+            self.server.note_refusal(e)
+            self._heard(f"joint_trajectory from {sender(self._traj, raw)}: refused ({type(e).__name__})")
 
     def follow_topic(self, msg: msgs.JointTrajectory) -> None:
         """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:

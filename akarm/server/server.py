@@ -448,6 +448,19 @@ class ArmServerCore:
         with self._cmd:
             self._require_commandable()
 
+    @contextlib.contextmanager
+    def try_command(self) -> Iterator[bool]:
+        """Hold the command lock inside if it is free now (yields True), without waiting for it (False:
+        another command has it, an enable or a disable for as long as it takes). The server's commands
+        called inside (:meth:`check_motion_allowed`, :meth:`follow`) then never wait. For a frontend's
+        thread that must not stop (the ROS 2 node's, which publishes ``joint_states``): it tries again later."""
+        free = self._cmd.acquire(blocking=False)
+        try:
+            yield free
+        finally:
+            if free:
+                self._cmd.release()
+
     def _register(self, motion: Motion, seq: int) -> int:
         self._next_id += 1
         self._motions[self._next_id] = (motion, seq)

@@ -7,6 +7,8 @@ with its node, and a DDS participant, all in this process (the server's log and 
   are followed, a goal gets its answer, and a stream of them does not slow joint_states down.
 - What a participant names is logged escaped: it cannot forge the server's log lines.
 - A goal refused because the arm is disabled is counted in the server's refusals, as a message is.
+- A goal or a message that arrives during an enable or a disable (the server's command lock held
+  throughout) waits for it, in order, and joint_states go on meanwhile.
 """
 
 from __future__ import annotations
@@ -264,3 +266,67 @@ def test_a_goal_refused_because_the_arm_is_disabled_is_counted_as_a_refusal(rig:
     assert rig.server.counts["refused"] == refused + 1
     assert rig.server.last_refusal.startswith("the arm is disabled")
     assert rig.server.status()["trajectories_refused"] == refused + 1
+
+
+def busy(server: akarm.ArmServer) -> bool:
+    with server.try_command() as free:
+        return not free
+
+
+@pytest.mark.parametrize("service", ["akarm/disable", "akarm/enable"])
+def test_a_goal_and_a_message_during_an_enable_or_disable_wait_for_it_and_joint_states_go_on(
+        rig: Rig, service: str) -> None:
+    c = rig.client
+    if service == "akarm/enable":
+        rig.server.disable()
+    trigger = dds.TriggerClient(c.node, service)
+    replies: list[msgs.TriggerResponse] = []
+    t0 = time.monotonic()
+    called = threading.Thread(target=lambda: replies.append(trigger.call(timeout=20)))
+    called.start()
+    assert wait_until(lambda: busy(rig.server), 10), "the service did not start"  # it holds the command lock
+    counts = dict(rig.server.counts)
+    c.trajectory.write(trajectory(["wrist_roll"], [point([0.05], 0.5)]))
+    time.sleep(0.01)
+    gid = uuid.uuid4().bytes
+    goal = at.FollowJointTrajectoryGoal(trajectory(["elbow"], [point([0.05], 0.5)]))
+    c.write_raw(c.services["send_goal"][0], c.request("send_goal", at.SendGoalRequest(0, 0, at.UUID(list(gid)), goal)))
+    seq = c.seq
+    called.join(30)
+    t1 = time.monotonic()
+    assert replies and replies[0].success, replies
+    assert c.reply("send_goal", seq).accepted  # type: ignore[attr-defined]
+    res = c.result(gid)
+    gap = c.max_gap(t0, t1)
+    print(f"{service}: {t1 - t0:.3f} s; joint_states' longest gap in it {gap:.3f} s")
+    assert gap < 0.1, f"joint_states stopped for {gap:.3f} s of the {t1 - t0:.3f} s {service} took"
+    if service == "akarm/disable":  # after the disable, in order: refused, and nothing moved
+        assert res.status == 6 and "the arm is disabled" in res.result.error_string, res
+        assert rig.server.counts["refused"] == counts["refused"] + 2 and not rig.arm.enabled, "\n".join(rig.log[-6:])
+    else:  # after the enable, in order: the message, then the goal that replaced it
+        assert res.status == 4, res
+        assert rig.server.counts["accepted"] == counts["accepted"] + 2 and rig.arm.enabled
+
+
+def test_a_goal_canceled_while_it_waits_for_an_enable_never_starts(rig: Rig) -> None:
+    c = rig.client
+    rig.server.disable()
+    cancel_q = dds.qos(user_data=c.node.unique_id("clientid"))
+    rq, rr = dds.service_topics(c.node.namespace, ACTION + "cancel_goal")
+    cancel_w = c.node.writer(rq, at.CancelGoalRequest, cancel_q)
+    assert wait_until(lambda: bool(cancel_w.get_matched_subscriptions()), 10)
+    trigger = dds.TriggerClient(c.node, "akarm/enable")
+    accepted = rig.server.counts["accepted"]
+    called = threading.Thread(target=trigger.call, kwargs={"timeout": 20})
+    called.start()
+    assert wait_until(lambda: busy(rig.server), 10), "the enable did not start"
+    gid = uuid.uuid4().bytes
+    goal = at.FollowJointTrajectoryGoal(trajectory(["elbow"], [point([0.3], 0.5)]))
+    c.write_raw(c.services["send_goal"][0], c.request("send_goal", at.SendGoalRequest(0, 0, at.UUID(list(gid)), goal)))
+    assert c.reply("send_goal", c.seq).accepted  # type: ignore[attr-defined]
+    cancel_w.write(at.CancelGoalRequest(1, 1, at.GoalInfo(at.UUID(list(gid)), msgs.Time())))
+    called.join(30)
+    res = c.result(gid)
+    assert res.status == 5, res  # CANCELED
+    time.sleep(0.3)
+    assert rig.server.counts["accepted"] == accepted and rig.arm.enabled

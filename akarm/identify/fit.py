@@ -105,8 +105,10 @@ class JointFit:
     amplitude: float = math.nan
 
     def friction(self, offset: bool = True) -> Friction:
-        """The identified friction (with its offset, or without: 0)."""
-        return Friction(self.coulomb, self.viscous, self.offset if offset else 0.0)
+        """The identified friction (with its offset, or without: 0), as a robot file takes it: a Coulomb
+        or viscous term the fit's noise made slightly negative is 0 (the file, and ``set_friction``,
+        refuse a negative one: ``akarm identify --save`` failed at its very end)."""
+        return Friction(max(0.0, self.coulomb), max(0.0, self.viscous), self.offset if offset else 0.0)
 
 
 @dataclass(frozen=True)

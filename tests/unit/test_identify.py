@@ -130,3 +130,17 @@ def test_save_into_a_block_style_file_gives_each_joint_its_own_values(tmp_path: 
             assert line in text.splitlines(), line
     assert "payload: {mass: 0.3500, com: [0.0100, 0.0000, 0.0200]}            # a guess" in text
     assert "    friction: {coulomb: 0.4100, viscous: 0.02100, offset: 0.0110}       # from the datasheet" in text
+
+
+def test_a_fit_whose_noise_made_a_friction_negative_saves_it_as_zero(tmp_path: Path) -> None:
+    """A Coulomb or viscous term fitted slightly below 0 (noise) was written as it was, and the robot
+    file, which refuses a negative friction, then failed to load: `akarm identify --save` failed at its end."""
+    robot = tmp_path / "planar2.yaml"
+    robot.write_text(BLOCK_STYLE)
+    (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
+    result = Identification((JointFit("shoulder", -0.004, 0.021, 0.011, 0.02),
+                             JointFit("elbow", 0.12, -0.0002, -0.012, 0.01)), None, 1000, 8.0)
+    result.save(robot)
+    shoulder, elbow = akarm.load_robot(robot).joints
+    assert (shoulder.friction.coulomb, shoulder.friction.viscous) == pytest.approx((0.0, 0.021))
+    assert (elbow.friction.coulomb, elbow.friction.viscous, elbow.friction.offset) == pytest.approx((0.12, 0.0, -0.012))

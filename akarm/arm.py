@@ -19,6 +19,7 @@ All positions are rad, velocities rad/s, torques N·m, times s, in config joint 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
@@ -640,8 +641,20 @@ class Arm:
         the arm's weight carried: joints with kp = 0 get their gravity torque at the *measured* pose
         (they are not held at the commanded one, and the following-error check leaves them alone).
         Servo joints ignore gains. The default following-error limits follow the new kp.
+
+        Raises:
+            ArgumentError: a gain that is not a finite number ≥ 0 within its motor's range, a list
+                that is not one per joint (names the joint).
         """
-        self._ctl.set_gains(kp, kd)
+        self._ctl.set_gains(self._gain(kp, "kp", "N·m/rad"), self._gain(kd, "kd", "N·m·s/rad"))
+
+    def _gain(self, value: object, name: str, unit: str) -> float | list[float] | None:
+        """A gain argument: ``None``, one number for every joint, or one per joint (each finite, ≥ 0)."""
+        if value is None:
+            return None
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            return finite_number(value, name, at_least=0.0, unit=unit)
+        return self._per_joint(value, name, unit=unit, at_least=0.0).tolist()
 
     def set_extra_torque(self, tau: Sequence[float] | None) -> None:
         """Add ``tau`` (N·m per joint, config order; ``None`` clears) to every MIT command's torque,
@@ -674,6 +687,8 @@ class Arm:
 
     def keyframe(self, name: str | None = None) -> rec_mod.Keyframe:
         """The measured pose now, as a keyframe (rad, config order) with an optional name."""
+        if name is not None and not isinstance(name, str):
+            raise ArgumentError(f"a keyframe's name must be text or None, got {name!r}", fix='e.g. "grasp"')
         with self._ctl.lock:
             return rec_mod.Keyframe(tuple(float(j.state.position) for j in self.joints), name)
 
@@ -841,14 +856,14 @@ class Arm:
         Raises:
             ArgumentError: a mass that is not a number ≥ 0, a centre of mass that is not 3 finite numbers.
         """
+        m = finite_number(mass, "payload mass", at_least=0.0, unit="kg", fix="give the mass in kg")
         try:
-            m, c = float(mass), np.asarray(com, dtype=float)
-        except (TypeError, ValueError):
-            m, c = math.nan, np.zeros(0)
-        if not (math.isfinite(m) and m >= 0):
-            raise ArgumentError(f"payload mass must be a number ≥ 0 kg, got {mass!r}", fix="give the mass in kg")
-        if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise ArgumentError(f"payload com must be 3 numbers (m, tool frame), got {com!r}", fix="e.g. (0, 0, 0.04)")
+            if isinstance(com, str | bytes) or len(com) != 3:
+                raise TypeError
+            c = np.array([finite_number(x, "payload com", unit="m") for x in com])
+        except (TypeError, ArgumentError):
+            raise ArgumentError(f"payload com must be 3 finite numbers (m, tool frame), got {com!r}",
+                                fix="e.g. (0, 0, 0.04)") from None
         self._ctl.set_payload(m, c)
         over = [(p, j) for p, j in zip(self.gravity_check(), self.config.joints, strict=True)
                 if p.torque > j.limits.torque]

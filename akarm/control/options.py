@@ -8,6 +8,7 @@ The Arm builds it from its keywords (see :class:`~akarm.Arm` for what each means
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from os import PathLike
 
@@ -16,7 +17,10 @@ from akarm.control.feedforward import FeedForwardKind
 from akarm.errors import ArgumentError
 from akarm.timing import TimingProfile, get_profile
 
-__all__ = ["ControllerOptions"]
+__all__ = ["MAX_PHASE", "ControllerOptions"]
+
+#: s, the longest a stop may damp before its exit frames, or an enable ramp up its gains.
+MAX_PHASE = 10.0
 
 
 def _number(value: object) -> bool:
@@ -69,14 +73,21 @@ class ControllerOptions:
         for name, value in positive:
             if not (_number(value) and value > 0):
                 raise ArgumentError(f"{name} must be a positive number, got {value!r}")
-        for name, value in (("enable_ramp", self.enable_ramp), ("stop_damping_time", self.stop_damping_time),
-                            ("hold_integral", self.hold_integral)):
-            if not (_number(value) and value >= 0):
-                raise ArgumentError(f"{name} must be a finite number, at least 0, got {value!r}")
+        # (a stop that damps for ever never sends its exit frames: the motors stay powered)
+        for name, value, top in (("enable_ramp", self.enable_ramp, MAX_PHASE),
+                                 ("stop_damping_time", self.stop_damping_time, MAX_PHASE),
+                                 ("hold_integral", self.hold_integral, math.inf)):
+            if not (_number(value) and 0 <= value <= top):
+                raise ArgumentError(f"{name} must be a finite number, at least 0" +
+                                    (f" and at most {top:g} s" if top < math.inf else "") + f", got {value!r}",
+                                    fix=f"leave it at its default, {getattr(ControllerOptions, name):g}")
         if not (isinstance(self.implausible_limit, int) and self.implausible_limit >= 1):
             raise ArgumentError(f"implausible_limit must be a whole number, at least 1, got {self.implausible_limit!r}")
-        if self.loop_cpu is not None and not (isinstance(self.loop_cpu, int) and self.loop_cpu >= 0):
-            raise ArgumentError(f"loop_cpu must be a CPU number (0, 1, ...) or None, got {self.loop_cpu!r}")
+        cpus = os.cpu_count() or 1
+        if self.loop_cpu is not None and not (isinstance(self.loop_cpu, int) and not isinstance(self.loop_cpu, bool)
+                                              and 0 <= self.loop_cpu < cpus):
+            raise ArgumentError(f"loop_cpu must be a CPU number (0-{cpus - 1} here) or None, got {self.loop_cpu!r}",
+                                fix="pick a core the rest of the system leaves alone")
 
     @property
     def watchdog(self) -> float:

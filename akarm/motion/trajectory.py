@@ -27,9 +27,11 @@ import ruckig
 
 from akarm.errors import ArgumentError, LimitError, TrajectoryError
 
-__all__ = ["RELEASE_CHUNK", "Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted", "State", "Timed", "Vector",
-           "position_extrema", "release"]
+__all__ = ["MAX_RANGE_MARGIN", "RELEASE_CHUNK", "Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted",
+           "State", "Timed", "Vector", "position_extrema", "release"]
 
+#: rad: the most a move may start past a joint's range (a margin past it lets a plan go past the limits).
+MAX_RANGE_MARGIN = 0.5
 #: Joint values in config order: a list or an array.
 Vector = Sequence[float] | np.ndarray
 #: A commanded state (q rad, dq rad/s, ddq rad/s², config order).
@@ -294,8 +296,10 @@ class Planner:
 
     def __init__(self, limits: JointLimits, range_margin: float = 0.05,
                  outer: tuple[Vector, Vector] | None = None) -> None:
-        if not range_margin >= 0:
-            raise ArgumentError(f"range_margin {range_margin!r} must be a distance ≥ 0 rad", fix="e.g. 0.05")
+        if not (isinstance(range_margin, int | float) and not isinstance(range_margin, bool)
+                and 0 <= range_margin <= MAX_RANGE_MARGIN):
+            raise ArgumentError(f"range_margin {range_margin!r} must be a distance from 0 to {MAX_RANGE_MARGIN:g} rad",
+                                fix="e.g. 0.05 (how far past its range a joint resting on its hard stop may be)")
         self.limits = limits
         self.range_margin = float(range_margin)
         lo, hi = outer if outer is not None else (limits.lower, limits.upper)

@@ -82,6 +82,15 @@ def test_keyframes_replay_at_a_fraction_of_the_limits_as_the_docs_say(lockstep) 
     (lambda arm: arm.tool_pose([0.0, "x"]), r"joint 'elbow': tool_pose q must be a finite number \(rad\), got 'x'"),
     (lambda arm: arm.telemetry(since="x"), r"telemetry since must be a finite number \(s, clock time\), got 'x'"),
     (lambda arm: arm.telemetry(since=NAN), r"telemetry since must be a finite number"),
+    (lambda arm: arm.set_gains(kp="10"), r"kp must be one value per joint, not '10'"),
+    (lambda arm: arm.set_gains(kp=[1.0]), r"kp has 1 values, the arm has 2 joints"),  # (was one for both)
+    (lambda arm: arm.set_gains(kd=True), r"kd must be one value per joint, not True"),
+    (lambda arm: arm.set_gains(kp=NAN), r"kp must be a finite number \(N·m/rad\), at least 0, got nan"),
+    (lambda arm: arm.set_payload("1"), r"payload mass must be a finite number \(kg\), at least 0, got '1'"),
+    (lambda arm: arm.set_payload(True), r"payload mass must be a finite number \(kg\), at least 0, got True"),
+    (lambda arm: arm.set_payload(1.0, "abc"), r"payload com must be 3 finite numbers \(m, tool frame\), got 'abc'"),
+    (lambda arm: arm.set_payload(1.0, [0.0, NAN, 0.0]), r"payload com must be 3 finite numbers"),
+    (lambda arm: arm.keyframe(5), r"a keyframe's name must be text or None, got 5"),
 ])
 def test_arm_calls_refuse_bad_arguments_with_an_argument_error(lockstep, call, message) -> None:
     with lockstep("planar2", enable=True) as (arm, sim):
@@ -119,6 +128,13 @@ def test_set_friction_refuses_what_the_robot_file_refuses(lockstep, coulomb, vis
     ({"realtime_priority": "no"}, r"realtime_priority must be True or False, got 'no'"),
     ({"friction_feedforward": "no"}, r"friction_feedforward must be True or False, got 'no'"),
     ({"busy_wait": 1}, r"busy_wait must be True or False, got 1"),
+    # (a stop that damps for ever never sends its exit frames)
+    ({"stop_damping_time": 1e9}, r"stop_damping_time must be a finite number, at least 0 and at most 10 s, got "
+                                 r"1000000000\.0"),
+    ({"enable_ramp": 11.0}, r"enable_ramp must be a finite number, at least 0 and at most 10 s, got 11"),
+    ({"range_margin": 100.0}, r"range_margin 100.0 must be a distance from 0 to 0.5 rad"),
+    ({"loop_cpu": 9999}, r"loop_cpu must be a CPU number \(0-\d+ here\) or None, got 9999"),
+    ({"loop_cpu": True}, r"loop_cpu must be a CPU number"),
 ])
 def test_arm_options_of_the_wrong_kind_are_argument_errors(planar2, channel, options, message) -> None:
     from akarm import Arm

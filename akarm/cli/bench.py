@@ -34,10 +34,10 @@ from akarm.cli.common import add_profile_argument, loop_options
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
     from akarm.cli.common import add_robot_arguments
-    from akarm.cli.options import renamed
+    from akarm.cli.options import duration, renamed
 
     add_robot_arguments(parser)
-    parser.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long to run (default 5)")
+    parser.add_argument("--seconds", type=duration, default=5.0, metavar="S", help="how long to run (default 5)")
     parser.add_argument("--loop-rate", type=float, metavar="HZ", help="loop rate (default: the file's rate_hz)")
     renamed(parser, "--rate", "--loop-rate")
     parser.add_argument("--busy-wait", action="store_true",

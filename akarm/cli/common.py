@@ -34,12 +34,13 @@ def add_profile_argument(parser: argparse.ArgumentParser, loop: bool = True) -> 
     """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a
     simulator; and, where the verb runs a control loop (``loop``), ``--stall-limit S``
     (:func:`loop_options` gives both to the :class:`~akarm.Arm`)."""
+    from akarm.cli.options import duration
     from akarm.timing import PROFILES
 
     parser.add_argument("--profile", default="normal", choices=list(PROFILES), metavar="NAME",
                         help="timing profile: " + "; ".join(f"{p.name}: {p.description}" for p in PROFILES.values()))
     if loop:
-        parser.add_argument("--stall-limit", type=float, metavar="S",
+        parser.add_argument("--stall-limit", type=duration, metavar="S",
                             help="s the control loop itself may fail to run (this process stopped or starved) and "
                                  "resume without a stop; longer stops the arm with LoopStall (default: the "
                                  "profile's, 0.2 s normally)")

@@ -40,8 +40,10 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from akarm.cli.options import delay
+
     add_robot_arguments(parser)
-    parser.add_argument("--seconds", type=float, metavar="S", help="hold for S seconds, then disable "
+    parser.add_argument("--seconds", type=delay, metavar="S", help="hold for S seconds, then disable "
                         "(default: until Ctrl-C)")
     parser.add_argument("--accept-position", action="store_true",
                         help="skip the check that each joint reads where it was when the arm last stopped "

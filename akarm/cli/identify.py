@@ -29,10 +29,12 @@ from akarm.cli.common import (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from akarm.cli.options import duration
+
     add_robot_arguments(parser)
     parser.add_argument("--speed", type=float, metavar="F", help="time scaling of the excitation, 0 < F <= 1 "
                         "(default: as fast as the joint limits and half the torque limits allow)")
-    parser.add_argument("--seconds", type=float, default=30.0, metavar="S",
+    parser.add_argument("--seconds", type=duration, default=30.0, metavar="S",
                         help="excitation length, 8-600 s (default 30)")
     parser.add_argument("--amplitude", type=float, default=0.5, metavar="RAD",
                         help="largest excursion of each joint from where it starts, 0 < RAD <= π (default 0.5)")

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from akarm.cli.options import finite, negative_values_are_positional
+    from akarm.cli.options import delay, finite, negative_values_are_positional
 
     add_robot_arguments(parser)
     parser.add_argument("target", metavar="TARGET", nargs="*",
@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--linear", action="store_true", help="with --xyz: move the tool in a straight line")
     parser.add_argument("--speed", type=float, default=1.0, metavar="F",
                         help="fraction of the joint limits, 0 < F <= 1 (default 1)")
-    parser.add_argument("--hold", type=float, default=0.0, metavar="S", help="hold the target S seconds before "
+    parser.add_argument("--hold", type=delay, default=0.0, metavar="S", help="hold the target S seconds before "
                         "disabling (default 0; at least the timing profile's lag: slow holds 1 s)")
     parser.add_argument("--log", metavar="FILE", help="save the telemetry (.csv, .npz or .mcap) for akarm plot")
     add_profile_argument(parser)

@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
+    from akarm.cli.options import duration
+
     add_robot_arguments(parser)
     parser.add_argument("--domain", type=int, metavar="N", help="DDS domain ID (default: $ROS_DOMAIN_ID, else 0)")
     parser.add_argument("--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics and services")
@@ -43,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "has two more fields, humble's ros_discovery_info longer IDs)")
     parser.add_argument("--joint-states-hz", type=float, metavar="HZ",
                         help="joint_states rate (default: the loop rate divided by round(rate/100), ~100 Hz)")
-    parser.add_argument("--feedback-timeout", type=float, metavar="S",
+    parser.add_argument("--feedback-timeout", type=duration, metavar="S",
                         help="watchdog: stop the arm when a joint's feedback is older (default: the profile's, 0.02 "
                              "normally; a joint's own feedback_timeout in the YAML wins)")
     add_profile_argument(parser)

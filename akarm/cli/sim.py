@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from akarm.cli.options import renamed
+    from akarm.cli.options import delay, renamed
     from akarm.sim.faults import KINDS  # light: no numpy, no python-can
 
     add_robot_arguments(parser)
@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(repeatable); PATH 'pty' makes a pseudo-terminal pair and prints the path to open")
     parser.add_argument("--baudrate", type=int, default=921_600, metavar="BAUD",
                         help="bit/s of the --serial devices (default 921600, the AK drivers'; a pty ignores it)")
-    parser.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
+    parser.add_argument("--seconds", type=delay, metavar="S", help="stop after S seconds (default: run until Ctrl-C)")
     parser.add_argument("--plant-rate", type=float, metavar="HZ",
                         help="plant integration rate, Hz (default: the timing profile's; 2000 normally)")
     renamed(parser, "--duration", "--seconds")
@@ -61,9 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="serve a control channel on this Unix-domain socket: inject and clear faults, read "
                              "and disable the drivers from another program (akarm.sim.channel)")
     parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
-    parser.add_argument("--zero-silence", type=float, default=1.0, metavar="S",
+    parser.add_argument("--zero-silence", type=delay, default=1.0, metavar="S",
                         help="MIT: seconds off-line after a ZERO frame (default 1.0)")
-    parser.add_argument("--servo-release", type=float, default=1.0, metavar="S",
+    parser.add_argument("--servo-release", type=delay, default=1.0, metavar="S",
                         help="servo: seconds after the last command the output is released (default 1.0)")
     parser.add_argument("--status-hz", type=float, default=4.0, metavar="HZ",
                         help="status line updates per second on a terminal (default 4; 1 when not a terminal)")

@@ -54,7 +54,7 @@ class _Teachable(Protocol):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The verb's arguments."""
-    from akarm.cli.options import renamed
+    from akarm.cli.options import duration, renamed
 
     add_robot_arguments(parser)
     parser.add_argument("out", metavar="OUT.yaml|OUT.csv", help="keyframes (.yaml) or a continuous path (.csv)")
@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continuous path: samples per second (default 50, or half the loop rate if lower; "
                              "at most the loop rate)")
     renamed(parser, "--rate", "--sample-rate")
-    parser.add_argument("--seconds", type=float, metavar="S", help="continuous path: stop after S seconds")
+    parser.add_argument("--seconds", type=duration, metavar="S", help="continuous path: stop after S seconds")
     parser.add_argument("--damping", type=float, default=0.1, metavar="D",
                         help="MIT joints: damping while guided, N·m·s/rad (default 0.1, at most the joint's kd)")
     add_profile_argument(parser)

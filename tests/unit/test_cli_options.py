@@ -129,6 +129,18 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     (["move", PLANAR2, "home", "-i", "socketcn"], "argument -i/--interface: 'socketcn' is not a python-can interface "
                                                   "(did you mean 'socketcan'?)"),
     (["teleop", PLANAR2, PLANAR2, "-b", "-1"], "argument -b/--bitrate: bitrate must be a whole number"),
+    # every verb's durations (--hold inf held for ever after the move; --zero-silence -1 was taken)
+    (["move", PLANAR2, "up", "--hold", "inf"], "argument --hold: 'inf' is not a finite number of seconds, at least 0"),
+    (["move", PLANAR2, "up", "--stall-limit", "nan"], "argument --stall-limit: 'nan' is not a finite number"),
+    (["sim", PLANAR2, "--zero-silence", "-1"], "argument --zero-silence: '-1' is not a finite number of seconds"),
+    (["sim", PLANAR2, "--servo-release", "nan"], "argument --servo-release: 'nan' is not a finite number"),
+    (["sim", PLANAR2, "--seconds", "-1"], "argument --seconds: '-1' is not a finite number of seconds"),
+    (["enable", PLANAR2, "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number of seconds"),
+    (["bench", PLANAR2, "--seconds", "0"], "argument --seconds: '0' is not a finite number of seconds, more than 0"),
+    (["teach", PLANAR2, "out.yaml", "--seconds", "nan"], "argument --seconds: 'nan' is not a finite number"),
+    (["identify", PLANAR2, "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number"),
+    (["serve", PLANAR2, "--feedback-timeout", "0"], "argument --feedback-timeout: '0' is not a finite number of "
+                                                     "seconds, more than 0"),
     (["move", PLANAR2, "--xyz", "nan", "0", "0.3"], "argument --xyz: 'nan' is not a finite number"),
     (["move", PLANAR2, "--xyz", "0.3", "0", "0.3", "--rpy", "0", "inf", "0"], "argument --rpy: 'inf' is not a finite "
                                                                              "number"),

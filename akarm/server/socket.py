@@ -316,7 +316,7 @@ class SocketServer:
             if newline >= 0:
                 line = bytes(buf[:newline])
                 del buf[:newline + 1]
-                if not self._request(c, line):
+                if not self._request(c, line) or c.reserve:  # (a reserved one carries one request)
                     return
                 continue
             if len(buf) > MAX_REQUEST_BYTES:
@@ -351,13 +351,9 @@ class SocketServer:
         req_id: Any = None
         try:
             req_id, op, args = _parse(line)
-            if c.reserve:  # one request, urgent, and the reserved place is free again
-                if op not in self.urgent:
-                    self.refused += 1
-                    self._answer(c, req_id, self._busy())
-                    return False
-                self._answer(c, req_id, None, self.dispatch(op, args, c.client))
-                return False
+            if c.reserve and op not in self.urgent:  # a reserved connection carries urgent requests only
+                self.refused += 1
+                return self._answer(c, req_id, self._busy())
             return self._answer(c, req_id, None, self.dispatch(op, args, c.client))
         except AkarmError as e:
             return self._answer(c, e.req_id if isinstance(e, _BadRequest) else req_id, e)

@@ -276,11 +276,18 @@ class Controller:
         finally:
             self.loop.stop()
             with self.lock:
-                if self.modes.mode.powered:  # the stop did not run to its end (a stalled or dead loop): exit now,
-                    for _ in range(RELEASES):  # as often as a stop would
-                        self.bus.release_all(suppress=True)
+                if self.modes.mode.powered:  # the stop did not run to its end (a stalled or dead loop): exit now
+                    self._release_at_once()
                 self.modes.go(Mode.CLOSED)
             self.bus.close()
+
+    def _release_at_once(self, pause: float = 0.0) -> None:
+        """The exit frames :data:`RELEASES` times, ``pause`` s apart, whatever fails: for a stop that
+        did not run to its end (a stalled, dead or crashed loop)."""
+        for _ in range(RELEASES):
+            self.bus.release_all(suppress=True)
+            if pause:
+                time.sleep(pause)
 
     def _on_loop_thread(self) -> bool:
         return self.loop.thread is threading.current_thread()
@@ -312,9 +319,7 @@ class Controller:
         finally:
             try:
                 if self.modes.mode.powered:
-                    for _ in range(RELEASES):
-                        self.bus.release_all(suppress=True)
-                        time.sleep(self.period)
+                    self._release_at_once(self.period)
             finally:
                 if self.lock.acquire(timeout=1.0):
                     try:

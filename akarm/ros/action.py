@@ -74,6 +74,7 @@ from akarm.ros.trajectory import (
     check_joint_names,
     check_size,
     check_trajectory,
+    refusal,
 )
 
 if TYPE_CHECKING:
@@ -330,8 +331,7 @@ class ActionServer:
             guid, seq = struct.unpack_from("<Qq", raw.data, 4)
             req = at.SendGoalRequest(guid, seq, at.UUID(list(raw.data[20:36])))
             req.sample_info = raw.sample_info  # type: ignore[attr-defined]  # for the reply
-            refused = e if isinstance(e, TrajectoryRefused) else TrajectoryRefused(e.what, INVALID_GOAL, fix=e.fix)
-            self._on_send_goal(req, refused=refused)
+            self._on_send_goal(req, refused=refusal(e))
             return
         self._on_send_goal(req)
 

@@ -44,7 +44,7 @@ from akarm.ros.action import ActionServer
 from akarm.ros.commands import RETRY, CommandQueue
 from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
-from akarm.ros.trajectory import INVALID_GOAL, TrajectoryRefused, check_size, check_trajectory
+from akarm.ros.trajectory import TrajectoryRefused, check_size, check_trajectory, refusal
 
 if TYPE_CHECKING:
     from akarm.server.server import ArmServerCore
@@ -196,8 +196,7 @@ class RosNode:
             check_size(raw.data, 4, self.names)
             msg = decode(msgs.JointTrajectory, raw)
         except ArgumentError as e:
-            refusal = e if isinstance(e, TrajectoryRefused) else TrajectoryRefused(e.what, INVALID_GOAL, fix=e.fix)
-            refusal.report(self.server)
+            refusal(e).report(self.server)
             self._heard(f"joint_trajectory from {sender(self._traj, raw)}: {len(raw.data)} bytes: refused "
                         f"({type(e).__name__}: {e.what})")
             return

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["GOAL_TOLERANCE_VIOLATED", "INVALID_GOAL", "INVALID_JOINTS", "OLD_HEADER_TIMESTAMP",
            "PATH_TOLERANCE_VIOLATED", "SUCCESSFUL", "TimedPoints", "TrajectoryRefused", "check_joint_names",
-           "check_size", "check_trajectory", "max_message_bytes", "trajectory_arrays"]
+           "check_size", "check_trajectory", "max_message_bytes", "refusal", "trajectory_arrays"]
 
 # control_msgs/action/FollowJointTrajectory's result codes
 SUCCESSFUL = 0
@@ -160,6 +160,12 @@ def max_message_bytes(joints: int) -> int:
     sequences of ``joints`` doubles (positions, velocities, accelerations, efforts: a length, padding,
     the values) and its time, and 64 KiB for the rest (joint names, ``frame_id``, a goal's tolerances)."""
     return MAX_TRAJECTORY_POINTS * (4 * (8 + 8 * joints) + 16) + 65536
+
+
+def refusal(e: ArgumentError) -> TrajectoryRefused:
+    """``e`` as a trajectory's refusal: itself if it is one, else ``INVALID_GOAL`` (a message that does not
+    decode)."""
+    return e if isinstance(e, TrajectoryRefused) else TrajectoryRefused(e.what, INVALID_GOAL, fix=e.fix)
 
 
 def _too_many_points(n: int) -> TrajectoryRefused:

@@ -410,6 +410,7 @@ def test_with_every_connection_busy_an_urgent_request_still_gets_through(tmp_pat
                 pytest.raises(StateError, match=r"3 control connections busy.*only disable are taken now"):
             other.call("move")
         assert "move" not in done
+        assert wait_until(lambda: server.connections == 3, 2.0)  # that reserved connection has ended
         # the reserve is one connection: while one holds it (no request yet), the next is refused at once
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as holder:
             holder.connect(str(path))
@@ -417,6 +418,7 @@ def test_with_every_connection_busy_an_urgent_request_still_gets_through(tmp_pat
             with SocketClient(str(path), timeout=5) as late, pytest.raises(StateError, match="busy"):
                 late.call("disable")
             assert holder.recv(10) == b"", "a reserved connection waits no longer than a request may take"
+        assert wait_until(lambda: server.connections == 3, 2.0)
         with SocketClient(str(path), timeout=5) as again:  # free again
             assert again.call("disable") == "disable"
     finally:

@@ -116,6 +116,12 @@ class Payload:
     mass: float
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
+    def __post_init__(self) -> None:
+        # one built in code may give a list or an array: the model, a cache key and a compiled caller
+        # all take the tuple the annotation promises
+        if not isinstance(self.com, tuple):
+            object.__setattr__(self, "com", tuple(self.com))
+
 
 @dataclass(frozen=True)
 class JointConfig:

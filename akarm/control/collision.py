@@ -361,7 +361,7 @@ class CollisionReflex:
         mode) the reflex disarms."""
         qa, va, ta = _floats(q), _floats(dq), _floats(tau)
         # a sum is finite only if every term is (NaN and ±inf carry through): one test for the usual case
-        if not math.isfinite(sum(qa) + sum(va) + sum(ta)) and not (
+        if not math.isfinite(sum(qa, 0.0) + sum(va, 0.0) + sum(ta, 0.0)) and not (
                 all(map(math.isfinite, qa)) and all(map(math.isfinite, va)) and all(map(math.isfinite, ta))):
             return None  # no feedback yet: the supervisor deals with missing feedback
         # this cycle's feedback answers the last cycle's command: it was taken then (the drivers reply at once)

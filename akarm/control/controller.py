@@ -427,8 +427,7 @@ class Controller:
             refused = self.enabler.refuse_foreign(now, now - FOREIGN_RECENT)
             if refused is not None:
                 raise refused
-            self.fault = None
-            self.enable_error = None
+            self._clear_errors()
             self.tau_ff = [0.0] * self.n  # a stop during contact fades from here, not the last session's torque
             self._remembered = None if accept_position or self.positions is None else self.positions.load()
             self._positions_known = False
@@ -441,6 +440,12 @@ class Controller:
             raise self.enable_error
         self._forget_positions()
         self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
+
+    def _clear_errors(self) -> None:
+        # a method of its own: a type checker that saw these set to None in enable() would take them for
+        # None there afterwards, while the loop's thread sets them (and mypyc checks what it reads)
+        self.fault = None
+        self.enable_error = None
 
     def disable(self, wait: bool = True) -> None:
         """Damp every joint for ``stop_damping_time``, then exit motor mode; ``wait``: until done."""

@@ -306,9 +306,11 @@ class ControlLoop:
     ``on_crash(exception)`` (the Arm uses that to send exit frames).
     """
 
-    def __init__(self, rate_hz: float, clock: Clock, cycle: Callable[[float, int], None], *,
+    def __init__(self, rate_hz: object, clock: Clock, cycle: Callable[[float, int], None], *,
                  stages: Sequence[str] = ("cycle",), realtime_priority: bool = False, cpu: int | None = None,
                  on_crash: Callable[[BaseException], None] | None = None) -> None:
+        # (``object``: compiled, an annotation is checked at the call, and a wrong type would be a
+        # TypeError there, not this ArgumentError)
         if isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or \
                 not MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ:
             raise ArgumentError(f"the loop rate must be a number of Hz from {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}, "
@@ -332,7 +334,7 @@ class ControlLoop:
         self.gap = 0.0
         self._next: float | None = None
         self._in_cycle = False  # (stepped) this loop's own cycle is under way: the clock must not start another
-        self._thread: threading.Thread | None = None
+        self._worker: threading.Thread | None = None  # (not `_thread`: compiled, that is C's `__thread`)
         self._running = threading.Event()
         self.cycled = threading.Condition()
 
@@ -391,7 +393,7 @@ class ControlLoop:
     def start(self) -> None:
         """Start the loop afresh (its statistics and any crash forgotten), in a thread of its own with
         a real clock (a stepped loop runs through :meth:`step`). Nothing if it runs already."""
-        if self._thread is not None:
+        if self._worker is not None:
             return
         self.stats.reset()
         self.crashed = None
@@ -402,8 +404,8 @@ class ControlLoop:
                 self.clock.join(self)
             return
         self._running.set()
-        self._thread = threading.Thread(target=self._run, name="akarm-loop", daemon=True)
-        self._thread.start()
+        self._worker = threading.Thread(target=self._run, name="akarm-loop", daemon=True)
+        self._worker.start()
 
     def _run(self) -> None:
         # a thread of the process holding the interpreter lock must give it up within a twentieth of
@@ -447,19 +449,19 @@ class ControlLoop:
     @property
     def thread(self) -> threading.Thread | None:
         """The loop's thread while it runs (``None`` in lock step: cycles run in the caller's thread)."""
-        return self._thread
+        return self._worker
 
     def stop(self, timeout: float = 2.0) -> None:
         """Stop the loop thread (after its current cycle); a stepped loop leaves its clock."""
         if isinstance(self.clock, SteppedClock):
             self.clock.leave(self)
         self._running.clear()
-        t = self._thread
+        t = self._worker
         if t is not None and t is not threading.current_thread():
             t.join(timeout)
         if t is not None:
             gc.unfreeze()  # what request_realtime or keep_from_collections froze may be collected again
-        self._thread = None
+        self._worker = None
         self._next = None
 
     def wait_cycle(self, timeout: float) -> None:

@@ -3,6 +3,7 @@ routing them one by one (route_frame) puts them, whatever the frame."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import akarm
@@ -20,9 +21,14 @@ def _joints():
     return [make_joint(i, c) for i, c in enumerate([*mits, *servos])]
 
 
+def _value(v):
+    # NaN equals itself in a list only as the same object; a compiled router makes a new one each time
+    return "nan" if isinstance(v, float) and math.isnan(v) else v
+
+
 def _snapshot(router: Router, joints) -> list:
     return [router.unrouted, router.corrupt] + [
-        (tuple(getattr(j.state, k) for k in _KEPT), j.frames_received, j.rejected, j.foreign, j.foreign_at,
+        (tuple(_value(getattr(j.state, k)) for k in _KEPT), j.frames_received, j.rejected, j.foreign, j.foreign_at,
          getattr(j, "mode_seen", None)) for j in joints]
 
 

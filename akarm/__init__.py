@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from akarm import compiled
 from akarm._version import __version__
 from akarm.errors import (
     AkarmError,
@@ -60,6 +61,8 @@ from akarm.errors import (
     UnreachableError,
     WiringError,
 )
+
+compiled.choose_at_import()  # AKARM_PURE=1, or compiled modules older than their sources: pure Python
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState

@@ -13,6 +13,7 @@ import importlib
 import importlib.util
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from akarm import signals
 from akarm._version import __version__
@@ -46,12 +47,28 @@ def _available() -> dict[str, tuple[str, str]]:
     return {v: spec for v, spec in VERBS.items() if importlib.util.find_spec(spec[0]) is not None}
 
 
+class _Version(argparse.Action):
+    """``--version``: akarm's version and whether this process runs the cycle compiled (which imports
+    the cycle's modules: done only when asked, not for every command)."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        from akarm.compiled import status
+
+        print(f"akarm {__version__}\nthe control cycle: {status()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="akarm",
         description="Trajectory control for robot arms built from CubeMars AK actuators.",
     )
-    parser.add_argument("--version", action="version", version=f"akarm {__version__}")
+    parser.add_argument("--version", action=_Version, help="print akarm's version, and whether its control cycle "
+                        "runs compiled, and exit")
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
     for verb, (module, help_text) in _available().items():
         p = sub.add_parser(verb, help=help_text, description=help_text)

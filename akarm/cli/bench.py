@@ -28,6 +28,7 @@ import os
 import threading
 import time
 
+from akarm import compiled
 from akarm.cli.common import add_profile_argument, loop_options
 
 
@@ -106,7 +107,8 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     start = np.clip(targets[0], lower, upper)
     where = "in this process" if args.in_process else "in its own process"
     print(f"bench: {config.name}, {len(config.joints)} joints at {config.rate_hz:g} Hz for {args.seconds:g} s "
-          f"against the simulator {where} (moving between {len(targets)} poses)", flush=True)
+          f"against the simulator {where} (moving between {len(targets)} poses); the control cycle: "
+          f"{compiled.status()}", flush=True)
     with contextlib.ExitStack() as stack:
         sim: SimulatedRobot | SimulatorProcess
         if args.in_process:

@@ -13,8 +13,10 @@ of its own (so that its process CPU is its own alone), the sides alternating rou
   checks), its replies read by python-can's ``Notifier`` thread. Its CAN manager opens ``can0`` on
   socketcan (after ``sudo ip link``); here its one bus is an ``akarm_local`` bus instead, opened
   before the first manager, and nothing else of it is changed.
-- akarm: ``Arm(cfg)`` moving between the file's poses (planning included), with the supervisor,
-  the collision reflex, the feed-forward and telemetry on, as shipped. A safety stop (on a loaded
+- akarm: as installed (its cycle compiled with mypyc where the install could: ``akarm --version``);
+  where it is compiled, a third side, ``pure``, runs the same with ``AKARM_PURE=1``. Each:
+  ``Arm(cfg)`` moving between the file's poses (planning included), with the supervisor, the
+  collision reflex, the feed-forward and telemetry on, as shipped. A safety stop (on a loaded
   machine: the simulator's process starved past the 20 ms watchdog) is counted and the arm enabled
   again; the stops are printed.
 
@@ -165,7 +167,8 @@ def run_akarm(channel: str, seconds: float, interface: str = "akarm_local") -> d
             k += 1
         cpu, sim_cpu = cpu_seconds() - cpu0, sim.cpu_seconds() - sim0
         s = arm.stats()
-    return {"side": "akarm", "stops": stops, "cycles": s.cycles, "missed": s.missed, "cpu_per_cycle": cpu / s.cycles,
+    return {"side": "akarm", "cycle": akarm.compiled.status(), "stops": stops, "cycles": s.cycles,
+            "missed": s.missed, "cpu_per_cycle": cpu / s.cycles,
             "sim_cpu_per_cycle": sim_cpu / s.cycles, "late_p99": s.late_p99,
             "compute_mean": s.compute_mean, "compute_p99": s.compute_p99,
             "stage_mean": s.stage_mean, "stage_p99": s.stage_p99}
@@ -177,10 +180,12 @@ def child(side: str, seconds: float) -> None:
     print(MARK + json.dumps(result), flush=True)
 
 
-def spawn(side: str, seconds: float, script: str = __file__) -> dict:
-    """``script --child side``'s result, run in a fresh process of its own."""
+def spawn(side: str, seconds: float, script: str = __file__, pure: bool = False) -> dict:
+    """``script --child side``'s result, run in a fresh process of its own (``pure``: with AKARM_PURE=1,
+    akarm's cycle in pure Python though it is installed compiled)."""
+    env = os.environ | {"AKARM_PURE": "1"} if pure else {k: v for k, v in os.environ.items() if k != "AKARM_PURE"}
     out = subprocess.run([sys.executable, script, "--child", side, "--seconds", str(seconds)],
-                         capture_output=True, text=True, timeout=seconds + 180)
+                         capture_output=True, text=True, timeout=seconds + 180, env=env)
     for line in out.stdout.splitlines():
         if line.startswith(MARK):
             return json.loads(line[len(MARK):])
@@ -212,32 +217,40 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0, help="length of each side's run, s")
     ap.add_argument("--hold-idle", action="store_true",
                     help="hold every CPU out of deep idle states for the run, both sides (needs root)")
+    ap.add_argument("--no-pure", action="store_true",
+                    help="leave out the third side (akarm with AKARM_PURE=1) where akarm is installed compiled")
     ap.add_argument("--child", choices=("peer", "akarm"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(args.child, args.seconds)
         return
     hold = hold_idle() if args.hold_idle else None
+    from akarm import compiled
+
+    cycle = compiled.status()
+    sides = ["peer", "akarm"] + ([] if args.no_pure or not compiled.compiled_modules() else ["pure"])
     us = 1e6
     print(f"arm6, 6 MIT joints, {RATE:g} Hz, akarm sim in its own process on akarm_local, both loops sleeping; "
           f"{args.seconds:g} s per side, {os.cpu_count()} CPUs, Python {sys.version.split()[0]}"
-          + ("; CPU idle latency held at 0 µs" if hold is not None else ""))
+          + ("; CPU idle latency held at 0 µs" if hold is not None else "") + f"\nakarm's cycle: {cycle}"
+          + ("; the side 'pure' is akarm with AKARM_PURE=1" if "pure" in sides else ""))
     print(f"{'round':>5} {'side':>6} {'load':>5} {'cycles':>7} {'missed':>6} {'CPU/cycle':>10} {'akarm/peer':>10} "
           f"{'compute':>8} {'cmp p99':>8} {'late p99':>9} {'sim CPU/c':>9}   (µs)")
     for r in range(1, args.rounds + 1):
         res = {}
-        for side in ("peer", "akarm"):
+        for side in sides:
             before = load()
-            x = res[side] = spawn(side, args.seconds)
+            x = res[side] = spawn("peer" if side == "peer" else "akarm", args.seconds, pure=side == "pure")
             ratio = x["cpu_per_cycle"] / res["peer"]["cpu_per_cycle"]
             print(f"{r:5d} {side:>6} {before:>5} {x['cycles']:7d} {x['missed']:6d} {x['cpu_per_cycle'] * us:10.1f} "
                   f"{ratio:10.2f} {x['compute_mean'] * us:8.1f} {x['compute_p99'] * us:8.1f} "
                   f"{x['late_p99'] * us:9.1f} {x['sim_cpu_per_cycle'] * us:9.1f}", flush=True)
-        a = res["akarm"]
-        print("      akarm per stage, µs: " + ", ".join(
-            f"{k} {a['stage_mean'][k] * us:.1f} ({a['stage_p99'][k] * us:.0f})" for k in a["stage_mean"])
-            + f"; whole compute {a['compute_mean'] * us:.1f} ({a['compute_p99'] * us:.0f}); "
-            f"safety stops {a['stops']}", flush=True)
+        for side in sides[1:]:
+            a = res[side]
+            print(f"      {side} per stage, µs: " + ", ".join(
+                f"{k} {a['stage_mean'][k] * us:.1f} ({a['stage_p99'][k] * us:.0f})" for k in a["stage_mean"])
+                + f"; whole compute {a['compute_mean'] * us:.1f} ({a['compute_p99'] * us:.0f}); "
+                f"safety stops {a['stops']}", flush=True)
 
 
 if __name__ == "__main__":

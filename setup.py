@@ -1,9 +1,10 @@
 """Builds akarm's compiled cycle with mypyc, where it can: everything else is in pyproject.toml.
 
 The modules the control loop runs every cycle (akarm/compiled.py's MODULES) are compiled to C: the
-process's CPU per cycle falls by about a quarter (README, Timing). Nothing is lost where they cannot
-be: without a C compiler or Python's headers, or a mypyc that will not take them, akarm installs as
-pure Python and says so (a warning here, `akarm check` afterwards). AKARM_PURE=1 compiles nothing.
+process's CPU per cycle falls by 10-25 % (README, Timing). Nothing is lost where they cannot be:
+without a C compiler or Python's headers, or a mypyc that will not take them, akarm installs as
+pure Python and says so (a warning here, which pip shows with -v; `akarm --version` afterwards).
+AKARM_PURE=1 compiles nothing.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ COMPILED = runpy.run_path(str(HERE / "akarm" / "compiled.py"))  # stdlib only: a
 def warn(what: str) -> None:
     bar = "!" * 78
     print(f"\n{bar}\nakarm: {what}\nakarm installs as pure Python: it works the same, its cycle costs "
-          f"about a quarter more CPU.\n{bar}\n", file=sys.stderr)
+          f"10-25 % more CPU.\n{bar}\n", file=sys.stderr)
 
 
 class OptionalBuildExt(build_ext):

@@ -163,4 +163,4 @@ def status() -> str:
         return (f"partly compiled: {len(done)} of {len(MODULES)} modules (an install left half done? "
                 f"reinstall akarm)")
     return ("pure Python: nothing was compiled at install (no C compiler or Python headers, or "
-            f"{PURE_ENV}=1 then); the cycle costs about a quarter more CPU")
+            f"{PURE_ENV}=1 then); the cycle costs 10-25 % more CPU")

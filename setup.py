@@ -57,9 +57,13 @@ def cycle_extensions() -> list:
         return []
     paths = [str(Path(*name.split(".")).with_suffix(".py")) for name in COMPILED["MODULES"]]
     try:
-        # the build environment has mypy alone: numpy, python-can and the rest are not installed there yet
-        return mypycify(["--ignore-missing-imports", "--no-warn-unused-ignores", *paths], opt_level="3",
-                        group_name=COMPILED["GROUP"])
+        # The same build on every install: mypy sees none of the installed packages (a first install has
+        # none of numpy, python-can and the rest yet; a second one would have them all), and reports
+        # only what it finds in the modules it compiles (not in those they import: the ROS messages'
+        # base classes are missing here too).
+        options = ["--no-site-packages", "--ignore-missing-imports", "--follow-imports=silent",
+                   "--no-warn-unused-ignores"]
+        return mypycify([*options, *paths], opt_level="3", group_name=COMPILED["GROUP"])
     except BaseException as e:  # mypyc reports a type error by SystemExit
         if isinstance(e, KeyboardInterrupt):
             raise

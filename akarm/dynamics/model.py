@@ -17,7 +17,7 @@ A ``RobotModel`` owns one ``pinocchio.Data``: use one instance per thread.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 import pinocchio as pin
@@ -27,7 +27,9 @@ from akarm.errors import ModelError
 
 __all__ = ["RobotModel"]
 
-ArrayLike = np.ndarray | Sequence[float]
+# (declared an alias: where numpy's types are missing, as in the build that compiles the cycle, it
+# is still a type)
+ArrayLike: TypeAlias = np.ndarray | Sequence[float]
 
 
 def _reduced_model(config: RobotConfig) -> tuple[pin.Model, dict[str, float]]:

@@ -19,13 +19,14 @@ import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeAlias
 
 import numpy as np
 
 from akarm.errors import RecordingError
 from akarm.files import FileProblem, atomic_write, number, over, read_csv_table
 
-Values = Sequence[float] | np.ndarray
+Values: TypeAlias = Sequence[float] | np.ndarray  # (an alias: still a type where numpy's are missing)
 
 __all__ = ["FIELDS", "MAX_TELEMETRY_BYTES", "MAX_TELEMETRY_JOINTS", "MAX_TELEMETRY_VALUES", "Telemetry", "TelemetryLog",
            "check_joints", "load", "load_mcap"]

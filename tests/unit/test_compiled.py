@@ -113,3 +113,28 @@ def test_a_compiled_module_older_than_its_source_is_stale(tmp_path: Path) -> Non
     assert compiled.stale_modules(str(package)) == ("akarm.control.joints",)
     (package / "control" / ("joints" + suffix)).unlink()  # not compiled at all: nothing stale to run
     assert compiled.stale_modules(str(package)) == ()
+
+
+def test_every_compiled_class_is_over_akarms_or_the_standard_librarys_classes() -> None:
+    # The build sees no installed package (setup.py: the same build on every install), so a class over
+    # python-can's BusABC, say, would compile over a base it does not know: the local bus did, and the
+    # process crashed (a segmentation fault) at its first frame. Such a module stays pure Python.
+    import ast
+
+    for name in compiled.MODULES:
+        tree = ast.parse((ROOT / Path(*name.split("."))).with_suffix(".py").read_text())
+        imported: dict[str, str] = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                imported |= {(a.asname or a.name).split(".")[0]: a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                imported |= {a.asname or a.name: node.module for a in node.names}
+        for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)):
+            for base in cls.bases:
+                root = base
+                while isinstance(root, ast.Attribute):
+                    root = root.value
+                assert isinstance(root, ast.Name), (name, cls.name)
+                origin = imported.get(root.id, name).split(".")[0]  # not imported: defined in the module
+                assert origin == "akarm" or origin in sys.stdlib_module_names, \
+                    f"{name}.{cls.name} is a class over {ast.unparse(base)}, from {origin}: keep it pure Python"

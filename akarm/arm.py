@@ -543,7 +543,7 @@ class Arm:
         def there() -> bool:
             with self._ctl.lock:
                 error = max(abs(j.state.position - c) for j, c in zip(self.joints, self._ctl.des[0], strict=True))
-            return bool(error < ARRIVED) or self.clock.now() >= end  # a numpy bool is no bool to mypyc
+            return error < ARRIVED or self.clock.now() >= end
 
         self._ctl.wait_for(there, window + 5.0, "the readings to catch up with the commands")
 

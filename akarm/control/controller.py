@@ -360,9 +360,10 @@ class Controller:
         if self.modes.mode is not Mode.ACTIVE:
             raise StateError(f"the arm is {self.modes.mode}, not enabled", fix="call arm.enable() first")
 
-    def wait_for(self, done: Callable[[], bool], timeout: float, what: str, raise_fault: bool = True, *,
+    def wait_for(self, done: Callable[[], object], timeout: float, what: str, raise_fault: bool = True, *,
                  wake: threading.Event | None = None, until: float | None = None) -> None:
-        """Wait (running cycles in lock step) until ``done()``; raise the arm's fault if one comes first.
+        """Wait (running cycles in lock step) until ``done()`` is true (any value that is: a numpy bool too,
+        which a compiled ``bool`` return would refuse); raise the arm's fault if one comes first.
 
         With a real clock the caller looks at ``done()`` after every cycle, unless it says what can make
         it true: ``wake``, an event set when it may have (a motion's end, which a stop, a close and a

@@ -47,9 +47,6 @@ class OptionalBuildExt(build_ext):
 
 
 def cycle_extensions() -> list:
-    if COMPILED["pure_requested"]():
-        print(f"akarm: {COMPILED['PURE_ENV']}=1: the cycle is not compiled", file=sys.stderr)
-        return []
     try:
         from mypyc.build import mypycify
     except ImportError:

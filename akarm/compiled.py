@@ -30,8 +30,8 @@ import warnings
 from collections.abc import Mapping, Sequence
 from types import ModuleType
 
-__all__ = ["GROUP", "MODULES", "PURE_ENV", "STALE_SLACK", "choose_at_import", "compiled_modules", "pure_reason",
-           "pure_requested", "stale_modules", "status"]
+__all__ = ["GROUP", "MODULES", "PURE_ENV", "STALE_SLACK", "choose_at_import", "compiled_file", "compiled_modules",
+           "pure_reason", "pure_requested", "source_file", "stale_modules", "status"]
 
 #: the modules compiled at install: those the control cycle runs, each whole (mypyc compiles a module
 #: or not). The codecs stay pure Python (their public functions take a caller's values of any type and
@@ -105,7 +105,16 @@ def pure_reason() -> str | None:
     return _reason[0] if _reason else None
 
 
-def _compiled_file(source: str) -> str | None:
+def source_file(name: str, package_dir: str | None = None) -> str:
+    """The Python file of module ``name`` (``akarm.…``) in the ``akarm`` package at ``package_dir``
+    (default this one's), found without importing it."""
+    root = os.path.dirname(os.path.abspath(__file__)) if package_dir is None else package_dir
+    return os.path.join(root, *name.split(".")[1:]) + ".py"
+
+
+def compiled_file(source: str) -> str | None:
+    """The compiled module beside the Python file ``source`` (any of this Python's extension
+    suffixes), or ``None``."""
     stem = source[:-len(".py")]
     for suffix in importlib.machinery.EXTENSION_SUFFIXES:
         if os.path.isfile(stem + suffix):
@@ -116,11 +125,10 @@ def _compiled_file(source: str) -> str | None:
 def stale_modules(package_dir: str | None = None) -> tuple[str, ...]:
     """Those of :data:`MODULES` whose compiled module is older than its source (looked up beside the
     sources of the ``akarm`` package in ``package_dir``, default this one's; nothing imported)."""
-    root = os.path.dirname(os.path.abspath(__file__)) if package_dir is None else package_dir
     stale = []
     for name in MODULES:
-        source = os.path.join(root, *name.split(".")[1:]) + ".py"
-        built = _compiled_file(source)
+        source = source_file(name, package_dir)
+        built = compiled_file(source)
         try:
             if built is not None and os.path.getmtime(source) > os.path.getmtime(built) + STALE_SLACK:
                 stale.append(name)

@@ -4,7 +4,6 @@ install is compiled whole or not at all, and what this process runs is reported 
 from __future__ import annotations
 
 import importlib.machinery
-import importlib.util
 import json
 import os
 import subprocess
@@ -27,22 +26,20 @@ print(json.dumps({"files": mods, "status": c.status(), "compiled": list(c.compil
 """
 
 
+def _environ(**env: str) -> dict[str, str]:
+    """This process's environment without AKARM_PURE, with ``env``."""
+    return {k: v for k, v in os.environ.items() if k != compiled.PURE_ENV} | env
+
+
 def _probe(**env: str) -> dict:
-    environ = {k: v for k, v in os.environ.items() if k != compiled.PURE_ENV} | env
-    out = subprocess.run([sys.executable, "-c", PROBE], env=environ, capture_output=True, text=True, timeout=120,
-                         check=True)
+    out = subprocess.run([sys.executable, "-c", PROBE], env=_environ(**env), capture_output=True, text=True,
+                         timeout=120, check=True)
     return json.loads(out.stdout.splitlines()[-1])
 
 
-def _built() -> list[Path]:
+def _built() -> list[str]:
     """The compiled modules beside the sources (an editable install builds them there)."""
-    suffixes = tuple(importlib.machinery.EXTENSION_SUFFIXES)
-    found = []
-    for name in compiled.MODULES:
-        folder = Path(importlib.util.find_spec(name.rpartition(".")[0]).origin).parent  # type: ignore[union-attr,arg-type]
-        leaf = name.rpartition(".")[2]
-        found += [p for p in folder.iterdir() if p.name.startswith(leaf + ".") and p.name.endswith(suffixes)]
-    return found
+    return [f for name in compiled.MODULES if (f := compiled.compiled_file(compiled.source_file(name))) is not None]
 
 
 @pytest.mark.parametrize(("value", "pure"), [("1", True), ("yes", True), (" 1 ", True), ("0", False), ("", False),
@@ -89,9 +86,8 @@ def test_setup_can_read_the_list_before_akarm_is_installed() -> None:
 
 
 def test_version_names_the_cycle_it_runs() -> None:
-    environ = {k: v for k, v in os.environ.items() if k != compiled.PURE_ENV} | {"AKARM_PURE": "1"}
-    out = subprocess.run([sys.executable, "-m", "akarm", "--version"], env=environ, capture_output=True, text=True,
-                         timeout=60)
+    out = subprocess.run([sys.executable, "-m", "akarm", "--version"], env=_environ(AKARM_PURE="1"),
+                         capture_output=True, text=True, timeout=60)
     assert out.returncode == 0
     assert out.stdout.splitlines()[1] == "the control cycle: pure Python (AKARM_PURE=1)"
 
@@ -100,7 +96,7 @@ def test_a_compiled_module_older_than_its_source_is_stale(tmp_path: Path) -> Non
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
     package = tmp_path / "akarm"
     for name in compiled.MODULES:
-        source = (package / Path(*name.split(".")[1:])).with_suffix(".py")
+        source = Path(compiled.source_file(name, str(package)))
         source.parent.mkdir(parents=True, exist_ok=True)
         source.write_text("")
         built = source.with_name(source.stem + suffix)

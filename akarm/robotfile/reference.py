@@ -31,7 +31,7 @@ _INTRO = """\
 A robot is a YAML file next to its URDF: the URDF gives the kinematics, masses and position limits,
 the YAML the motors, buses, gains and motion limits. `akarm check ROBOT.yaml` (and `akarm.load_robot`)
 reports every problem in a file at once, each with its line and a fix. `akarm init ROBOT.urdf` writes
-a commented starting file; README.md has an annotated example, `robots/` complete ones.
+a commented starting file; docs/robot-file-guide.md has an annotated example, `robots/` complete ones.
 
 Units are SI, joint side: rad, rad/s, N·m, s.
 """

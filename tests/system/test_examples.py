@@ -168,20 +168,26 @@ def test_a_bus_override_needs_hardware(tmp_path: Path) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# the README: its commands, its code and its configuration example are true
+# the README and the docs: their commands, their code and their configuration example are true
 # ---------------------------------------------------------------------------------------------
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
 
-def block(language: str) -> str:
-    m = re.search(rf"```{language}\n(.*?)```", README, re.S)
-    assert m, f"no {language} block in the README"
+def page(name: str) -> str:
+    """A page of the documentation (docs/NAME.md)."""
+    return (ROOT / "docs" / f"{name}.md").read_text(encoding="utf-8")
+
+
+def block(language: str, text: str) -> str:
+    """The first ``language`` block of ``text``."""
+    m = re.search(rf"```{language}\n(.*?)```", text, re.S)
+    assert m, f"no {language} block"
     return m.group(1)
 
 
 def test_readme_python_tour_runs(tmp_path: Path) -> None:
     (tmp_path / "robots").symlink_to(ROOT / "robots")
-    (tmp_path / "tour.py").write_text(block("python"))
+    (tmp_path / "tour.py").write_text(block("python", page("python-api")))  # the Python API's tour
     r = subprocess.run([sys.executable, "tour.py"], cwd=tmp_path, capture_output=True, text=True, timeout=TIMEOUT)
     assert r.returncode == 0, r.stderr
     assert "missed slots 0" in r.stdout and "wrist_roll" in r.stdout
@@ -196,7 +202,7 @@ def test_readme_two_terminals_on_akarm_local_work(channel: str, tmp_path: Path) 
 
     sim_cmd = ".venv/bin/akarm sim robots/arm6.yaml -i akarm_local -c can0"
     move_cmd = ".venv/bin/akarm move robots/arm6.yaml ready -i akarm_local -c can0"
-    assert sim_cmd in README and move_cmd in README
+    assert sim_cmd in page("sim-to-hardware") and move_cmd in page("sim-to-hardware")
     # the same commands, on a channel of this test's own, and with a 0.25 s feedback watchdog instead
     # of arm6's 20 ms: the simulator is a process the OS may pause, and on a loaded 2-core machine
     # (measured: feedback up to 10 ms old with three busy cores) 20 ms is only twice the margin

@@ -432,7 +432,7 @@ def test_sigterm_ends_in_damping_then_exit_and_status_0(served):
 
 
 def test_the_readme_serve_commands_are_the_ones_tested_here():
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    readme = (ROOT / "docs" / "serving.md").read_text(encoding="utf-8")
     # Served runs this serve command (on a channel, domain and namespace of this run's own); the
     # tests above run these moves and status through it
     for cmd in (".venv/bin/akarm serve robots/arm6.yaml -i akarm_local -c can0 --namespace arm6",

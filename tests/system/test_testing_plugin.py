@@ -1,5 +1,5 @@
 """The pytest plugin (akarm.testing.plugin) as a user's project meets it: a folder of its own with its own robot
-file and the README's example test, run by pytest in a process of its own, on each transport.
+file and the example test of docs/testing.md, run by pytest in a process of its own, on each transport.
 
 The SocketCAN runs are marked vcan: CI runs them inside vcan-vm, where the guest is emulated and
 about 15x slower, hence the slow timing profile there.
@@ -16,7 +16,7 @@ import pytest
 
 from .conftest import ROBOTS, ROOT, has_vcan
 
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+GUIDE = (ROOT / "docs" / "testing.md").read_text(encoding="utf-8")  # the plugin's page of the docs
 
 #: the project's own robot: planar2's URDF, other CAN IDs, another bus name and rate, its own poses
 MY_ARM = """\
@@ -37,10 +37,9 @@ joints:
 
 
 def readme_example() -> str:
-    """The example test of the README's "Testing your own arm programs"."""
-    section = README.split("## Testing your own arm programs", 1)[1]
-    m = re.search(r"```python\n(# test_my_arm.py\n.*?)```", section, re.S)
-    assert m, "no example test in the README's 'Testing your own arm programs'"
+    """The example test of docs/testing.md, "Testing your own arm programs"."""
+    m = re.search(r"```python\n(# test_my_arm.py\n.*?)```", GUIDE, re.S)
+    assert m, "no example test in docs/testing.md"
     return m.group(1)
 
 

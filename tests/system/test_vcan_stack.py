@@ -1,5 +1,5 @@
 """The whole stack across processes: ``akarm sim`` in a process of its own, an Arm in this one, over
-SocketCAN (vcan0, vcan1), in real time; and the README's SocketCAN recipe, word for word.
+SocketCAN (vcan0, vcan1), in real time; and the SocketCAN recipe of docs/sim-to-hardware.md, word for word.
 
 CI runs these inside ``../shared/tools/vcan-vm``, an emulated guest about 15x slower than our machines,
 so everything runs with the slow timing profile (25 Hz loop, 1 s watchdog, simulator at 250 Hz)
@@ -156,8 +156,8 @@ def test_a_fault_on_the_simulator_gives_its_named_stop(transport: str, joint: st
 
 
 def readme_recipe() -> list[str]:
-    """The commands of the README's step 1 (SocketCAN with a simulated arm) after creating vcan0."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    """The commands of step 1 (SocketCAN with a simulated arm) of docs/sim-to-hardware.md after creating vcan0."""
+    readme = (ROOT / "docs" / "sim-to-hardware.md").read_text(encoding="utf-8")
     step = readme.split("**1. SocketCAN with a simulated arm (vcan).**", 1)[1].split("**2.", 1)[0]
     blocks = re.findall(r"```sh\n(.*?)```", step, re.S)
     assert len(blocks) == 2 and blocks[0].startswith("sudo modprobe vcan"), blocks

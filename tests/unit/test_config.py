@@ -713,15 +713,15 @@ def test_the_reference_is_written_from_the_schema() -> None:
 
 
 def readme_example() -> str:
-    """The README's annotated robot file, with its commented-out entries (`# locked:`) taken in."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    """The annotated robot file of docs/robot-file-guide.md, with its commented-out entries (`# locked:`) taken in."""
+    readme = (ROOT / "docs" / "robot-file-guide.md").read_text(encoding="utf-8")
     match = re.search(r"An annotated example.*?```yaml\n(.*?)```", readme, re.S)
     assert match is not None
     return re.sub(r"^(\s*)# ?(?=\s*\w+:)", r"\1", match.group(1), flags=re.M)
 
 
 def schema_problems(text: str) -> list[ConfigProblem]:
-    found = Findings("README.md")
+    found = Findings("docs/robot-file-guide.md")
     ROBOT_FILE.read(yaml.compose(text, Loader=yaml.SafeLoader), "", "", found, Context())
     return found.problems
 

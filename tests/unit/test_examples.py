@@ -1,4 +1,4 @@
-"""The README and the examples agree with the repository: every example tested, the quick start is what
+"""The README, the docs and the examples agree with the repository: every example tested, the quick start is what
 CI runs, every verb listed, the image is the demo's plot, the robot file example loads (the examples
 run: tests/system/test_examples.py)."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..system.test_examples import EXAMPLES, NAMES, README, block
+from ..system.test_examples import EXAMPLES, NAMES, README, block, page
 from .conftest import ROOT
 
 
@@ -27,12 +27,12 @@ def test_readme_quick_start_is_what_ci_runs() -> None:
     assert "\n.venv/bin/python -m pytest tests/system " in ci
 
 
-def test_readme_lists_every_verb_and_every_example() -> None:
+def test_the_docs_list_every_verb_and_the_readme_every_example() -> None:
     from akarm.cli import VERBS
 
     for verb, (module, _) in VERBS.items():
-        assert re.search(rf"^\| `akarm {verb}\b", README, re.M), verb
-        assert (ROOT / f"{module.replace('.', '/')}.py").is_file(), verb  # the README does not promise a missing verb
+        assert re.search(rf"^\| `akarm {verb}\b", page("cli"), re.M), verb
+        assert (ROOT / f"{module.replace('.', '/')}.py").is_file(), verb  # the docs do not promise a missing verb
     for name in NAMES:
         assert f"`examples/{name}.py`" in README
 
@@ -46,7 +46,7 @@ def test_readme_image_is_the_demo_plot() -> None:
 def test_readme_robot_file_example_loads(tmp_path: Path) -> None:
     import akarm
 
-    text = block("yaml")
+    text = block("yaml", page("robot-file-guide"))
     assert "urdf: my_arm.urdf" in text
     (tmp_path / "my_arm.urdf").write_text((ROOT / "robots" / "planar2.urdf").read_text())  # joints shoulder, elbow
     (tmp_path / "my_arm.yaml").write_text(text)

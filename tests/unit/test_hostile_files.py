@@ -288,7 +288,7 @@ def test_the_readmes_limits_table_holds_every_limit_with_its_value() -> None:
     constants["MAX_PARQUET_BYTES"] = lerobot.MAX_PARQUET_BYTES
     constants.update(MAX_MAP_BYTES=pairing.MAX_MAP_BYTES, MAX_MAP_NODES=pairing.MAX_MAP_NODES)
     constants.update(MAX_MCAP_BYTES=mcap.MAX_MCAP_BYTES, MAX_MCAP_CHUNK_BYTES=mcap.MAX_MCAP_CHUNK_BYTES)
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = (ROOT / "docs" / "file-limits.md").read_text(encoding="utf-8")
     rows = text.split("<!-- limits:", 1)[1].split("\n\n", 1)[0].splitlines()[3:]  # after the comment and header
     units = {"MiB": 1 << 20, "h": 3600}
     table = {}

@@ -12,6 +12,9 @@ The tests are in three folders, one per tier, and each test gets its folder's ma
   robot, teach and replay, Cartesian moves, teleoperation), which would take the README's test
   command past its 90 s.
 
+- ``tests/docs``: the fenced ``python`` blocks of README.md and docs/, each run in lock step (CI runs
+  them in a step of their own, after building the site).
+
 ``python -m pytest`` runs unit and sim (pyproject's testpaths); ``python -m pytest tests/system``
 runs the system tier. The helpers below are imported by the tests as ``from .conftest import ...``:
 each tier's conftest re-exports them (``__all__``).
@@ -57,7 +60,7 @@ __all__ = ["ROBOTS", "ROOT", "URDFS", "command_steps", "drain", "has_can_sockets
            "missing_socketcan_fix", "relaxed_robot", "send", "wait_until"]
 
 ROOT = Path(__file__).resolve().parent.parent
-TIERS = ("unit", "sim", "system")
+TIERS = ("unit", "sim", "system", "docs")  # docs: the documentation's code blocks (tests/docs)
 
 
 @pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: without xdist (-p no:xdist) nobody calls it

@@ -21,7 +21,7 @@ def _role(match: re.Match[str]) -> str:
 
 def markdown(text: str) -> str:
     """``text`` with reStructuredText's roles and double-backtick literals as Markdown code spans."""
-    text = ROLE.sub(_role, text)
+    text = ROLE.sub(_role, text).replace("`\\ ", "`")  # ":class:`Arm`\\ s": reST's escaped space
     return LITERAL.sub(lambda m: f"`{m.group(1)}`", text)
 
 

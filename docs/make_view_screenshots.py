@@ -1,4 +1,5 @@
-"""Take the README's screenshots of ``akarm view``: ``docs/view-arm6-live.png`` and ``docs/view-recorded.png``.
+"""Take the screenshots of the live view's page (docs/view.md): ``docs/view-arm6-live.png`` and
+``docs/view-recorded.png``.
 
 Run from the repository root (needs the ``view-test`` extra and Chromium, as tests/system/test_view.py)::
 

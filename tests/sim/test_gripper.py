@@ -49,6 +49,9 @@ def test_open_and_move_to_end_within_a_millimetre(lockstep) -> None:
             s = g.move_to(w)
             assert abs(sim.gripper_width() - w) < 0.001, (w, sim.gripper_width())
             assert abs(s.width - sim.gripper_width()) < 1e-4 and s.target == pytest.approx(w)
+        log = g.telemetry(since=arm.clock.now() - 0.5)  # the per-cycle record, beside arm.telemetry()
+        assert 190 <= len(log.t) <= 201 and np.all(np.diff(log.t) > 0)  # 400 Hz
+        assert log.width[-1] == pytest.approx(sim.gripper_width(), abs=1e-4) and log.target[-1] == pytest.approx(0.07)
 
 
 def test_close_on_an_object_holds_it_at_the_force_asked(lockstep) -> None:

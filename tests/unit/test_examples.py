@@ -7,13 +7,14 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ..sim.test_pick_and_place import SIM_EXAMPLES
 from ..system.test_examples import EXAMPLES, NAMES, README, block, page
 from .conftest import ROOT
 
 
 def test_every_example_is_tested() -> None:
     scripts = {p.stem for p in EXAMPLES.glob("*.py") if not p.name.startswith("_")}
-    assert scripts == set(NAMES)
+    assert scripts == set(NAMES) | set(SIM_EXAMPLES)
 
 
 def test_readme_quick_start_is_what_ci_runs() -> None:
@@ -33,7 +34,7 @@ def test_the_docs_list_every_verb_and_the_readme_every_example() -> None:
     for verb, (module, _) in VERBS.items():
         assert re.search(rf"^\| `akarm {verb}\b", page("cli"), re.M), verb
         assert (ROOT / f"{module.replace('.', '/')}.py").is_file(), verb  # the docs do not promise a missing verb
-    for name in NAMES:
+    for name in (*NAMES, *SIM_EXAMPLES):
         assert f"`examples/{name}.py`" in README
 
 

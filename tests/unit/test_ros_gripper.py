@@ -1,0 +1,69 @@
+"""The GripperCommand action's types against rosbags (control_msgs' definitions, tests/rosdefs.py): the
+goal, the result, the feedback and the services' parts, byte for byte, both ways."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds")
+pytest.importorskip("rosbags.typesys")
+
+from akarm.ros import action_types as at
+from akarm.ros import msgs
+
+from ..rosdefs import GC, serialize, typestore
+
+HEADER = struct.pack("<Qq", 0x0123456789ABCDEF, 42)  # rmw_cyclonedds_cpp's request header: guid, seq
+
+
+@pytest.mark.parametrize("distro", ["humble", "jazzy", "rolling"])
+def test_a_gripper_goal_request_is_the_header_then_what_rosbags_writes(distro: str) -> None:
+    ours = at.GripperSendGoalRequest(0x0123456789ABCDEF, 42, at.UUID(list(range(16))),
+                                     at.GripperCommandGoal(at.GripperCommand(0.03, 20.0))).serialize()
+    assert ours[:20] == b"\x00\x01\x00\x00" + HEADER
+    # goal_id (16 bytes), then position and max_effort, 8-aligned from the payload's start (after the header)
+    assert ours[20:] == bytes(range(16)) + struct.pack("<dd", 0.03, 20.0)
+    store = typestore(distro)
+    theirs = store.deserialize_cdr(ours[:4] + ours[20:], f"{GC}_SendGoal_Request")
+    assert bytes(theirs.goal_id.uuid) == bytes(range(16))
+    assert theirs.goal.command.position == 0.03 and theirs.goal.command.max_effort == 20.0
+    assert serialize(distro, theirs, f"{GC}_SendGoal_Request") == ours[:4] + ours[20:]
+    back = at.GripperSendGoalRequest.deserialize(ours)  # and ours reads what rosbags writes
+    assert back.goal.command.position == 0.03 and back.seq == 42
+
+
+@pytest.mark.parametrize("distro", ["humble", "jazzy", "rolling"])
+def test_the_gripper_replies_and_feedback_are_what_rosbags_writes(distro: str) -> None:
+    store = typestore(distro)
+    T = store.types
+    cases = [
+        (at.GripperSendGoalResponse(1, 2, True, msgs.Time(5, 6)), f"{GC}_SendGoal_Response",
+         T[f"{GC}_SendGoal_Response"](accepted=True, stamp=T["builtin_interfaces/msg/Time"](sec=5, nanosec=6))),
+        (at.GripperGetResultResponse(1, 2, 4, at.GripperCommandResult(0.0301, 19.5, True, False)),
+         f"{GC}_GetResult_Response",
+         T[f"{GC}_GetResult_Response"](status=4, result=T[f"{GC}_Result"](position=0.0301, effort=19.5,
+                                                                         stalled=True, reached_goal=False))),
+    ]
+    for ours, name, theirs in cases:
+        raw = ours.serialize()
+        assert raw[4:20] == struct.pack("<Qq", 1, 2)
+        assert raw[:4] + raw[20:] == serialize(distro, theirs, name), name
+        assert store.deserialize_cdr(raw[:4] + raw[20:], name) == theirs
+    req = at.GripperGetResultRequest(1, 2, at.UUID(list(range(16)))).serialize()
+    assert bytes(store.deserialize_cdr(req[:4] + req[20:], f"{GC}_GetResult_Request").goal_id.uuid) == bytes(range(16))
+    fb = at.GripperFeedbackMessage(at.UUID([9] * 16), at.GripperCommandFeedback(0.08, 0.25, False, True)).serialize()
+    theirs_fb = T[f"{GC}_FeedbackMessage"](
+        goal_id=T["unique_identifier_msgs/msg/UUID"](uuid=np.full(16, 9, dtype=np.uint8)),
+        feedback=T[f"{GC}_Feedback"](position=0.08, effort=0.25, stalled=False, reached_goal=True))
+    assert fb == serialize(distro, theirs_fb, f"{GC}_FeedbackMessage")
+    # uuid, then 8-aligned position and effort, then the two bools
+    assert fb[4:] == bytes([9] * 16) + struct.pack("<dd??", 0.08, 0.25, False, True)
+
+
+def test_the_gripper_types_are_named_as_rmw_cyclonedds_cpp_names_them() -> None:
+    assert at.GripperSendGoalRequest.__idl_typename__ == "control_msgs::action::dds_::GripperCommand_SendGoal_Request_"
+    assert at.GripperFeedbackMessage.__idl_typename__ == "control_msgs::action::dds_::GripperCommand_FeedbackMessage_"
+    assert at.GripperCommand.__idl_typename__ == "control_msgs::msg::dds_::GripperCommand_"

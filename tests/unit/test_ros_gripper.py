@@ -1,8 +1,9 @@
 """The GripperCommand action's types against rosbags (control_msgs' definitions, tests/rosdefs.py): the
-goal, the result, the feedback and the services' parts, byte for byte, both ways."""
+goal, the result, the feedback and the services' parts, byte for byte, both ways; and how a goal ends."""
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import numpy as np
@@ -13,6 +14,8 @@ pytest.importorskip("rosbags.typesys")
 
 from akarm.ros import action_types as at
 from akarm.ros import msgs
+from akarm.ros.action import ABORTED, SUCCEEDED
+from akarm.ros.gripper import GOAL_TOLERANCE, STALL_TIMEOUT, gripper_action_name, outcome
 
 from ..rosdefs import GC, serialize, typestore
 
@@ -67,3 +70,33 @@ def test_the_gripper_types_are_named_as_rmw_cyclonedds_cpp_names_them() -> None:
     assert at.GripperSendGoalRequest.__idl_typename__ == "control_msgs::action::dds_::GripperCommand_SendGoal_Request_"
     assert at.GripperFeedbackMessage.__idl_typename__ == "control_msgs::action::dds_::GripperCommand_FeedbackMessage_"
     assert at.GripperCommand.__idl_typename__ == "control_msgs::msg::dds_::GripperCommand_"
+
+
+# -- how a goal ends -----------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    width: float
+    velocity: float = 0.0
+    force: float = 0.0
+    grasped: bool = False
+    moving: bool = False
+
+
+def test_a_goal_is_reached_when_the_jaws_rest_within_the_tolerance() -> None:
+    assert outcome(Reading(0.0795), 0.08, 5.0, 5.0) == (SUCCEEDED, False, True)
+    assert outcome(Reading(0.0795, 0.02, moving=True), 0.08, None, 5.0) is None  # still on its way
+    assert outcome(Reading(0.08 - GOAL_TOLERANCE * 1.01), 0.08, None, 5.0) is None
+    # still reading "moving" but at rest for the stall timeout within the tolerance: reached
+    assert outcome(Reading(0.0799, moving=True), 0.08, 1.0, 1.0 + STALL_TIMEOUT) == (SUCCEEDED, False, True)
+
+
+def test_a_grasp_succeeds_stalled_and_a_jam_aborts_stalled() -> None:
+    on_object = Reading(0.0301, force=19.0, grasped=True)
+    assert outcome(on_object, 0.0, 2.0, 2.0) == (SUCCEEDED, True, False)  # allow_stalling: the grasp is the goal
+    jam = Reading(0.05)
+    assert outcome(jam, 0.0, 2.0, 2.0 + STALL_TIMEOUT * 0.99) is None
+    assert outcome(jam, 0.0, 2.0, 2.0 + STALL_TIMEOUT) == (ABORTED, True, False)
+
+
+def test_the_action_is_named_as_ros2_controllers_names_it() -> None:
+    assert gripper_action_name("/gripper_controller/") == "gripper_controller/gripper_cmd"

@@ -92,6 +92,13 @@ def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0
             j = config.joint(p.joint)
             print(f"    {p.joint:<{width}}  gravity max {p.torque:.1f} N·m at {p.pose()} of {j.limits.torque:g} N·m",
                   file=out)
+    g = config.gripper
+    if g is not None:
+        print(file=out)
+        law = f"table of {len(g.table)} points" if g.table else "linear"
+        print(f"gripper {g.name!r}: {g.motor.name} {g.mode} on {g.bus}/{g.can_id}, stroke {g.stroke * 1e3:g} mm over "
+              f"{g.open_angle:g} rad ({law}), force limit {g.force_limit:g} N ({g.torque_limit:.2f} N·m), "
+              f"kp/kd {g.kp:g}/{g.kd:g}" + (f", fingers {', '.join(g.fingers)}" if g.fingers else ""), file=out)
     if config.poses:
         print(file=out)
         print("poses: " + ", ".join(config.poses), file=out)
@@ -99,7 +106,8 @@ def report(config: object, out: TextIO | None = None, extra_payload: float = 0.0
     print(f"bus load at {config.rate_hz:g} Hz (worst-case bit stuffing; nominal in brackets), "
           f"limit {100 * LOAD_LIMIT:.0f} %:", file=out)
     warnings = []
-    rows = [["bus", "channel", "joints", "load", "max rate (worst case)", "max rate (nominal)"]]
+    rows = [["bus", "channel", "motors" if g is not None else "joints", "load", "max rate (worst case)",
+             "max rate (nominal)"]]
     for name, load in bus_loads(config).items():
         bus = config.buses[name]
         rows.append([name, bus.describe(), str(len(load.joints)),

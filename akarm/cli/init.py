@@ -31,6 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--margin", type=float, default=1.5, metavar="F",
                         help="motors' rated torque >= F x the largest gravity torque (default 1.5)")
     parser.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    parser.add_argument("--gripper", action="store_true", help="add a `gripper:` entry: the URDF's prismatic "
+                        "joints no arm motor drives as its fingers (docs/gripper.md)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                             fix="e.g. --payload 0.5 --margin 1.5")
     check_writable(out)
     try:
-        s = suggest(urdf, out, payload=args.payload, margin=args.margin)
+        s = suggest(urdf, out, payload=args.payload, margin=args.margin, gripper=args.gripper)
     except ConfigError as e:
         print_problems(str(urdf), e.problems, sys.stderr)
         return 1

@@ -12,12 +12,14 @@ Reading a robot file (YAML → :class:`RobotConfig`) is :mod:`akarm.robotfile`, 
 from __future__ import annotations
 
 from akarm.config.types import (
+    DEFAULT_FORCE_FRACTION,
     MAX_RATE_HZ,
     MIN_RATE_HZ,
     BusConfig,
     Firmware,
     Friction,
     Gains,
+    GripperConfig,
     JointConfig,
     Limits,
     Mode,
@@ -27,12 +29,14 @@ from akarm.config.types import (
 )
 
 __all__ = [
+    "DEFAULT_FORCE_FRACTION",
     "MAX_RATE_HZ",
     "MIN_RATE_HZ",
     "BusConfig",
     "Firmware",
     "Friction",
     "Gains",
+    "GripperConfig",
     "JointConfig",
     "Limits",
     "Mode",

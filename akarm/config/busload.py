@@ -172,9 +172,10 @@ def load_of(name: str, bitrate: int, rate_hz: float, joints: Iterable[JointConfi
 
 
 def bus_loads(config: RobotConfig, rate_hz: float | None = None) -> dict[str, BusLoad]:
-    """Load of every bus of ``config`` at ``rate_hz`` (default: the config's ``rate_hz``), by bus name."""
+    """Load of every bus of ``config`` at ``rate_hz`` (default: the config's ``rate_hz``), by bus name; a
+    gripper's motor counts as a joint's."""
     rate = config.rate_hz if rate_hz is None else rate_hz
     return {
-        name: load_of(name, bus.bitrate, rate, (j for j in config.joints if j.bus == name))
+        name: load_of(name, bus.bitrate, rate, (j for j in config.motors if j.bus == name))
         for name, bus in config.buses.items()
     }

@@ -7,6 +7,8 @@ reads; they never hold motor-side units.
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -16,11 +18,13 @@ from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.protocol.motors import Catalogue, MotorModel
 
 __all__ = [
+    "DEFAULT_FORCE_FRACTION",
     "MAX_RATE_HZ",
     "MIN_RATE_HZ",
     "BusConfig",
     "Friction",
     "Gains",
+    "GripperConfig",
     "JointConfig",
     "Limits",
     "Payload",
@@ -184,6 +188,165 @@ class JointConfig:
         return Friction(self.motor.friction_coulomb or 0.0, self.motor.friction_viscous or 0.0)
 
 
+
+# --------------------------------------------------------------------------- the gripper
+# A gripper: a small AK motor moving two jaws (rack and pinion, or a linkage), as the robot file's
+# ``gripper:`` entry describes it.
+#
+# :class:`GripperConfig` is validated and immutable, like :class:`~akarm.config.JointConfig`; it maps
+# the motor's output angle to the distance between the jaws and a torque to the squeeze they exert:
+#
+# - ``width_at(angle)`` / ``angle_at(width)``: linear (``width = stroke · angle / travel``, a rack and
+#   pinion) or, with a ``table`` of (rad, m) points, piecewise linear between them (a linkage);
+# - ``force_at(torque, angle)`` / ``torque_at(force, angle)``: by virtual work,
+#   ``force · dwidth = torque · dangle``, so ``force = torque / (dwidth/dangle)``.
+#
+# The angle is the motor's output angle past closed: ``angle = direction · motor + offset`` (rad), as
+# a joint's. :attr:`GripperConfig.joint` is the motor seen as a joint (a
+# :class:`~akarm.config.JointConfig` with the range 0..travel), which the controller drives and the
+# simulator simulates like any other; it is never one of the arm's joints.
+#: the force a close asks for when it names none: this fraction of ``force_limit``
+DEFAULT_FORCE_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class GripperConfig:
+    """The gripper: its motor (as a joint's), its jaws and its limits. SI units.
+
+    Attributes:
+        name: its name (``gripper``): the simulated joint's, the telemetry's, the dataset column's.
+        motor, can_id, bus, mode, firmware, direction, reply_id: as a joint's.
+        offset: rad: the angle past closed when the motor reads zero (``calibrate()`` finds it).
+        kp, kd: MIT gains for position moves (N·m/rad, N·m·s/rad).
+        stroke: m, the jaws' distance fully open.
+        travel: rad of motor output from closed (0) to fully open.
+        table: (angle rad, width m) points from closed to open, both increasing (a linkage); empty:
+            width linear in the angle.
+        force_limit: N, the most the jaws may squeeze.
+        fingers: URDF joints the jaws move (mimic joints, not in the arm's chain).
+        speed: m/s, the jaws' approach speed.
+        max_temperature: °C, the watchdog's limit. feedback_timeout: s (``None``: the arm's default).
+    """
+
+    name: str
+    motor: MotorModel
+    can_id: int
+    bus: str
+    stroke: float
+    travel: float
+    force_limit: float
+    mode: Mode = "mit"
+    firmware: Firmware = "v2"
+    direction: int = 1
+    offset: float = 0.0
+    kp: float = 5.0
+    kd: float = 0.2
+    table: tuple[tuple[float, float], ...] = ()
+    fingers: tuple[str, ...] = ()
+    speed: float = 0.1
+    reply_id: int = 0
+    max_temperature: float = 80.0
+    feedback_timeout: float | None = None
+    _angles: tuple[float, ...] = field(default=(), repr=False, compare=False)
+    _widths: tuple[float, ...] = field(default=(), repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.table:
+            pts = tuple((float(a), float(w)) for a, w in self.table)
+        else:
+            pts = ((0.0, 0.0), (float(self.travel), float(self.stroke)))
+        object.__setattr__(self, "_angles", tuple(a for a, _ in pts))
+        object.__setattr__(self, "_widths", tuple(w for _, w in pts))
+
+    # ------------------------------------------------------------------ angle <-> width
+    def width_at(self, angle: float) -> float:
+        """The jaws' distance (m) at output ``angle`` (rad past closed); outside the table, extended
+        with its end slopes."""
+        a, w = self._angles, self._widths
+        k = min(max(bisect.bisect_right(a, angle) - 1, 0), len(a) - 2)
+        return w[k] + (angle - a[k]) * (w[k + 1] - w[k]) / (a[k + 1] - a[k])
+
+    def angle_at(self, width: float) -> float:
+        """The output angle (rad past closed) that puts the jaws ``width`` (m) apart."""
+        a, w = self._angles, self._widths
+        k = min(max(bisect.bisect_right(w, width) - 1, 0), len(w) - 2)
+        return a[k] + (width - w[k]) * (a[k + 1] - a[k]) / (w[k + 1] - w[k])
+
+    def slope_at(self, angle: float) -> float:
+        """dwidth/dangle at ``angle``, m/rad (positive: the jaws open as the angle grows)."""
+        a, w = self._angles, self._widths
+        k = min(max(bisect.bisect_right(a, angle) - 1, 0), len(a) - 2)
+        return (w[k + 1] - w[k]) / (a[k + 1] - a[k])
+
+    def force_at(self, torque: float, angle: float) -> float:
+        """The squeeze (N) a closing ``torque`` (N·m, positive closes) exerts at ``angle``."""
+        return torque / self.slope_at(angle)
+
+    def torque_at(self, force: float, angle: float) -> float:
+        """The closing torque (N·m) that squeezes with ``force`` (N) at ``angle``."""
+        return force * self.slope_at(angle)
+
+    @property
+    def max_slope(self) -> float:
+        """The largest dwidth/dangle over the travel, m/rad."""
+        a, w = self._angles, self._widths
+        return max((w[k + 1] - w[k]) / (a[k + 1] - a[k]) for k in range(len(a) - 1))
+
+    @property
+    def open_angle(self) -> float:
+        """rad: the angle fully open (the travel, or the table's last angle)."""
+        return self._angles[-1]
+
+    @property
+    def default_force(self) -> float:
+        """N: what a close squeezes with when it names no force."""
+        return DEFAULT_FORCE_FRACTION * self.force_limit
+
+    def check_width(self, width: float) -> float:
+        """``width`` as a float, or :class:`~akarm.ArgumentError` outside 0..stroke (or not a number)."""
+        try:
+            w = float(width)
+        except (TypeError, ValueError):
+            raise ArgumentError(f"gripper width must be a number of metres, got {width!r}", joint=self.name,
+                                fix=f"give a width in 0..{self.stroke:g} m") from None
+        if not (math.isfinite(w) and 0.0 <= w <= self.stroke):
+            raise ArgumentError(f"gripper width {w:g} m is outside its stroke 0..{self.stroke:g} m", joint=self.name,
+                                fix=f"give a width in 0..{self.stroke:g} m")
+        return w
+
+    def check_force(self, force: float | None) -> float:
+        """The force asked (``None``: :attr:`default_force`), or :class:`~akarm.ArgumentError` when it is
+        negative, not a number, or over ``force_limit``."""
+        if force is None:
+            return self.default_force
+        try:
+            f = float(force)
+        except (TypeError, ValueError):
+            raise ArgumentError(f"gripper force must be a number of newtons, got {force!r}", joint=self.name,
+                                fix=f"give a force in 0..{self.force_limit:g} N") from None
+        if not (math.isfinite(f) and 0.0 <= f <= self.force_limit):
+            raise ArgumentError(f"gripper force {f:g} N is outside 0..{self.force_limit:g} N (its force_limit)",
+                                joint=self.name, fix=f"give a force in 0..{self.force_limit:g} N")
+        return f
+
+    # ------------------------------------------------------------------ the motor as a joint
+    @property
+    def torque_limit(self) -> float:
+        """N·m: the torque that squeezes ``force_limit`` where the transmission is steepest, at most t_max."""
+        return min(self.motor.t_max, self.force_limit * self.max_slope)
+
+    @property
+    def joint(self) -> JointConfig:
+        """The gripper's motor as a joint (range 0..open angle, rad), for the controller and the simulator."""
+        velocity = min(self.motor.v_max, self.speed / self.max_slope * 2.0)
+        return JointConfig(name=self.name, bus=self.bus, can_id=self.can_id, motor=self.motor, mode=self.mode,
+                           limits=Limits(0.0, self.open_angle, velocity, 20.0 * velocity, 400.0 * velocity,
+                                         self.torque_limit),
+                           firmware=self.firmware, direction=self.direction, offset=self.offset,
+                           gains=Gains(self.kp, self.kd), reply_id=self.reply_id,
+                           feedback_timeout=self.feedback_timeout, max_temperature=self.max_temperature)
+
+
 @dataclass(frozen=True)
 class RobotConfig:
     """A whole arm: its URDF, buses, joints (in config order) and named poses.
@@ -206,6 +369,8 @@ class RobotConfig:
             ``locked`` are held at their neutral position (0, or the identity for floating joints).
         warnings: what the loader found questionable but accepted (a joint held at a default
             position, gravity above a motor's rated torque, ...), each with its line and a fix.
+        gripper: the gripper (:class:`GripperConfig`), ``None`` without one. Its motor is never one of
+            ``joints``: every joint vector of the arm leaves it out.
     """
 
     name: str
@@ -221,6 +386,12 @@ class RobotConfig:
     catalogue: Catalogue | None = None
     locked: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[ConfigProblem, ...] = ()
+    gripper: GripperConfig | None = None
+
+    @property
+    def motors(self) -> tuple[JointConfig, ...]:
+        """Every motor on the buses: the joints, then the gripper's (:attr:`GripperConfig.joint`)."""
+        return self.joints if self.gripper is None else (*self.joints, self.gripper.joint)
 
     @property
     def joint_names(self) -> tuple[str, ...]:

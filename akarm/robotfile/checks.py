@@ -8,16 +8,28 @@ reference (``docs/robot-file.md``) prints.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ, BusConfig, Friction, Gains, JointConfig, Limits, Payload, RobotConfig
+from akarm.config import (
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
+    BusConfig,
+    Friction,
+    Gains,
+    GripperConfig,
+    JointConfig,
+    Limits,
+    Payload,
+    RobotConfig,
+)
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.canconfig import resolve_bus
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
@@ -26,6 +38,7 @@ from akarm.protocol.motors import Catalogue, MotorModel, did_you_mean
 from akarm.robotfile.nodes import Findings, line, plain
 from akarm.robotfile.schema import (
     GAINS,
+    GRIPPER,
     INVALID,
     JOINT,
     PAYLOAD,
@@ -39,7 +52,7 @@ from akarm.robotfile.schema import (
 )
 
 __all__ = ["DEFAULT_BUS", "RULES", "SERVO_POSITION_RANGE", "Joints", "bus_load", "buses", "catalogue", "gravity",
-           "locked", "payload", "poses", "rate", "serial_ports", "tool_frame", "urdf_file"]
+           "gripper", "locked", "payload", "poses", "rate", "serial_ports", "tool_frame", "urdf_file"]
 
 DEFAULT_BUS = "arm"
 #: Servo status frames carry position as int16 × 0.1°.
@@ -251,9 +264,9 @@ class Joints:
         anchor = own["name"].node if "name" in own else item.node
         missing(JOINT, given, anchor, owner, found)
         uj = self._urdf_joint(own, owner)
-        bus = self._bus(given, owner, anchor)
-        can_id = self._can_id(own, bus, name, owner)
-        motor = self._motor(given, owner)
+        bus = self.bus_of(given, owner, anchor)
+        can_id = self.can_id_of(own, bus, name, owner)
+        motor = self.motor_of(given, owner)
         settings = {k: given.value(k) for k in _SETTINGS if given.value(k) is not None}
         settings.setdefault("mode", JOINT["mode"].default)
         settings["firmware"] = given.value("firmware", motor.firmware if motor is not None else "v2")
@@ -301,7 +314,7 @@ class Joints:
             return uj
         return None
 
-    def _bus(self, given: Fields, owner: str, anchor: yaml.Node) -> str | None:
+    def bus_of(self, given: Fields, owner: str, anchor: yaml.Node) -> str | None:
         item = given.get("bus")
         if item is None:
             if len(self.buses) == 1:
@@ -316,7 +329,7 @@ class Joints:
             return None
         return item.value if item.ok else None
 
-    def _can_id(self, own: Fields, bus: str | None, name: str | None, owner: str) -> int | None:
+    def can_id_of(self, own: Fields, bus: str | None, name: str | None, owner: str) -> int | None:
         item = own.get("can_id")
         if item is None or not item.ok:
             return None
@@ -329,7 +342,7 @@ class Joints:
                 self._ids[(bus, item.value)] = (name or "?", line(item.node))
         return int(item.value)
 
-    def _motor(self, given: Fields, owner: str) -> MotorModel | None:
+    def motor_of(self, given: Fields, owner: str) -> MotorModel | None:
         item = given.get("motor")
         if item is None or not item.ok:
             return None
@@ -471,10 +484,11 @@ class Joints:
 # --------------------------------------------------------------------------- after the joints
 
 
-def locked(found: Findings, item: Item | None, urdf: Urdf, driven: Mapping[str, int | None], at: yaml.Node
-           ) -> dict[str, float]:
+def locked(found: Findings, item: Item | None, urdf: Urdf, driven: Mapping[str, int | None], at: yaml.Node,
+           fingers: Collection[str] = ()) -> dict[str, float]:
     """Where each URDF joint that no motor drives is held: the file's `locked:`, else where its <mimic>
-    master puts it, else 0 within its limits (with a warning, at ``at``)."""
+    master puts it, else 0 within its limits (with a warning, at ``at``; a gripper's ``fingers``, and the
+    joints that mimic them, without one: the gripper moves them, their mass counts as the tool's)."""
     given = _locked_given(found, item, urdf, driven) if item is not None and item.ok else {}
     held: dict[str, float] = {}
     pending = [j for j in urdf.movable if j.name not in driven and j.type in ("revolute", "continuous", "prismatic")]
@@ -483,6 +497,8 @@ def locked(found: Findings, item: Item | None, urdf: Urdf, driven: Mapping[str, 
         for j in pending:
             if j.name in given:
                 held[j.name] = given[j.name]
+            elif j.name in fingers and j.mimic is None:
+                held[j.name] = _clip(0.0, j)
             elif j.mimic is not None and j.mimic.joint in held:
                 held[j.name] = j.mimic.multiplier * held[j.mimic.joint] + j.mimic.offset
             elif j.mimic is not None and j.mimic.joint in driven:
@@ -635,3 +651,96 @@ def gravity(found: Findings, config: RobotConfig, urdf_item: Item | None, torque
                       f"the {j.motor.name}'s rated (continuous) torque {j.motor.rated_torque:g} N·m: holding such a "
                       "pose for long heats the motor until it stops on over-temperature",
                       "keep such poses short, or use a stronger motor", warning=True)
+
+
+# --------------------------------------------------------------------------- the gripper
+
+
+def gripper(found: Findings, item: Item | None, joints: Joints, urdf: Urdf | None) -> GripperConfig | None:
+    """The `gripper:` entry checked against the catalogue, the buses, the joints' names and CAN IDs and
+    the URDF (its fingers); ``None`` when there is none or it has problems (reported)."""
+    if item is None or not item.ok:
+        return None
+    given: Fields = item.value
+    if given.flawed:
+        return None
+    before = found.count
+    at = item.key if item.key is not None else item.node
+    name = given.value("name", GRIPPER["name"].default)
+    owner = f"gripper {name!r}"
+    if name in joints.driven:
+        found.add(given["name"].node if "name" in given else at, f"{owner} has the name of a joint (line "
+                  f"{joints.driven[name]})", "give the gripper a name of its own: `name: gripper`")
+    bus = joints.bus_of(given, owner, at)
+    can_id = joints.can_id_of(given, bus, name, owner)
+    motor = joints.motor_of(given, owner)
+    table = _gripper_table(found, given.get("table"), owner)
+    fingers = _fingers(found, given.get("fingers"), owner, joints, urdf)
+    if motor is not None:
+        for key, top in (("kp", motor.kp_max), ("kd", motor.kd_max)):
+            v = given.value(key, GRIPPER[key].default)
+            if v > top:
+                found.add(given[key].node, f"{owner}: {key} {v:g} is above the {motor.name}'s {top:g}",
+                          f"give at most {top:g}")
+    if found.count > before or None in (bus, can_id, motor, table, fingers):
+        return None
+    assert motor is not None and bus is not None and can_id is not None and table is not None
+    stroke, travel = given.value("stroke"), given.value("travel")
+    if table:
+        if abs(table[-1][1] - stroke) > 1e-9 or abs(table[0][1]) > 1e-9:
+            found.add(given["table"].node, f"{owner}: the table's widths run {table[0][1]:g}..{table[-1][1]:g} m, "
+                      f"not 0..stroke ({stroke:g} m)", "start the table at width 0 (closed) and end it at the stroke")
+            return None
+        travel = table[-1][0]
+    settings = {k: given.value(k) for k in ("mode", "direction", "offset", "kp", "kd", "speed", "reply_id",
+                                            "max_temperature") if given.value(k) is not None}
+    settings["firmware"] = given.value("firmware", motor.firmware)
+    out = GripperConfig(name=name, motor=motor, can_id=can_id, bus=bus, stroke=stroke, travel=travel,
+                        force_limit=given.value("force_limit"), table=tuple(table), fingers=tuple(fingers or ()),
+                        feedback_timeout=given.value("feedback_timeout"), **settings)
+    lo, hi = sorted(((0.0 - out.offset) * out.direction, (out.open_angle - out.offset) * out.direction))
+    reach = motor.p_max if out.mode == "mit" else SERVO_POSITION_RANGE
+    if lo < -reach or hi > reach:
+        found.add(at, f"{owner}: its travel is motor [{lo:g}, {hi:g}] rad, outside the {motor.name}'s ±{reach:g} rad",
+                  "shorten the travel, or change the offset")
+        return None
+    return out
+
+
+def _gripper_table(found: Findings, item: Item | None, owner: str) -> list[tuple[float, float]] | None:
+    if item is None:
+        return []
+    v = item.value
+    fix = "write [[0, 0], [ANGLE, WIDTH], ..., [TRAVEL, STROKE]]: rad and m, both increasing"
+    ok = isinstance(v, list) and len(v) >= 2 and all(
+        isinstance(p, list) and len(p) == 2 and all(isinstance(x, int | float) and not isinstance(x, bool)
+                                                    and math.isfinite(x) for x in p) for p in v)
+    if not ok:
+        found.add(item.node, f"{owner}: table must be a list of at least two [angle, width] pairs", fix)
+        return None
+    pts = [(float(a), float(w)) for a, w in v]
+    if any(b[0] <= a[0] or b[1] <= a[1] for a, b in itertools.pairwise(pts)) or pts[0][0] != 0.0:
+        found.add(item.node, f"{owner}: table's angles and widths must both increase, from angle 0", fix)
+        return None
+    return pts
+
+
+def _fingers(found: Findings, item: Item | None, owner: str, joints: Joints, urdf: Urdf | None) -> list[str] | None:
+    if item is None:
+        return []
+    v = item.value
+    if not isinstance(v, list) or not all(isinstance(x, str) and x for x in v):
+        found.add(item.node, f"{owner}: fingers must be a list of URDF joint names", "write [left_finger, "
+                  "right_finger]")
+        return None
+    bad = False
+    for name in v:
+        if urdf is not None and name not in urdf.joints:
+            found.add(item.node, f"{owner}: finger {name!r} is not a joint of the URDF"
+                      f"{did_you_mean(name, list(urdf.joints))}", "name the URDF joints the jaws move")
+            bad = True
+        elif name in joints.driven:
+            found.add(item.node, f"{owner}: finger {name!r} is under joints: (an arm joint)",
+                      "a finger is moved by the gripper, not by a motor of the arm: remove it from joints:")
+            bad = True
+    return None if bad else list(v)

@@ -103,16 +103,20 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     joints = checks.Joints(found, buses, cat, failed, urdf)
     configs = joints.read(top.get("joints"), top.value("defaults", Fields()))
     at = top["joints"].key if "joints" in top and top["joints"].ok else root
-    locked = checks.locked(found, top.get("locked"), urdf, joints.driven, at) if urdf is not None else {}
+    gripper = checks.gripper(found, top.get("gripper"), joints, urdf)
+    fingers = set(gripper.fingers) if gripper is not None else set()
+    locked = checks.locked(found, top.get("locked"), urdf, joints.driven, at, fingers) if urdf is not None else {}
     poses = checks.poses(found, top.get("poses"), configs, joints.entries)
-    checks.bus_load(found, buses, configs, rate_hz, rate_line)
-    checks.serial_ports(found, buses, configs, top.get("buses"))
+    motors = configs + ([gripper.joint] if gripper is not None else [])  # the gripper's motor loads its bus too
+    checks.bus_load(found, buses, motors, rate_hz, rate_line)
+    checks.serial_ports(found, buses, motors, top.get("buses"))
     found.raise_if_any()
     assert urdf_path is not None and rate_hz is not None
     g = top.value("gravity", ROBOT_FILE["gravity"].default)
     config = RobotConfig(name=top.value("name", path.stem), urdf=urdf_path, buses=buses, joints=tuple(configs),
                          rate_hz=rate_hz, source=path, tool_frame=tool_frame, gravity=(g[0], g[1], g[2]),
-                         payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked)
+                         payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked,
+                         gripper=gripper)
     checks.gravity(found, config, top.get("urdf"), joints.torque_lines)
     found.raise_if_any()
     return replace(config, warnings=tuple(found.sorted(found.warnings)))

@@ -13,6 +13,7 @@ from akarm.robotfile.schema import (
     DEFAULTS,
     FRICTION,
     GAINS,
+    GRIPPER,
     JOINT,
     LIMITS,
     PAYLOAD,
@@ -46,6 +47,7 @@ _HEADINGS = (
     (FRICTION, "`friction:`"),
     (COLLISION, "`collision:`"),
     (PAYLOAD, "`payload:`"),
+    (GRIPPER, "`gripper:`"),
 )
 
 

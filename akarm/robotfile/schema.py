@@ -28,7 +28,7 @@ from typing import Any
 
 import yaml
 
-from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ, JointConfig, Payload, RobotConfig
+from akarm.config import MAX_RATE_HZ, MIN_RATE_HZ, GripperConfig, JointConfig, Payload, RobotConfig
 from akarm.config.canconfig import RESERVED_BUS_KEYS
 from akarm.files import over
 from akarm.protocol.motors import did_you_mean
@@ -40,6 +40,7 @@ __all__ = [
     "DEFAULTS",
     "FRICTION",
     "GAINS",
+    "GRIPPER",
     "INVALID",
     "JOINT",
     "LIMITS",
@@ -578,6 +579,7 @@ def _defaults_of(cls: type) -> dict[str, Any]:
 _JOINT = _defaults_of(JointConfig)
 _ROBOT = _defaults_of(RobotConfig)
 _PAYLOAD = _defaults_of(Payload)
+_GRIPPER = _defaults_of(GripperConfig)
 
 LIMITS = Section("limits", term="{key} limit", missing="{owner}: no {key} limit", doc=(
     "A joint's limits, joint side. `defaults: limits` and a joint's own merge key by key."), keys=(
@@ -686,6 +688,42 @@ PAYLOAD = Section("payload", term="payload {key}", doc="A load at the tool frame
     Key("com", Vector(3, unit="m"), "its centre of mass in the tool frame", default=_PAYLOAD["com"]),
 ))
 
+GRIPPER = Section("gripper", nested=False, doc=(
+    "The gripper: a motor (keys as a joint's) moving two jaws. Its motor is on the bus load like a joint's, and "
+    "is never one of the arm's joints (see docs/gripper.md)."), keys=(
+    Key("name", Name(), "its name: the simulated joint's, telemetry's, a dataset's column; not a joint's name",
+        default="gripper"),
+    Key("motor", Name(), "its AK model (catalogue or `motors:`)", required=True, fix="name its AK model, e.g. "
+        "`motor: AK40-10`"),
+    Key("can_id", Integer(1, 127), "the motor's CAN ID, unique on its bus", required=True,
+        fix="the motor's CAN ID, 1-127"),
+    Key("bus", Name(), "the bus its motor is on", default_text="the only bus, when there is one"),
+    Key("mode", Choice(("mit", "servo")), "MIT (force control) or servo mode", default=_GRIPPER["mode"]),
+    Key("firmware", Choice(("v2", "v3")), "as a joint's", default_text="the motor entry's"),
+    Key("direction", Choice((1, -1)), "1 when the jaws open as the motor turns positive, else -1",
+        default=_GRIPPER["direction"]),
+    Key("offset", Number(unit="rad"), "the angle past closed when the motor reads zero (`calibrate()` finds it)",
+        default=_GRIPPER["offset"]),
+    Key("kp", Number(minimum=0.0, maximum=500.0, unit="N·m/rad"), "MIT stiffness for moves", default=_GRIPPER["kp"]),
+    Key("kd", Number(minimum=0.0, maximum=5.0, unit="N·m·s/rad"), "MIT damping", default=_GRIPPER["kd"]),
+    Key("stroke", Number(positive=True, maximum=1.0, unit="m"), "the jaws' distance fully open", required=True,
+        fix="m, e.g. 0.08"),
+    Key("travel", Number(positive=True, unit="rad"), "motor output angle from closed (0) to fully open; the width "
+        "is linear in it", required=True, fix="rad, e.g. 2.0"),
+    Key("table", Raw("list of [rad, m] pairs"), "(angle, width) points from closed to open, both increasing, for "
+        "a linkage; replaces the linear law", default_text="none: width linear in the angle"),
+    Key("force_limit", Number(positive=True, unit="N"), "the most the jaws may ever squeeze", required=True,
+        fix="N, e.g. 40"),
+    Key("speed", Number(positive=True, unit="m/s"), "the jaws' approach speed", default=_GRIPPER["speed"]),
+    Key("fingers", Raw("list of URDF joint names"), "the URDF joints the jaws move (mimic joints, not in the "
+        "arm's chain; their mass counts as the tool's)", default_text="none"),
+    Key("reply_id", Integer(0, 0x7FF), "as a joint's", default=_GRIPPER["reply_id"]),
+    Key("feedback_timeout", Number(positive=True, unit="s", null=True), "watchdog, as a joint's",
+        default_text="as a joint's"),
+    Key("max_temperature", Number(minimum=1.0, maximum=150.0, unit="°C"), "watchdog: the arm stops above it",
+        default=_GRIPPER["max_temperature"]),
+))
+
 ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a robot file.", keys=(
     Key("name", Name(), "the robot's name", default_text="the file's name without .yaml"),
     Key("urdf", Name(), "its URDF: kinematics, masses, position limits", required=True,
@@ -712,4 +750,5 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
         "joints)"), "URDF joints no motor drives, held at a position",
         default_text="where a `<mimic>` master puts them, else 0 with a warning",
         fix="the position to hold it at: rad, or m for a prismatic joint"),
+    Key("gripper", GRIPPER, "the gripper: its motor and jaws (docs/gripper.md)", default_text="none"),
 ))

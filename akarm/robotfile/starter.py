@@ -44,7 +44,7 @@ import numpy as np
 import yaml
 
 from akarm._version import __version__
-from akarm.config import BusConfig, Gains, JointConfig, Limits, Payload, RobotConfig
+from akarm.config import BusConfig, Gains, GripperConfig, JointConfig, Limits, Payload, RobotConfig
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
 from akarm.dynamics.gravity import GravityPeak, gravity_peaks, sample_box
@@ -220,7 +220,7 @@ def _driven(path: Path, movable: list[UrdfJoint]) -> list[UrdfJoint]:
 
 
 def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *, payload: float = 0.0,
-            margin: float = 1.5, catalogue: Catalogue | None = None) -> Suggestion:
+            margin: float = 1.5, catalogue: Catalogue | None = None, gripper: bool = False) -> Suggestion:
     """A starting robot file for ``urdf_path``, to be written at ``output`` (its ``urdf:`` is relative to it).
 
     Args:
@@ -228,6 +228,8 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
         output: where the YAML will be written (only its folder matters here).
         payload: kg at the tool frame the motors must hold too.
         margin: the motors' rated torque must cover ``margin`` × the gravity torque (≥ 1).
+        gripper: add a `gripper:` entry (its motor on the bus too): fingers, the URDF's prismatic joints
+            no motor of the arm drives; stroke, their travel added up (80 mm without any).
 
     Raises:
         ConfigError: the URDF has problems (each at its line), or has no joint a motor can drive.
@@ -301,9 +303,11 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
     final = [JointConfig(name=s.urdf.name, bus="arm", can_id=k + 1, motor=s.motor, mode="mit",
                          limits=Limits(s.lower, s.upper, s.velocity, s.acceleration, s.jerk, s.motor.t_max),
                          gains=Gains(s.kp, s.kd)) for k, s in enumerate(joints)]
-    load = load_of("arm", 1_000_000, 500.0, final)
+    grip = _gripper(urdf, driven, cat, len(final) + 1) if gripper else None
+    motors = final if grip is None else [*final, grip.joint]  # the gripper's motor is on the bus too
+    load = load_of("arm", 1_000_000, 500.0, motors)
     rate = 500.0 if not load.worst_case_over_limit else max(50.0, math.floor(load.max_rate_hz / 50) * 50)
-    load = load_of("arm", 1_000_000, rate, final)
+    load = load_of("arm", 1_000_000, rate, motors)
 
     # poses: zero, and the sampled pose with the least gravity load on the chosen motors
     zero = np.clip(np.zeros(len(joints)), lower, upper)
@@ -317,7 +321,44 @@ def suggest(urdf_path: str | os.PathLike[str], output: str | os.PathLike[str], *
 
     short = tuple(s.urdf.name for s in joints if not s.covered)
     text = _render(urdf, path, Path(output), joints, locked, held, tool, rate, load, zero, rest, payload, margin)
+    if grip is not None:
+        text += _render_gripper(grip, urdf)
     return Suggestion(text, tuple(joints), locked, tool, rate, short)
+
+
+def _gripper(urdf: Urdf, driven: list[UrdfJoint], cat: Catalogue, can_id: int) -> GripperConfig:
+    """A suggested gripper: an AK40-10 moving the URDF's prismatic joints that no motor of the arm drives
+    (a parallel gripper's fingers), its stroke their travel added up (a master and the joints that mimic
+    it; 80 mm without any), 2 rad of travel, 40 N."""
+    fingers = [j for j in urdf.movable if j.type == "prismatic" and j not in driven
+               and j.lower is not None and j.upper is not None]
+    stroke = 0.0
+    for j in fingers:
+        assert j.lower is not None and j.upper is not None
+        stroke += abs(j.mimic.multiplier if j.mimic is not None else 1.0) * (j.upper - j.lower)
+    if not 0.0 < stroke <= 1.0:
+        stroke, fingers = 0.08, []
+    motor = cat.get("AK40-10") if "AK40-10" in cat else min(_candidates(cat), key=lambda m: m.t_max)
+    return GripperConfig(name="gripper", motor=motor, can_id=can_id, bus="arm", stroke=round(stroke, 4),
+                         travel=2.0, force_limit=40.0, fingers=tuple(j.name for j in fingers))
+
+
+def _render_gripper(g: GripperConfig, urdf: Urdf) -> str:
+    names = ", ".join(g.fingers)
+    return "\n".join([
+        "",
+        f"gripper:   # suggested: the URDF's prismatic joints {names} look like a parallel gripper's fingers "
+        "(docs/gripper.md)",
+        f"  motor: {g.motor.name}   # suggested: a small motor on a rack and pinion; set yours",
+        f"  can_id: {g.can_id}   # suggested: the next free ID",
+        "  mode: mit",
+        f"  kp: {g.kp:g}",
+        f"  kd: {g.kd:g}",
+        f"  stroke: {g.stroke:g}   # m, the fingers' travel added up (URDF)",
+        f"  travel: {g.travel:g}   # suggested: rad of motor output from closed to fully open: measure yours",
+        f"  force_limit: {g.force_limit:g}   # N: the most the jaws may squeeze; set what your object and jaws take",
+        f"  fingers: [{names}]",
+    ]) + "\n"
 
 
 def _units(section: Section) -> str:

@@ -34,7 +34,8 @@ def test_robot_loads_and_every_urdf_joint_is_configured(path: Path) -> None:
     assert config.name == path.stem
     joints, _ = read_urdf_joints(config.urdf)
     movable = {n for n, j in joints.items() if j.type != "fixed"}
-    assert set(config.joint_names) == movable
+    fingers = set(config.gripper.fingers) if config.gripper is not None else set()  # the gripper moves them
+    assert set(config.joint_names) == movable - fingers
     assert "home" in config.poses
     for j in config.joints:
         assert j.limits.torque <= j.motor.t_max

@@ -270,7 +270,8 @@ class RosNode:
         except AkarmError:
             width = velocity = force = float("nan")
         joints = [(g.name, width, velocity, force)]
-        fingers = getattr(getattr(self.server.arm.config, "gripper", None), "fingers", None) or ()
+        cfg = self.server.arm.config.gripper
+        fingers = cfg.fingers if cfg is not None else ()
         joints += [(f, width / 2.0, velocity / 2.0, force) for f in fingers if f != g.name]
         return joints
 

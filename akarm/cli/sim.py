@@ -60,6 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control", metavar="PATH",
                         help="serve a control channel on this Unix-domain socket: inject and clear faults, read "
                              "and disable the drivers from another program (akarm.sim.channel)")
+    parser.add_argument("--object", type=float, metavar="WIDTH",
+                        help="an object WIDTH m wide between the gripper's jaws (a robot with a gripper)")
+    parser.add_argument("--object-stiffness", type=float, default=20_000.0, metavar="N/M",
+                        help="the object's stiffness (default 20000 N/m)")
     parser.add_argument("--pose", metavar="NAME", help="start the arm at this named pose (default: all zeros)")
     parser.add_argument("--zero-silence", type=delay, default=1.0, metavar="S",
                         help="MIT: seconds off-line after a ZERO frame (default 1.0)")
@@ -77,7 +81,7 @@ def _describe(config: RobotConfig, serial: dict[str, str]) -> str:
     lines = [f"akarm sim: simulating {config.name} ({len(config.joints)} joints)"]
     for name, b in config.buses.items():
         joints = ", ".join(f"{j.name} (id {j.can_id}, {j.mode}{' v3' if j.firmware == 'v3' else ''}, {j.motor.name})"
-                           for j in config.joints if j.bus == name and j.name not in serial)
+                           for j in config.motors if j.bus == name and j.name not in serial)
         if joints:
             lines.append(f"  bus {name}: {b.interface} {b.channel}: {joints}")
     for joint, path in serial.items():  # SimulatorProcess reads these lines
@@ -134,6 +138,9 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     for joint, _ in injected:
         config.joint(joint)  # ConfigError naming the joints when there is no such joint
     q0 = config.pose(args.pose) if args.pose else None
+    if args.object is not None and config.gripper is None:
+        raise AkarmError(f"--object: robot {config.name!r} has no gripper",
+                         fix="describe one under `gripper:` in the robot file, or leave --object out")
     if args.plant_rate is not None and not args.plant_rate > 0:
         raise AkarmError(f"--plant-rate {args.plant_rate} must be positive", fix="e.g. --plant-rate 2000")
     if args.seconds is not None and not args.seconds >= 0:
@@ -165,6 +172,10 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
         with sim, contextlib.ExitStack() as stack:
             print(_describe(sim.config, sim.serial_ports), flush=True)
             print(f"  integrating at {1.0 / sim.dt:g} Hz (timing profile {sim.timing.name})", flush=True)
+            if args.object is not None:
+                sim.place_object(args.object, args.object_stiffness)
+                print(f"  object {args.object * 1e3:g} mm wide between the gripper's jaws ({args.object_stiffness:g} "
+                      "N/m)", flush=True)
             for joint, fault in injected:
                 sim.inject(joint, fault)
                 print(f"  fault on {joint}: {fault}", flush=True)

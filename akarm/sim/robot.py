@@ -54,6 +54,7 @@ from akarm.errors import ConfigError, ConfigProblem, StateError
 from akarm.protocol import mit
 from akarm.sim import faults as _faults
 from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, make_driver
+from akarm.sim.gripper import DEFAULT_OBJECT_STIFFNESS, SimGripper
 from akarm.sim.params import MotorSimParams, default_params
 from akarm.sim.plant import Plant
 from akarm.sim.records import DriverState, Frame
@@ -94,6 +95,18 @@ def overrun(batch: Sequence[can.Message], now: float, after: float) -> list[can.
     newest = {m.arbitration_id: k for k, m in enumerate(batch) if _setpoint(m)}
     return [m for k, m in enumerate(batch)
             if not _setpoint(m) or newest[m.arbitration_id] == k or now - m.timestamp <= after]
+
+
+class _WorldObject:
+    """An object placed at a position: its width, where it is, its mass, whether the jaws hold it."""
+
+    def __init__(self, width: float, position: np.ndarray, mass: float, reach: float) -> None:
+        self.width = width
+        self.position = position
+        self.mass = mass
+        self.reach = reach
+        self.held = False
+        self.grip = np.zeros(3)  # where it is from the tool while held (m, base frame)
 
 
 def _driving(d: SimulatedDriver) -> bool:
@@ -180,7 +193,9 @@ class SimulatedRobot:
         self.realtime = realtime
         self._lock = threading.RLock()
         params = dict(params or {})
-        unknown = [name for name in params if name not in config.joint_names]
+        gconf = config.gripper
+        unknown = [name for name in params if name not in config.joint_names
+                   and (gconf is None or name != gconf.name)]
         if unknown:
             raise ConfigError([ConfigProblem(str(config.source or config.name), None,
                                              f"simulation params for unknown joint(s) {', '.join(unknown)}",
@@ -207,10 +222,23 @@ class SimulatedRobot:
             drivers.append(make_driver(j, p, self, self._state_getter(i), self.dt, load_inertia=float(inertia[i]),
                                        zero_silence=zero_silence, servo_release=servo_release))
         self.drivers: tuple[SimulatedDriver, ...] = tuple(drivers)
-        self._by_name = {d.name: d for d in drivers}
         self.plant.attach(drivers)
+        #: the gripper's motor, jaws and object (:mod:`akarm.sim.gripper`); ``None`` without a gripper
+        self.gripper: SimGripper | None = None
+        self._object: _WorldObject | None = None
+        if gconf is not None:
+            gp = params.get(gconf.name) or default_params(gconf.motor)
+            self.gripper = SimGripper(gconf, gp, self.dt)
+            gdrv = make_driver(gconf.joint, gp, self, self.gripper.motor_state, self.dt,
+                               load_inertia=self.gripper.inertia, zero_silence=zero_silence,
+                               servo_release=servo_release)
+            self.gripper.attach(gdrv)
+            drivers.append(gdrv)
+        #: every driver: the joints' (config order), then the gripper's
+        self.all_drivers: tuple[SimulatedDriver, ...] = tuple(drivers)
+        self._by_name = {d.name: d for d in drivers}
         self._routes: dict[str, dict[tuple[int, bool], SimulatedDriver]] = {b: {} for b in config.buses}
-        for d in drivers:
+        for d in self.all_drivers:
             table = self._routes.setdefault(d.bus, {})
             for key in d.routes():
                 other = table.get(key)
@@ -223,7 +251,7 @@ class SimulatedRobot:
         # who sent a frame (for the frame log): MIT replies by (bus, reply ID, driver ID in byte 0),
         # extended status frames by (bus, whole ID)
         self._senders: dict[tuple[str, int, int], str] = {}
-        for d in drivers:
+        for d in self.all_drivers:
             if isinstance(d, UartServoDriver):
                 continue
             if isinstance(d, MitDriver) and not d.v3:
@@ -239,7 +267,7 @@ class SimulatedRobot:
         self._rx_empty: dict[str, float] = {}
         self._outbox: list[tuple[float, int, str, int, bytes, bool]] = []
         self._serial_outbox: list[tuple[float, int, str, bytes]] = []  # (due, seq, joint, bytes)
-        self._uart = {d.name: d for d in drivers if isinstance(d, UartServoDriver)}
+        self._uart = {d.name: d for d in self.all_drivers if isinstance(d, UartServoDriver)}
         self._seq = itertools.count()
         self._buses: dict[str, can.BusABC] = {}
         self._open = False  # start() opened the buses (there may be none: every joint on a serial port)
@@ -428,8 +456,97 @@ class SimulatedRobot:
         """Remove the payload."""
         self.set_payload(0.0)
 
+    # ------------------------------------------------------------------ the gripper and its object
+
+    def _require_gripper(self) -> SimGripper:
+        if self.gripper is None:
+            raise StateError(f"robot {self.config.name!r} has no gripper",
+                             fix="describe one under `gripper:` in the robot file (docs/gripper.md)")
+        return self.gripper
+
+    def place_object(self, width: float, stiffness: float = DEFAULT_OBJECT_STIFFNESS, *, mass: float = 0.0,
+                     position: Sequence[float] | None = None, reach: float = 0.03) -> None:
+        """An object ``width`` m wide, ``stiffness`` N/m, between the gripper's jaws.
+
+        ``position`` (m, the URDF's base frame): where it lies; it is between the jaws only while the
+        tool frame is within ``reach`` m of it, moves with the tool while squeezed, and stays where the
+        jaws let go of it (:meth:`object_position`); while held, its ``mass`` (kg) adds to the arm's
+        load. Without a position it is always between the jaws.
+        """
+        g = self._require_gripper()
+        with self._lock:
+            g.place_object(width, stiffness)
+            self._object = None
+            if position is not None:
+                pos = np.asarray(position, dtype=float)
+                if pos.shape != (3,) or not np.all(np.isfinite(pos)) or not (math.isfinite(mass) and mass >= 0):
+                    raise StateError("an object's position is 3 numbers (m) and its mass a number >= 0 (kg)")
+                self._object = _WorldObject(float(g.object_width or width), pos, float(mass), float(reach))
+                self._carry()
+
+    def remove_object(self) -> None:
+        """Take the object away (the jaws close on nothing)."""
+        g = self._require_gripper()
+        with self._lock:
+            if self._object is not None and self._object.held:
+                self._drop()
+            g.remove_object()
+            self._object = None
+
+    def object_force(self) -> float:
+        """The jaws' true squeeze on the object, N (0 without one, or not touching it)."""
+        return self._require_gripper().object_force
+
+    def object_position(self) -> np.ndarray | None:
+        """Where the object is (m, base frame; a copy), ``None`` for one placed without a position."""
+        with self._lock:
+            return None if self._object is None else self._object.position.copy()
+
+    @property
+    def object_held(self) -> bool:
+        """The jaws squeeze the object (it moves with the tool)."""
+        return self._object is not None and self._object.held
+
+    def gripper_width(self) -> float:
+        """m between the jaws now."""
+        return self._require_gripper().width
+
+    def set_gripper_width(self, width: float) -> None:
+        """Put the jaws ``width`` m apart, at rest."""
+        g = self._require_gripper()
+        with self._lock:
+            g.set_width(width)
+
+    def _carry(self) -> None:
+        """(Lock held) A placed object: between the jaws when the tool is near it; carried while squeezed."""
+        obj, g = self._object, self.gripper
+        assert obj is not None and g is not None
+        tool = self.model.tool_pose(self.plant.q)[:3, 3]
+        if obj.held:
+            if g.object_force > 0.0:
+                obj.position = tool + obj.grip
+                return
+            self._drop()
+        near = float(np.linalg.norm(tool - obj.position)) <= obj.reach
+        g.object_width = obj.width if near else None
+        if near and g.object_force > 0.0:
+            obj.held = True
+            obj.grip = obj.position - tool
+            if obj.mass > 0.0:
+                base = self.config.payload.mass if self.config.payload is not None else 0.0
+                self.plant.set_payload(base + obj.mass)
+
+    def _drop(self) -> None:
+        obj = self._object
+        assert obj is not None
+        obj.held = False
+        if obj.mass > 0.0:
+            p = self.config.payload
+            self.plant.set_payload(p.mass if p is not None else 0.0, p.com if p is not None else (0.0, 0.0, 0.0))
+
     def joint(self, name: str) -> SimulatedDriver:
-        """The simulated driver of joint ``name`` (:class:`MitDriver` or :class:`ServoDriver`)."""
+        """The simulated driver of joint ``name`` (:class:`MitDriver` or :class:`ServoDriver`); the
+        gripper's motor too, by the gripper's name."""
         try:
             return self._by_name[name]
         except KeyError:
@@ -446,7 +563,7 @@ class SimulatedRobot:
     def clear_faults(self, joint: str | None = None) -> None:
         """End every fault of ``joint`` (default: of every joint)."""
         with self._lock:
-            for d in self.drivers if joint is None else [self.joint(joint)]:
+            for d in self.all_drivers if joint is None else [self.joint(joint)]:
                 d.clear_faults()
 
     def driver_states(self) -> list[DriverState]:
@@ -474,7 +591,7 @@ class SimulatedRobot:
         EXIT or a zero-current frame, even one that cannot hear the bus (a fault): the outputs go limp.
         Returns the joints that were enabled."""
         with self._lock:
-            was = [d for d in self.drivers if _driving(d)]
+            was = [d for d in self.all_drivers if _driving(d)]
             for d in was:
                 d.output_off()
             return [d.name for d in was]
@@ -493,6 +610,12 @@ class SimulatedRobot:
                 flag = f" E{d.error}" if d.error else ""
                 flag += " X" if d.faults else ""
                 parts.append(f"{d.name} {q + 0.0:+7.3f}rad {tau + 0.0:+6.2f}Nm {d.temperature:5.1f}C {state}{flag}")
+            g = self.gripper
+            if g is not None:
+                d = self._by_name[g.config.name]
+                state = "on" if isinstance(d, MitDriver) and d.enabled else "off"
+                squeeze = f" squeeze {g.object_force:.1f}N" if g.object_width is not None else ""
+                parts.append(f"{d.name} {g.width * 1e3:5.1f}mm{squeeze} {d.temperature:5.1f}C {state}")
             if self.slip > 0.001:
                 parts.append(f"slip {self.slip:.2f}s")
             if self.overruns:
@@ -657,11 +780,14 @@ class SimulatedRobot:
         plant = self.plant
         outbox = self._outbox
         serial = self._serial_outbox
-        drivers = self.drivers
+        drivers = self.all_drivers
+        grip = self.gripper
         while self._k < target:
             tk = self._k * dt
             self._t = tk
             plant.step(tk)
+            if grip is not None:
+                grip.step(tk)
             self._k += 1
             self._t = self._k * dt
             if (outbox and outbox[0][0] <= self._t + 1e-9) or (serial and serial[0][0] <= self._t + 1e-9):
@@ -672,6 +798,8 @@ class SimulatedRobot:
             d.tick(tk)
         if (outbox and outbox[0][0] <= tk + 1e-9) or (serial and serial[0][0] <= tk + 1e-9):
             self._flush()
+        if self._object is not None:
+            self._carry()
 
     def _flush(self) -> None:
         outbox = self._outbox
@@ -758,7 +886,7 @@ class SimulatedRobot:
 
     def _next_due(self) -> float:
         """Simulated time, s, of the next thing due: a driver's timer or a frame queued to go out."""
-        due = min(d.next_timer for d in self.drivers) if self.drivers else math.inf
+        due = min(d.next_timer for d in self.all_drivers) if self.all_drivers else math.inf
         if self._outbox:
             due = min(due, self._outbox[0][0])
         if self._serial_outbox:

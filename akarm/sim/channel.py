@@ -27,6 +27,9 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
 - ``{"cmd": "late"}`` → ``{"ok": true, "late": s}``: the longest a frame waited before the simulator took
   it in, since the last such request (:meth:`~akarm.sim.SimulatedRobot.take_late`);
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
+- ``{"cmd": "object", "width": 0.03, "stiffness": 20000}`` (an object between the gripper's jaws),
+  ``{"cmd": "object", "width": null}`` (none) or ``{"cmd": "object"}`` (as it is) → ``{"ok": true,
+  "force": N, "width": m}``: the jaws' true squeeze and their width, after the change;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
   data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
 
@@ -142,8 +145,22 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         frames, next_index = sim.logged_frames(int(req.get("since", 0)))
         return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
                                                  f.to_motor] for f in frames]}
+    if cmd == "object":
+        return _object(sim, req)
     raise AkarmError(f"unknown request {req!r}",
-                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "late" | "disable" | "frames", ...}')
+                     fix='send {"cmd": "inject" | "clear" | "push" | "state" | "late" | "disable" | "frames" | '
+                         '"object", ...}')
+
+
+def _object(sim: SimulatedRobot, req: dict[str, Any]) -> dict[str, Any]:
+    """An object between the gripper's jaws (width m, stiffness N/m), none (width null), or as it is."""
+    if "width" in req:
+        width = req["width"]
+        if width is None:
+            sim.remove_object()
+        else:
+            sim.place_object(float(width), float(req.get("stiffness", 20_000.0)))
+    return {"force": sim.object_force(), "width": sim.gripper_width()}
 
 
 class ChannelServer:
@@ -269,6 +286,16 @@ class SimulatorControl:
         """Every driver's output off now (see :meth:`~akarm.sim.SimulatedRobot.disable_drivers`); the
         joints that were enabled."""
         return list(self.request(cmd="disable")["joints"])
+
+    def gripper_object(self, width: float | None = None, stiffness: float = 20_000.0, *,
+                       change: bool = True) -> tuple[float, float]:
+        """Put an object ``width`` m wide between the gripper's jaws (None: take it away; ``change``
+        False: leave it as it is); returns the true squeeze (N) and the jaws' width (m) then."""
+        req: dict[str, Any] = {"cmd": "object"}
+        if change:
+            req.update(width=width, stiffness=stiffness)
+        doc = self.request(**req)
+        return float(doc["force"]), float(doc["width"])
 
     def frames(self, since: int = 0) -> tuple[list[Frame], int]:
         """The frames the drivers took in and sent from the ``since``-th on, and the index to ask from next

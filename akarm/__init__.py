@@ -67,6 +67,7 @@ compiled.choose_at_import()  # AKARM_PURE=1, or compiled modules older than thei
 if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
     from akarm.config import RobotConfig
+    from akarm.control.gripper import Gripper, GripperState
     from akarm.control.modes import Mode
     from akarm.control.motions import Motion
     from akarm.robotfile.load import load_robot
@@ -89,6 +90,8 @@ __all__ = [
     "FeedbackTimeout",
     "ForeignTraffic",
     "FrameError",
+    "Gripper",
+    "GripperState",
     "ImplausibleFeedback",
     "LimitError",
     "LoopCrashed",
@@ -130,6 +133,8 @@ _LAZY = {
     "Arm": ("akarm.arm", "Arm"),
     "ArmState": ("akarm.arm", "ArmState"),
     "Mode": ("akarm.control.modes", "Mode"),
+    "Gripper": ("akarm.control.gripper", "Gripper"),
+    "GripperState": ("akarm.control.gripper", "GripperState"),
     "Motion": ("akarm.control.motions", "Motion"),
     "ArmServer": ("akarm.serving", "ArmServer"),
     "serve": ("akarm.serving", "serve"),

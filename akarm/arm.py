@@ -33,6 +33,7 @@ from akarm.config import RobotConfig
 from akarm.control.collision import DEFAULT_GAIN, Reaction
 from akarm.control.controller import Controller
 from akarm.control.feedforward import FeedForwardKind
+from akarm.control.gripper import Gripper
 from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
@@ -272,6 +273,8 @@ class Arm:
         self._ctl = Controller(config, self.model, self.planner, self.clock, options)
         self.joints: list[Joint] = self._ctl.joints
         self._observe = ControllerView(self._ctl)
+        #: the gripper (:class:`~akarm.Gripper`: open, close, move_to, state, calibrate); ``None`` without one
+        self.gripper: Gripper | None = Gripper(self._ctl, self._ctl.gripper) if self._ctl.gripper is not None else None
         self._finalizer = self._ctl.track(self)
 
     @classmethod

@@ -48,6 +48,7 @@ from akarm.control.collision import CollisionReflex, reflex_for
 from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Refusal
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
+from akarm.control.gripper import GripperDrive
 from akarm.control.joints import Joint, make_joint
 from akarm.control.loop import ControlLoop, StatsSummary, collector_paused, keep_from_collections
 from akarm.control.modes import Mode, ModeMachine
@@ -127,6 +128,13 @@ class Controller:
         self.options = options
         self.joints: list[Joint] = [make_joint(i, j) for i, j in enumerate(config.joints)]
         self.n = n = len(self.joints)
+        # the gripper's motor: a joint after the arm's for the buses, the enabler and the supervisor, never
+        # one of the arm's (every arm vector has n values); its drive makes its command each cycle
+        self.gripper: GripperDrive | None = None
+        if config.gripper is not None:
+            self.gripper = GripperDrive(config.gripper, make_joint(n, config.gripper.joint), 1.0 / config.rate_hz)
+        #: every motor: the arm's joints, then the gripper's
+        self.motors: list[Joint] = self.joints + ([self.gripper.joint] if self.gripper is not None else [])
         self.model = model
         self.planner = planner
         self.clock = clock
@@ -150,7 +158,7 @@ class Controller:
         self._kd = np.array([j.gains.kd for j in config.joints])
         self._mit = [j.answers_commands for j in joints]
         self._t_max = [j.motor.t_max * 0.999 if j.answers_commands else math.inf for j in joints]
-        self._saturated = [False] * n
+        self._saturated = [False] * len(self.motors)  # (the gripper's stays False: its stall is a grasp)
         fr = [j.friction_model() for j in config.joints]
         self._coulomb = [f.coulomb for f in fr]  # what holds a limp joint (the turn memory asks)
         on = 1.0 if options.friction_compensated else 0.0
@@ -159,19 +167,29 @@ class Controller:
         # the damping used to settle at enable and to stop: the joint's kd, at least 0.5 N·m·s/rad
         self._damping = [min(max(float(kd), 0.5), j.motor.kd_max) for kd, j in zip(self._kd, joints, strict=True)]
         self._timeouts = [_feedback_timeout(j.config, options.watchdog) for j in joints]
-        for j in joints:  # a reply the motor cannot have reached since the last one is rejected
+        motors = self.motors
+        for j in motors:  # a reply the motor cannot have reached since the last one is rejected
             j.set_gate(1.5 * j.motor.v_max, self.period)
-        self.supervisor = Supervisor(joints, self._guards(), period=self.period,
+        if self.gripper is not None:
+            gj = self.gripper.joint
+            self._gripper_timeout = _feedback_timeout(gj.config, options.watchdog)
+            self._gripper_damping = min(max(gj.config.gains.kd, 0.5), gj.motor.kd_max)
+        self.supervisor = Supervisor(motors, self._guards(), period=self.period,
                                      implausible_limit=options.implausible_limit, lag=options.timing.lag,
                                      driver_resets=options.timing.lag == 0)
         self.stall_limit = options.loop_stall_limit
         self._gains_changed()
 
-        self.bus = BusSet(config, joints, options.can_log, self._bus_lost, clock.now)
+        self.bus = BusSet(config, motors, options.can_log, self._bus_lost, clock.now)
         self.motions = Motions(n, self.wait_for)
         self.ramp = GainRamp(options.enable_ramp)
-        self.enabler = Enabler(joints, config.buses, self.bus.send, self.supervisor, self.ff.gravity, self._commanded,
-                               damping=self._damping, timeouts=self._timeouts, period=self.period,
+        gravity: Callable[[Sequence[float]], np.ndarray] = self.ff.gravity
+        commanded, damping, timeouts = self._commanded, self._damping, self._timeouts
+        if self.gripper is not None:  # the gripper's motor is enabled with the arm's: contact, damping
+            gravity, commanded = self._gravity_and_gripper, self._commanded_arm
+            damping, timeouts = [*damping, self._gripper_damping], [*timeouts, self._gripper_timeout]
+        self.enabler = Enabler(motors, config.buses, self.bus.send, self.supervisor, gravity, commanded,
+                               damping=damping, timeouts=timeouts, period=self.period,
                                settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
                                at_contact=self._turn_check, lag=options.timing.lag)
         self.reflex = self._make_reflex()
@@ -218,6 +236,8 @@ class Controller:
             slack = j.limits.velocity * lag  # how far a reading that trails by `lag` can be behind
             out.append(Guard(timeout, j.max_temperature, following + slack,
                              default_stuck_travel(j, kp, following) + slack))
+        if self.gripper is not None:
+            out.append(self.gripper.guard(self._gripper_timeout))
         return out
 
     def _gains_changed(self) -> None:
@@ -225,6 +245,8 @@ class Controller:
         self._kp_list, self._kd_list = self._kp.tolist(), self._kd.tolist()
         self.ff.set_gains(self._kp_list)
         self._tracking = [(not m) or kp > 0.0 for m, kp in zip(self._mit, self._kp_list, strict=True)]
+        if self.gripper is not None:
+            self._tracking.append(False)  # the gripper's position is no tracking: its stall is a grasp
         self._reflex_kd = [k if m else 0.0 for k, m in zip(self._kd_list, self._mit, strict=True)]
         self._reflex_kp: tuple[float, list[float]] = (math.nan, [])  # (ramp scale, MIT kp at it): see _collision_check
         self.supervisor.set_guards(self._guards())
@@ -701,6 +723,8 @@ class Controller:
         self._t_last = t
         self.ramp.start(t)
         self.ff.reset_integral()
+        if self.gripper is not None and self.modes.mode is Mode.ENABLING:
+            self.gripper.hold_here()
 
     # -- what the loop measured ----------------------------------------------------------------------
     def telemetry_log(self, since: float | None = None) -> TelemetryLog:
@@ -786,7 +810,8 @@ class Controller:
         qd = q_d.tolist()
         t2 = pc()
         stage[1] = t2 - t1
-        stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
+        grip = self.gripper
+        stop = self.supervisor.check(now, qd if grip is None else [*qd, grip.target], self._tracking, self._saturated)
         fb = self._feedback()
         if stop is None:
             stop = self._collision_check(now, True, fb)
@@ -816,6 +841,8 @@ class Controller:
             s = j.state
             tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
             sat[i] = tau >= tmax[i] or tau <= -tmax[i]
+        if grip is not None:
+            frames.append(grip.joint.track_frame(*grip.command(t)))
         self.bus.send_frames(frames)
         t5 = pc()
         stage[4] = t5 - t4
@@ -856,6 +883,20 @@ class Controller:
         q, dq, tau, _ = self._feedback() if fb is None else fb
         self.telemetry.record(now, q_d, dq_d, q, dq, tau, ff, self.reflex.estimate_list)
 
+    def _send_gripper(self) -> None:
+        """(Teach, a stop's damping) The gripper's command of this cycle, alone."""
+        grip = self.gripper
+        if grip is not None:
+            j = grip.joint
+            self.bus.send(j, j.track(*grip.command(self._t_plan)))
+
+    def _gravity_and_gripper(self, q: Sequence[float]) -> np.ndarray:
+        """The enabler's gravity: the arm's joints', and none for the gripper's motor (after them)."""
+        return np.append(self.ff.gravity(q[:self.n]), 0.0)
+
+    def _commanded_arm(self, now: float, q: Sequence[float], tau: list[float]) -> None:
+        self._commanded(now, q[:self.n], tau[:self.n])
+
     def _commanded(self, now: float, q: Sequence[float], tau: list[float]) -> None:
         """The enabler damped the arm at ``q`` with ``tau`` feed-forward this cycle."""
         self.tau_ff = tau
@@ -877,6 +918,7 @@ class Controller:
         send = self.bus.send
         for i, j in enumerate(self.joints):
             send(j, j.carry(self._teach_damping[i], gl[i]))
+        self._send_gripper()
         self.des = (q, np.zeros(self.n), np.zeros(self.n))
         self.tau_ff = gl
         rec = self.recorder
@@ -922,6 +964,7 @@ class Controller:
             send = self.bus.send
             for i, j in enumerate(self.joints):
                 send(j, j.damp(self._damping[i], tau[i]))
+            self._send_gripper()  # it goes on holding what it holds: a stop opens nothing
             self._record(now, self.des[0], np.zeros(self.n), tau)
             return
         if self.bus.release_all():
@@ -931,6 +974,8 @@ class Controller:
         self.ramp.zero()
         self.supervisor.disarm()
         self.recorder = None
+        if self.gripper is not None:
+            self.gripper.stop_moving()
         self.modes.go(Mode.FAULT if self.bus.lost else Mode.DISABLED)
         self._remember_positions()
 

@@ -39,7 +39,7 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from akarm.errors import AkarmError
 from akarm.ros import action_types as at
@@ -62,6 +62,7 @@ from akarm.ros.commands import CommandQueue
 from akarm.ros.dds import Node, ServiceServer, latched_qos, qos, topic_name
 
 if TYPE_CHECKING:
+    from akarm.control.gripper import Gripper, GripperState
     from akarm.server.server import ArmServerCore
 
 __all__ = [
@@ -71,8 +72,6 @@ __all__ = [
     "STALL_VELOCITY",
     "GripperActionServer",
     "GripperGoal",
-    "GripperLike",
-    "GripperReading",
     "gripper_action_name",
     "outcome",
 ]
@@ -94,33 +93,7 @@ def gripper_action_name(controller: str) -> str:
     return f"{controller.strip('/')}/gripper_cmd"
 
 
-class GripperReading(Protocol):
-    """What the action reads of a gripper's state (:class:`akarm.GripperState`)."""
-
-    @property
-    def width(self) -> float: ...
-    @property
-    def velocity(self) -> float: ...
-    @property
-    def force(self) -> float: ...
-    @property
-    def grasped(self) -> bool: ...
-    @property
-    def moving(self) -> bool: ...
-
-
-class GripperLike(Protocol):
-    """What the action uses of a gripper (:class:`akarm.Gripper`)."""
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def stroke(self) -> float: ...
-    def move_to(self, width: float, force: float | None = None, wait: bool = True) -> Any: ...
-    def state(self) -> Any: ...
-
-
-def outcome(reading: GripperReading, target: float, still_since: float | None,
+def outcome(reading: GripperState, target: float, still_since: float | None,
             now: float) -> tuple[int, bool, bool] | None:
     """How a running goal for the width ``target`` ends given the gripper's ``reading`` now, the jaws
     having been still since ``still_since`` (None: they move): ``(status, stalled, reached_goal)``, or
@@ -164,7 +137,7 @@ class GripperActionServer:
     into the node's WaitSet; call :meth:`poll` whenever it wakes and by :meth:`next_due`; :meth:`close`
     before the node closes."""
 
-    def __init__(self, node: Node, server: ArmServerCore, gripper: GripperLike,
+    def __init__(self, node: Node, server: ArmServerCore, gripper: Gripper,
                  controller: str = "gripper_controller", log: Callable[[str], None] | None = None,
                  heard: Callable[[str], None] | None = None, commands: CommandQueue | None = None) -> None:
         self.server = server

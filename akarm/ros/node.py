@@ -44,10 +44,11 @@ from akarm.ros.action import ActionServer
 from akarm.ros.commands import RETRY, CommandQueue
 from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
-from akarm.ros.gripper import GripperActionServer, GripperLike
+from akarm.ros.gripper import GripperActionServer
 from akarm.ros.trajectory import TrajectoryRefused, check_size, check_trajectory, refusal
 
 if TYPE_CHECKING:
+    from akarm.control.gripper import Gripper
     from akarm.server.server import ArmServerCore
 
 __all__ = ["RosNode"]
@@ -65,7 +66,7 @@ class RosNode:
                  distro: str = "jazzy", node_name: str = "akarm",
                  gripper_controller: str = "gripper_controller") -> None:
         self.server = server
-        self.gripper: GripperLike | None = getattr(server.arm, "gripper", None)
+        self.gripper: Gripper | None = server.arm.gripper
         self.gripper_action: GripperActionServer | None = None
         self._said = (0.0, 0)  # when a command was last logged, and how many were not since
         try:

@@ -113,7 +113,7 @@ class Snapshot:
 
 def _gripper(arm: Arm) -> dict[str, Any]:
     """The gripper's fields of a snapshot (none without one; NaN while its motor is not heard)."""
-    g = getattr(arm, "gripper", None)
+    g = arm.gripper
     if g is None:
         return {}
     try:

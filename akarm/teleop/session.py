@@ -31,11 +31,14 @@ It drives both arms through their public API only:
   of each leader joint's torque limit), is the leader's extra torque: the hand feels what the
   follower touches. The follower's collision reflex then reacts by holding: the session holds too
   (and says so) until the leader has been held at the follower for a moment, then engages again.
-- **Grippers** (:mod:`akarm.teleop.pairing`): the leader's gripper, or a trigger joint of the leader
-  named in the mapping file, drives the follower's gripper every cycle (the same fraction of its
-  stroke; a new width asked once it differs by :data:`GRIPPER_DEADBAND`), with the force the mapping
+- **Grippers** (:mod:`akarm.teleop.pairing`): the leader's gripper (let go while the session runs: asked
+  no force, the hand moves it freely; it holds again when the session finishes), or a trigger joint of
+  the leader named in the mapping file, drives the follower's gripper every cycle (the same fraction of its
+  stroke; a new width asked once it differs by :data:`GRIPPER_DEADBAND`, but none further in while the
+  jaws are stopped on something: the grasp holds), with the force the mapping
   file or ``gripper_force`` names (default: the gripper's own), never over its ``force_limit``. With
-  force feedback, a trigger feels the grasp: while the follower's jaws hold something, the trigger
+  force feedback, a trigger feels the grasp (a leader gripper does not: the gripper takes no command
+  while its arm is in teach mode): while the follower's jaws hold something, the trigger
   joint is pushed open with the torque that does the squeeze's work (``gain · force · stroke / trigger
   span``), within its force limit. Each :class:`Step` carries the follower gripper's width asked and
   measured (a dataset's ``gripper`` column).
@@ -50,7 +53,7 @@ import contextlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -60,6 +63,7 @@ from akarm.teleop.pairing import Pairing
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
+    from akarm.control.gripper import Gripper
     from akarm.motion.trajectory import JointLimits
 
 __all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "GRIPPER_DEADBAND", "RESUME_DWELL",
@@ -78,6 +82,10 @@ RESUME_DWELL = 0.5
 DEFAULT_FORCE_SHARE = 0.2
 #: m: the follower's gripper is asked a new width once the leader's differs this much from the last asked.
 GRIPPER_DEADBAND = 0.0005
+#: m, m/s: jaws at rest (slower than GRIPPER_STILL) further than GRIPPER_SHORT from the width asked
+#: are stopped on something: a width further in is not asked (see :meth:`Teleop.step`)
+GRIPPER_SHORT = 0.0015
+GRIPPER_STILL = 0.005
 #: Latencies kept for :meth:`Teleop.summary` (the last ones).
 LATENCY_SAMPLES = 100_000
 
@@ -245,8 +253,8 @@ class Teleop:
         """What drives the follower's gripper (``_grip_source``: "trigger", "gripper" or None) and with
         what force; ArgumentError when the mapping file asks for a gripper that is missing, or a force
         past the follower gripper's limit."""
-        self._leader_gripper: Any = getattr(self.leader, "gripper", None)  # a Gripper, or None
-        self._follower_gripper: Any = getattr(self.follower, "gripper", None)
+        self._leader_gripper: Gripper | None = self.leader.gripper
+        self._follower_gripper: Gripper | None = self.follower.gripper
         self._grip_sent: float | None = None
         self._grip_width: float | None = None
         gp = self.pairing.gripper
@@ -283,6 +291,7 @@ class Teleop:
         for name, arm in (("leader", self.leader), ("follower", self.follower)):
             if arm.mode is not Mode.ACTIVE:
                 raise StateError(f"the {name} is {arm.mode}, not enabled", fix="enable both arms first")
+        self._free_leader_gripper()
         self.leader.teach(self.damping)
         if self.gain > 0:
             self._reaction = self.follower.collision_reaction
@@ -292,6 +301,14 @@ class Teleop:
         self._engage("engaging: the follower moves to the leader's pose at "
                      f"{self.engage_speed * 100:.0f} % of its speed")
         return self
+
+    def _free_leader_gripper(self) -> None:
+        """A leader gripper that drives the follower's is let go (asked no force: no stiffness, no
+        damping), so the hand opens and closes it freely; :meth:`finish` has it hold again."""
+        lg = self._leader_gripper
+        if self._grip_source == "gripper" and lg is not None:
+            w = float(lg.state().width)
+            lg.move_to(min(max(w, 0.0), lg.stroke) if math.isfinite(w) else lg.stroke, 0.0, wait=False)
 
     def _engage(self, line: str) -> None:
         self._phase = "engaging"
@@ -381,13 +398,19 @@ class Teleop:
         elif self._grip_source == "gripper" and self._leader_gripper is not None:
             lw = float(self._leader_gripper.state().width)
             fraction = min(max(lw / self._leader_gripper.stroke, 0.0), 1.0) if math.isfinite(lw) else None
+        s = fg.state()
         if fraction is not None:
             width = fraction * fg.stroke
-            if self._grip_sent is None or abs(width - self._grip_sent) > GRIPPER_DEADBAND:
+            # stopped on something (holding it, or about to): a width further in changes nothing (it
+            # presses at the force asked), so it is not asked, and the grasp holds; one past the
+            # object's opens the jaws
+            stopped = s.grasped or (self._grip_sent is not None and s.width - self._grip_sent > GRIPPER_SHORT
+                                    and abs(s.velocity) < GRIPPER_STILL)
+            squeezing = stopped and width < s.width
+            if not squeezing and (self._grip_sent is None or abs(width - self._grip_sent) > GRIPPER_DEADBAND):
                 fg.move_to(min(width, fg.stroke), self.gripper_force, wait=False)
                 self._grip_sent = width
             self._grip_width = width
-        s = fg.state()
         if self._grip_width is None:  # not driven: what it holds at is asked
             self._grip_width = min(max(float(s.target), 0.0), fg.stroke)
         return self._grip_width, float(s.width), float(s.velocity), float(s.force), bool(s.grasped)
@@ -486,6 +509,12 @@ class Teleop:
         with contextlib.suppress(AkarmError):
             if leader.mode is Mode.TEACH:
                 leader.end_teach()
+        lg = self._leader_gripper
+        with contextlib.suppress(AkarmError):
+            if self._grip_source == "gripper" and lg is not None and leader.enabled:  # it holds where it was left
+                w = float(lg.state().width)
+                if math.isfinite(w):
+                    lg.move_to(min(max(w, 0.0), lg.stroke), None, wait=False)
 
     def __enter__(self) -> Teleop:
         return self.start()

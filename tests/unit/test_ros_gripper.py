@@ -3,7 +3,6 @@ goal, the result, the feedback and the services' parts, byte for byte, both ways
 
 from __future__ import annotations
 
-import dataclasses
 import struct
 
 import numpy as np
@@ -12,6 +11,7 @@ import pytest
 pytest.importorskip("cyclonedds")
 pytest.importorskip("rosbags.typesys")
 
+from akarm.control.gripper import GripperState
 from akarm.ros import action_types as at
 from akarm.ros import msgs
 from akarm.ros.action import ABORTED, SUCCEEDED
@@ -73,27 +73,23 @@ def test_the_gripper_types_are_named_as_rmw_cyclonedds_cpp_names_them() -> None:
 
 
 # -- how a goal ends -----------------------------------------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class Reading:
-    width: float
-    velocity: float = 0.0
-    force: float = 0.0
-    grasped: bool = False
-    moving: bool = False
+def reading(width: float, velocity: float = 0.0, force: float = 0.0, grasped: bool = False,
+            moving: bool = False) -> GripperState:
+    return GripperState(width, velocity, force, grasped, 0.0, moving, 30.0)
 
 
 def test_a_goal_is_reached_when_the_jaws_rest_within_the_tolerance() -> None:
-    assert outcome(Reading(0.0795), 0.08, 5.0, 5.0) == (SUCCEEDED, False, True)
-    assert outcome(Reading(0.0795, 0.02, moving=True), 0.08, None, 5.0) is None  # still on its way
-    assert outcome(Reading(0.08 - GOAL_TOLERANCE * 1.01), 0.08, None, 5.0) is None
+    assert outcome(reading(0.0795), 0.08, 5.0, 5.0) == (SUCCEEDED, False, True)
+    assert outcome(reading(0.0795, 0.02, moving=True), 0.08, None, 5.0) is None  # still on its way
+    assert outcome(reading(0.08 - GOAL_TOLERANCE * 1.01), 0.08, None, 5.0) is None
     # still reading "moving" but at rest for the stall timeout within the tolerance: reached
-    assert outcome(Reading(0.0799, moving=True), 0.08, 1.0, 1.0 + STALL_TIMEOUT) == (SUCCEEDED, False, True)
+    assert outcome(reading(0.0799, moving=True), 0.08, 1.0, 1.0 + STALL_TIMEOUT) == (SUCCEEDED, False, True)
 
 
 def test_a_grasp_succeeds_stalled_and_a_jam_aborts_stalled() -> None:
-    on_object = Reading(0.0301, force=19.0, grasped=True)
+    on_object = reading(0.0301, force=19.0, grasped=True)
     assert outcome(on_object, 0.0, 2.0, 2.0) == (SUCCEEDED, True, False)  # allow_stalling: the grasp is the goal
-    jam = Reading(0.05)
+    jam = reading(0.05)
     assert outcome(jam, 0.0, 2.0, 2.0 + STALL_TIMEOUT * 0.99) is None
     assert outcome(jam, 0.0, 2.0, 2.0 + STALL_TIMEOUT) == (ABORTED, True, False)
 

@@ -25,6 +25,7 @@ from akarm.cli.options import count, duration
 
 if TYPE_CHECKING:
     from akarm.cli.served import RemoteArm
+    from akarm.config import RobotConfig
     from akarm.control.probe import JointStatus
 
 
@@ -62,15 +63,43 @@ def status_table(states: Sequence[JointStatus]) -> str:
     return text
 
 
+def gripper_reading(config: RobotConfig, states: Sequence[JointStatus]) -> dict[str, Any] | None:
+    """The gripper's width (m), squeeze (N) and temperature (°C) from its motor's row; ``None`` without one."""
+    g = config.gripper
+    if g is None:
+        return None
+    row = next((s for s in states if s.name == g.name), None)
+    if row is None or row.missing or row.position is None:
+        return {"name": g.name, "width": None, "force": None, "temperature": None}
+    slope = g.slope_at(row.position)
+    force = max(0.0, -(row.torque or 0.0)) / slope
+    return {"name": g.name, "width": g.width_at(row.position), "force": force, "temperature": row.temperature}
+
+
+def gripper_line(reading: dict[str, Any] | None) -> str:
+    if reading is None:
+        return ""
+    if reading["width"] is None:
+        return f"gripper {reading['name']!r}: no answer"
+    return (f"gripper {reading['name']!r}: width {reading['width'] * 1e3:.1f} mm, force {reading['force']:.1f} N, "
+            f"temperature {_num(reading['temperature'], '.1f')} °C")
+
+
 def _print(states: Sequence[JointStatus], args: argparse.Namespace, out: TextIO, clear: bool,
            about: dict[str, Any] | None) -> None:
+    config = getattr(args, "config", None)
+    grip = gripper_reading(config, states) if config is not None else None
     if args.json:
         doc = {"time": time.time(), "joints": [s.as_dict() for s in states], **(about or {})}
+        if grip is not None:
+            doc["gripper"] = grip
         print(json.dumps(doc, allow_nan=False), file=out, flush=True)
         return
     if clear:
         print("\x1b[H\x1b[2J", end="", file=out)
     print(status_table(states), file=out, flush=True)
+    if grip is not None:
+        print(gripper_line(grip), file=out, flush=True)
     if about and about.get("text"):
         print(about["text"], file=out, flush=True)
 
@@ -104,15 +133,16 @@ def run(args: argparse.Namespace) -> int:
         return served
     from akarm.control.probe import Probe
 
-    config = load_from_args(args)
+    config = args.config = load_from_args(args)
     with Probe(config) as probe:
         states = watch(args, lambda: probe.read_state(args.timeout))
     missing = [s.name for s in states if s.missing]
     if missing:
         from akarm.buses.bus import no_answer_hint
 
-        for bus in dict.fromkeys(config.joint(name).bus for name in missing):
-            names = [n for n in missing if config.joint(n).bus == bus]
+        bus_of = {m.name: m.bus for m in config.motors}
+        for bus in dict.fromkeys(bus_of[name] for name in missing):
+            names = [n for n in missing if bus_of[n] == bus]
             print(f"akarm status: no answer from {', '.join(names)}: {no_answer_hint(config.buses[bus])}",
                   file=sys.stderr)
         return 1
@@ -142,11 +172,20 @@ def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
         old = [(n, a) for n, a in zip(d["names"], d["age"], strict=True) if a is not None and a > 1.0]
         if old:
             lines.append("(readings not fresh: " + ", ".join(f"{n} {a:.1f} s old" for n, a in old) + ")")
+        grip = None
+        if arm.config.gripper is not None:
+            g = arm.call("gripper_state")
+            grip = {"name": arm.config.gripper.name, "width": g["width"], "force": g["force"],
+                    "temperature": g["temperature"]}
+            lines.append(gripper_line(grip))
         if stop:
             clock = time.strftime("%H:%M:%S", time.localtime(stop["time"]))
             lines.append(f"SAFETY STOP latched since {clock}: {stop['error']}: {stop['text']}\n"
                          f"nothing moves until `akarm enable {args.robot}` acknowledges it")
-        return {"mode": d["mode"], "stop": stop, "server_pid": arm.pid, "text": "\n".join(lines)}
+        doc = {"mode": d["mode"], "stop": stop, "server_pid": arm.pid, "text": "\n".join(lines)}
+        if grip is not None:
+            doc["gripper"] = grip
+        return doc
 
     def json_about() -> dict[str, Any]:
         doc = about()

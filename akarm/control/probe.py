@@ -323,7 +323,8 @@ class Probe:
         if names is not None:
             for n in names:
                 config.joint(n)  # ConfigError naming the joints when there is no such joint
-        self.joints: list[Joint] = [make_joint(i, j) for i, j in enumerate(config.joints)
+        # every motor: the arm's joints and the gripper's (its row reads its motor as a joint's)
+        self.joints: list[Joint] = [make_joint(i, j) for i, j in enumerate(config.motors)
                                     if names is None or j.name in names]
         self._bus_names = sorted({j.bus for j in self.joints})
         self._routers = {b: Router([j for j in self.joints if j.bus == b]) for b in self._bus_names}

@@ -45,6 +45,7 @@ import numpy as np
 
 from akarm import signals as _signals
 from akarm.buses.ownership import BusLock, runtime_dir, sweep_sockets
+from akarm.control.gripper import Gripper, GripperState
 from akarm.control.modes import Mode
 from akarm.errors import AkarmError, ArgumentError, SafetyStop, StateError, StopLatched
 from akarm.server import socket as _socket
@@ -636,6 +637,36 @@ class ArmServerCore:
             self._require_commandable()
             return self._motion_doc(self.arm.move_to(target, speed=speed, wait=False), self._stop_seq)
 
+    def _gripper(self) -> Gripper:
+        g = self.arm.gripper
+        if g is None:
+            raise StateError(f"robot {self.arm.config.name!r} has no gripper",
+                             fix="describe one under `gripper:` in the robot file (docs/gripper.md)")
+        return g
+
+    def _op_gripper_state(self) -> dict[str, Any]:
+        """The gripper now: width (m), velocity (m/s), force (N), grasped, target (m), moving, temperature (°C)."""
+        return _gripper_doc(self._gripper().state())
+
+    def _op_gripper_move(self, width: float, force: float | None = None, wait: bool = True,
+                         client: int | None = None) -> dict[str, Any]:
+        """Move the gripper's jaws ``width`` m apart, pressing with at most ``force`` N (``None``: half its
+        limit); ``wait``: until it reached the width or grasped (a safety stop meanwhile is raised)."""
+        g = self._gripper()
+        with self._cmd:
+            self._require_commandable()
+            seq = self._stop_seq
+            g.move_to(width, force, wait=False)
+        while wait and g.state().moving:
+            self._require_serving()
+            self._raise_stop_since(seq)
+            if self._gone(client):  # nobody to answer: stop waiting (the move goes on)
+                break
+            time.sleep(_POLL)
+        if wait:
+            self._raise_stop_since(seq)
+        return _gripper_doc(g.state())
+
     def _op_wait(self, id: int, client: int | None = None) -> dict[str, Any]:
         """Wait for a motion to end: its safety stop raised (a copy), or whether it was superseded."""
         entry = self._motions.get(id)
@@ -719,3 +750,12 @@ class ArmServerCore:
     def _op_telemetry(self, since: float, save: str | None = None) -> dict[str, Any]:
         log = self.arm.telemetry(since=since)
         return {"rms": log.rms_error().tolist(), "path": str(log.save(save)) if save else None}
+
+
+def _gripper_doc(s: GripperState) -> dict[str, Any]:
+    """A gripper state as JSON (``None`` for what is not known: JSON has no NaN)."""
+    def num(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+
+    return {"width": num(s.width), "velocity": num(s.velocity), "force": num(s.force), "grasped": s.grasped,
+            "target": num(s.target), "moving": s.moving, "temperature": num(s.temperature)}

@@ -1,0 +1,46 @@
+"""The gripper served (akarm serve's control socket: gripper_state, gripper_move) and the CLI's
+`akarm grip` and `akarm status` through it, against a simulator process with an object between the
+jaws."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import akarm
+from akarm.robotfile.load import load_robot
+from akarm.server.socket import SocketClient
+from akarm.sim.process import SimulatorProcess
+
+from .conftest import ROBOTS, relaxed_robot
+from .test_serve import unique
+
+
+def akarm_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "akarm", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_the_gripper_served_to_the_control_socket_and_the_cli(tmp_path: Path) -> None:
+    robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
+    channel = unique("grip")
+    with SimulatorProcess(robot, channel=channel, args=["--object", "0.03"]), \
+            akarm.Arm(load_robot(robot).with_bus(interface="akarm_local", channel=channel)) as arm, \
+            akarm.ArmServer(arm, ros=False, log=lambda text: None) as server:
+        socket = server.socket_path
+        assert socket is not None
+        with SocketClient(socket, timeout=60) as c:
+            s = c.call("gripper_move", width=0.0, force=20.0)
+            assert s["grasped"] and abs(s["width"] - 0.03) < 0.002 and 16.0 < s["force"] < 24.0
+            with pytest.raises(akarm.ArgumentError):
+                c.call("gripper_move", width=0.1)
+            assert c.call("gripper_state")["grasped"]
+        status = akarm_cli("status", str(robot), "-i", "akarm_local", "-c", channel)
+        assert status.returncode == 0, status.stderr
+        assert "gripper 'gripper': width 29." in status.stdout, status.stdout
+        grip = akarm_cli("grip", str(robot), "open", "-i", "akarm_local", "-c", channel)
+        assert grip.returncode == 0, grip.stderr
+        assert "at its target" in grip.stdout and "held by akarm serve" in grip.stdout, grip.stdout
+        assert abs(arm.gripper.state().width - 0.08) < 0.001  # type: ignore[union-attr]

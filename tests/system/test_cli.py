@@ -434,3 +434,48 @@ def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.Capture
     assert cycles > 100
     assert "feedforward" in out and "CPU: " in out and "% of one core" in out
     assert re.search(r"simulator \d+ %", out)
+
+
+def test_replay_of_an_episode_with_a_gripper_column_drives_the_gripper(channel: str, tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from akarm.datasets import GRIPPER, DatasetWriter, EpisodeFrames
+
+    doc = yaml.safe_load((ROBOTS / "arm6g.yaml").read_text())
+    doc["urdf"] = str(ROBOTS / doc["urdf"])
+    doc.setdefault("defaults", {})["feedback_timeout"] = 0.25
+    doc["gripper"]["feedback_timeout"] = 0.25
+    robot = tmp_path / "arm6g-relaxed.yaml"
+    robot.write_text(yaml.safe_dump(doc))
+    # 2 s at 30 fps: the arm still at zero, the gripper asked open, then closed from 0.5 s to 1 s
+    n = 60
+    t = np.arange(n) / 30
+    widths = np.interp(t, [0.0, 0.5, 1.0, 2.0], [0.08, 0.08, 0.0, 0.0])
+    arm = np.zeros((n, 6))
+    vec = np.hstack([arm, widths[:, None]])
+    DatasetWriter(tmp_path / "data", (*load_robot(robot).joint_names, GRIPPER), 30).save_episode(
+        "close on the part", EpisodeFrames(vec, 0 * vec, 0 * vec, vec))
+    seen: list[tuple[float, float]] = []
+    with simulated(str(robot), channel) as sim:
+        sim.set_gripper_width(0.05)
+        sim.place_object(0.03)
+        done = threading.Event()
+
+        def watch() -> None:
+            while not done.is_set():
+                seen.append((sim.gripper_width(), sim.object_force()))
+                time.sleep(0.01)
+
+        th = threading.Thread(target=watch, daemon=True)
+        th.start()
+        try:
+            assert main(["replay", str(robot), *bus(channel), str(tmp_path / "data"), "--episode", "0"]) == 0
+        finally:
+            done.set()
+            th.join()
+    width = np.array([s[0] for s in seen])
+    force = np.array([s[1] for s in seen])
+    opened = int(np.argmax(width > 0.079))
+    assert width[opened] > 0.079, "the jaws first went to the episode's first width, open"
+    held = force[opened:] > 10.0
+    assert held.any(), "then closed on the part"
+    assert np.all(np.abs(width[opened:][held] - 0.03) < 0.003) and force.max() <= 24.0

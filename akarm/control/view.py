@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     import can
 
     from akarm.control.controller import Controller
+    from akarm.control.gripper import GripperDrive
     from akarm.control.loop import ControlLoop
     from akarm.control.modes import Mode
     from akarm.control.safety import Guard
@@ -50,6 +51,11 @@ class ControllerView:
     def loop(self) -> ControlLoop:
         """The fixed-rate loop (its thread, statistics, real-time report)."""
         return self._controller.loop
+
+    @property
+    def gripper(self) -> GripperDrive | None:
+        """The gripper's loop side (its joint, target, law: ``mode``), ``None`` without a gripper."""
+        return self._controller.gripper
 
     @property
     def tau_ff(self) -> np.ndarray:

@@ -7,7 +7,8 @@ the transmission (``m · (dw/dangle)²``); friction as a joint's (the motor's
 :class:`~akarm.sim.params.MotorSimParams`); hard stops at closed (0) and fully open (the jaws' own
 end stops, stiff springs that only push).
 
-An object (:meth:`SimGripper.place_object`) of width ``W`` is a spring of ``stiffness`` N/m with
+An object (:meth:`SimGripper.place_object`) of width ``W`` (placed while the jaws are closer than
+that, it goes between them once they open that wide) is a spring of ``stiffness`` N/m with
 damping between the jaws: while ``w < W`` it pushes them apart with ``F = k·(W - w) - c·dw/dt``
 (never pulling), which the motor feels as ``F · dw/dangle``. :attr:`SimGripper.object_force` is
 that squeeze: the truth a test compares the controller's estimate with.
@@ -55,6 +56,7 @@ class SimGripper:
         self.object_stiffness = DEFAULT_OBJECT_STIFFNESS
         self.object_damping = 0.0
         self.object_force = 0.0
+        self.engaged = False  # the object is between the jaws (else: placed where they are closer than its width)
         self.inertia = config.motor.reflected_inertia + JAW_MASS * config.max_slope ** 2
         self._klim = params.limit_stiffness
         self._clim = 2.0 * math.sqrt(self._klim * self.inertia)
@@ -91,12 +93,12 @@ class SimGripper:
         # critically damped against the jaws' mass seen at the width
         mass = self.inertia / self.config.max_slope ** 2
         self.object_damping = 2.0 * math.sqrt(k * mass)
-        if self.width < w:  # the jaws were inside it: open them to its faces
-            self.angle = self.config.angle_at(w)
-            self.velocity = 0.0
+        # jaws closer than its width: it goes between them once they open that wide
+        self.engaged = self.width >= w
 
     def remove_object(self) -> None:
         self.object_width = None
+        self.engaged = False
         self.object_force = 0.0
 
     def step(self, t: float) -> None:
@@ -144,7 +146,9 @@ class SimGripper:
         # the object pushes the jaws apart while they press into it
         force = 0.0
         ow = self.object_width
-        if ow is not None:
+        if ow is not None and not self.engaged and c.width_at(q) >= ow:
+            self.engaged = True
+        if ow is not None and self.engaged:
             w = c.width_at(q)
             slope = c.slope_at(q)
             if w < ow:

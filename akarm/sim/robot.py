@@ -528,7 +528,10 @@ class SimulatedRobot:
                 return
             self._drop()
         near = float(np.linalg.norm(tool - obj.position)) <= obj.reach
-        g.object_width = obj.width if near else None
+        if not near:
+            g.object_width, g.engaged = None, False
+        elif g.object_width is None:  # the tool came to it: between the jaws if they are open wide enough
+            g.object_width, g.engaged = obj.width, g.width >= obj.width
         if near and g.object_force > 0.0:
             obj.held = True
             obj.grip = obj.position - tool

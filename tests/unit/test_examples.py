@@ -7,13 +7,17 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ..sim.test_pick_and_place import SIM_EXAMPLES
 from ..system.test_examples import EXAMPLES, NAMES, README, block
 from .conftest import ROOT
+
+#: the README and the MkDocs pages it is moving into (docs/): the user's documentation
+DOCS = README + "".join(p.read_text(encoding="utf-8") for p in sorted((ROOT / "docs").glob("*.md")))
 
 
 def test_every_example_is_tested() -> None:
     scripts = {p.stem for p in EXAMPLES.glob("*.py") if not p.name.startswith("_")}
-    assert scripts == set(NAMES)
+    assert scripts == set(NAMES) | set(SIM_EXAMPLES)
 
 
 def test_readme_quick_start_is_what_ci_runs() -> None:
@@ -31,10 +35,10 @@ def test_readme_lists_every_verb_and_every_example() -> None:
     from akarm.cli import VERBS
 
     for verb, (module, _) in VERBS.items():
-        assert re.search(rf"^\| `akarm {verb}\b", README, re.M), verb
+        assert re.search(rf"^\| `akarm {verb}\b", DOCS, re.M), verb
         assert (ROOT / f"{module.replace('.', '/')}.py").is_file(), verb  # the README does not promise a missing verb
-    for name in NAMES:
-        assert f"`examples/{name}.py`" in README
+    for name in (*NAMES, *SIM_EXAMPLES):
+        assert f"`examples/{name}.py`" in DOCS
 
 
 def test_readme_image_is_the_demo_plot() -> None:

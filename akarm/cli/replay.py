@@ -16,8 +16,8 @@ A LeRobot v3.0 dataset folder (``akarm teleop --record``) replays one episode's 
 (``action``) at its recorded timing, on any robot with the same joints (in the same order). An
 episode with a ``gripper`` column drives the robot's gripper too: the width asked at each frame (m,
 within its stroke), at the same timing (after the jaws first go to the episode's first width); a
-robot without a gripper replays the arm alone and says so, and so does a replay through
-``akarm serve``.
+robot without a gripper replays the arm alone and says so. Through ``akarm serve`` the gripper is
+asked its widths over the control socket (``gripper_move``) while the server replays the path.
 """
 
 from __future__ import annotations
@@ -184,27 +184,47 @@ def run(args: argparse.Namespace) -> int:
     return code
 
 
+def _served_gripper(arm: RemoteArm, track: GripperTrack, duration: float, lead: float, speed: float) -> None:
+    """While the server replays the arm's path (``duration`` s, the episode's from ``lead`` s on), ask
+    its gripper each frame's width (``gripper_move``, not waiting), at the replay's ``speed``."""
+    import time
+
+    start = time.monotonic()
+    while (elapsed := time.monotonic() - start) < duration:
+        width = track.due((elapsed - lead) * speed)
+        if width is not None:
+            arm.call("gripper_move", width=width, wait=False)
+        time.sleep(0.01)
+
+
 def _served(arm: RemoteArm, args: argparse.Namespace) -> int:
     """The replay through ``akarm serve``: as without it, but the server holds the arm afterwards."""
     from akarm.cli.common import interrupted
+    from akarm.motion.recording import PathRecording
 
     check_options(args)  # before anything moves
     path = os.path.abspath(args.file)
-    if args.episode is not None and load_gripper(args, 1.0) is not None:
-        print(f"episode {args.episode}'s gripper column is not replayed through akarm serve (the arm's is): "
-              "replay with the server stopped to drive the gripper too", file=sys.stderr)
+    track, seconds = None, 0.0
     if args.episode is not None:  # the server replays files: the episode's commanded positions as a path file
         import tempfile
         from pathlib import Path
 
         folder = tempfile.mkdtemp(prefix="akarm-replay-")
-        path = str(load_recording(args, tuple(arm.names)).save(Path(folder) / f"episode-{args.episode}.csv"))
+        rec = load_recording(args, tuple(arm.names))
+        seconds = rec.duration if isinstance(rec, PathRecording) else 0.0
+        path = str(rec.save(Path(folder) / f"episode-{args.episode}.csv"))
+        gripper = arm.config.gripper
+        track = load_gripper(args, gripper.stroke if gripper is not None else None)
     arm.call("check_replay", path=path, speed=args.speed)  # the whole path, before anything moves
     try:
         arm.call("ready")  # refused while a safety stop is latched; a disabled arm is enabled
+        if track is not None:  # the jaws where the episode starts
+            arm.call("gripper_move", width=track.due(0.0) or 0.0)
         motion = arm.call("replay", path=path, speed=args.speed)
         print(f"replaying {args.file} ({motion['kind']}) in {motion['duration']:.2f} s at speed {args.speed:g}",
               flush=True)
+        if track is not None:
+            _served_gripper(arm, track, motion["duration"], motion["duration"] - seconds / args.speed, args.speed)
         arm.wait(motion)
     except KeyboardInterrupt as e:  # Ctrl-C, SIGTERM, SIGHUP
         arm.interrupt()

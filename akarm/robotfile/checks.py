@@ -676,6 +676,10 @@ def gripper(found: Findings, item: Item | None, joints: Joints, urdf: Urdf | Non
     motor = joints.motor_of(given, owner)
     table = _gripper_table(found, given.get("table"), owner)
     fingers = _fingers(found, given.get("fingers"), owner, joints, urdf)
+    if given.value("mode") == "servo":  # (the key is in the format: a later version may drive one)
+        found.add(given["mode"].node, f"{owner}: a servo-mode gripper cannot limit its force (the servo "
+                  "firmware's position loop pushes with whatever current it takes)",
+                  "use `mode: mit`: the force-limited grasp commands the motor's torque")
     if motor is not None:
         for key, top in (("kp", motor.kp_max), ("kd", motor.kd_max)):
             v = given.value(key, GRIPPER[key].default)

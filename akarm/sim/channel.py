@@ -27,9 +27,9 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
 - ``{"cmd": "late"}`` → ``{"ok": true, "late": s}``: the longest a frame waited before the simulator took
   it in, since the last such request (:meth:`~akarm.sim.SimulatedRobot.take_late`);
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
-- ``{"cmd": "object", "width": 0.03, "stiffness": 20000}`` (an object between the gripper's jaws),
-  ``{"cmd": "object", "width": null}`` (none) or ``{"cmd": "object"}`` (as it is) → ``{"ok": true,
-  "force": N, "width": m}``: the jaws' true squeeze and their width, after the change;
+- ``{"cmd": "place_object", "width": 0.03, "stiffness": 20000}``, ``{"cmd": "remove_object"}``: an object
+  between the gripper's jaws (:meth:`~akarm.sim.SimulatedRobot.place_object`), or none;
+- ``{"cmd": "gripper"}`` → ``{"ok": true, "width": m, "force": N}``: the jaws' width and their true squeeze;
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
   data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
 
@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, Any
 
 from akarm.errors import AkarmError, StateError
 from akarm.sim import faults as _faults
+from akarm.sim.gripper import DEFAULT_OBJECT_STIFFNESS
 from akarm.sim.records import DriverState, Frame
 
 #: s a request that reads the drivers waits for the simulator to take in every frame sent before it
@@ -131,6 +132,8 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         return {}
     if cmd == "late":
         return {"late": sim.take_late()}
+    if cmd in ("place_object", "remove_object", "gripper"):
+        return _object(sim, cmd, req)
     if cmd in ("state", "disable", "frames"):
         # what was sent to the drivers before the request counts: an answer without it would be stale
         # (drivers still on whose EXIT waits in the queue), so none then, but why
@@ -145,22 +148,20 @@ def _serve(sim: SimulatedRobot, req: Any) -> dict[str, Any]:
         frames, next_index = sim.logged_frames(int(req.get("since", 0)))
         return {"next": next_index, "frames": [[f.t, f.bus, f.arbitration_id, f.is_extended, f.data.hex(), f.joint,
                                                  f.to_motor] for f in frames]}
-    if cmd == "object":
-        return _object(sim, req)
     raise AkarmError(f"unknown request {req!r}",
                      fix='send {"cmd": "inject" | "clear" | "push" | "state" | "late" | "disable" | "frames" | '
-                         '"object", ...}')
+                         '"place_object" | "remove_object" | "gripper", ...}')
 
 
-def _object(sim: SimulatedRobot, req: dict[str, Any]) -> dict[str, Any]:
-    """An object between the gripper's jaws (width m, stiffness N/m), none (width null), or as it is."""
-    if "width" in req:
-        width = req["width"]
-        if width is None:
-            sim.remove_object()
-        else:
-            sim.place_object(float(width), float(req.get("stiffness", 20_000.0)))
-    return {"force": sim.object_force(), "width": sim.gripper_width()}
+def _object(sim: SimulatedRobot, cmd: str, req: dict[str, Any]) -> dict[str, Any]:
+    """The gripper's object: placed, removed, or how the jaws are (width, true squeeze)."""
+    if cmd == "place_object":
+        sim.place_object(float(req["width"]), float(req.get("stiffness", DEFAULT_OBJECT_STIFFNESS)))
+        return {}
+    if cmd == "remove_object":
+        sim.remove_object()
+        return {}
+    return {"width": sim.gripper_width(), "force": sim.object_force()}
 
 
 class ChannelServer:
@@ -287,15 +288,18 @@ class SimulatorControl:
         joints that were enabled."""
         return list(self.request(cmd="disable")["joints"])
 
-    def gripper_object(self, width: float | None = None, stiffness: float = 20_000.0, *,
-                       change: bool = True) -> tuple[float, float]:
-        """Put an object ``width`` m wide between the gripper's jaws (None: take it away; ``change``
-        False: leave it as it is); returns the true squeeze (N) and the jaws' width (m) then."""
-        req: dict[str, Any] = {"cmd": "object"}
-        if change:
-            req.update(width=width, stiffness=stiffness)
-        doc = self.request(**req)
-        return float(doc["force"]), float(doc["width"])
+    def place_object(self, width: float, stiffness: float = DEFAULT_OBJECT_STIFFNESS) -> None:
+        """An object ``width`` m wide between the gripper's jaws (:meth:`SimulatedRobot.place_object
+        <akarm.sim.SimulatedRobot.place_object>`)."""
+        self.request(cmd="place_object", width=float(width), stiffness=float(stiffness))
+
+    def remove_object(self) -> None:
+        self.request(cmd="remove_object")
+
+    def gripper(self) -> tuple[float, float]:
+        """The jaws' width (m) and their true squeeze on the object (N)."""
+        answer = self.request(cmd="gripper")
+        return float(answer["width"]), float(answer["force"])
 
     def frames(self, since: int = 0) -> tuple[list[Frame], int]:
         """The frames the drivers took in and sent from the ``since``-th on, and the index to ask from next

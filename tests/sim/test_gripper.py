@@ -5,11 +5,16 @@ the controller's estimate alone."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
+import numpy as np
 import pytest
 
+import akarm
 from akarm import ArgumentError, FeedbackTimeout, Gripper, GripperState, MotorFault, StateError
 from akarm.sim import SimulatedRobot, faults
+
+from .conftest import ROBOTS
 
 
 def gripper_of(arm: object) -> Gripper:
@@ -140,12 +145,29 @@ def test_disable_opens_nothing(lockstep) -> None:
             gripper_of(arm).open()  # nothing moves a disabled gripper
 
 
-def test_calibrate_finds_closed(lockstep) -> None:
+def test_calibrate_finds_closed_after_the_motor_lost_its_zero(channel: str) -> None:
+    config = akarm.load_robot(ROBOTS / "arm6g.yaml").with_bus(interface="virtual", channel=channel)
+    assert config.gripper is not None
+    lost = replace(config, gripper=replace(config.gripper, offset=0.3))  # the file says 0.3 rad too far
+    with SimulatedRobot(config, realtime=False) as sim, akarm.Arm(lost, clock=sim.clock) as arm:
+        arm.enable()
+        g = gripper_of(arm)
+        assert abs(g.state().width - sim.gripper_width() - 0.012) < 1e-3  # 0.3 rad at 40 mm/rad off
+        with pytest.warns(UserWarning, match="set `offset: 0.000"):
+            offset = g.calibrate()
+        assert offset == pytest.approx(0.3, abs=0.005)
+        g.move_to(0.04)
+        assert abs(sim.gripper_width() - 0.04) < 0.001 and abs(g.state().width - 0.04) < 0.001
+
+
+def test_the_gripper_works_while_the_arm_moves(lockstep) -> None:
     with lockstep("arm6g", enable=True) as (arm, sim):
-        offset = gripper_of(arm).calibrate()
-        assert abs(offset) < 0.01  # the simulated motor's zero is at closed
-        s = gripper_of(arm).move_to(0.04)
-        assert abs(sim.gripper_width() - 0.04) < 0.001 and abs(s.width - 0.04) < 0.001
+        motion = arm.move_to("ready", wait=False)
+        s = gripper_of(arm).close()
+        assert not motion.done  # closed while the arm was still on its way
+        motion.wait()
+        assert not s.grasped and sim.gripper_width() < 0.001
+        assert np.abs(arm.state().q - arm.config.pose("ready")).max() < 0.01
 
 
 def test_without_a_gripper_there_is_none(lockstep) -> None:

@@ -104,3 +104,21 @@ def test_a_placed_object_is_carried_while_squeezed_and_stays_where_let_go(
 def test_no_gripper_no_object(planar2: RobotConfig, channel: str) -> None:
     with SimulatedRobot(planar2, "virtual", channel, realtime=False) as sim, pytest.raises(StateError):
         sim.place_object(0.03)
+
+
+def test_an_object_through_the_control_channel(arm6g: RobotConfig, channel: str, tmp_path) -> None:
+    from akarm.sim.channel import ChannelServer, SimulatorControl
+
+    config = arm6g.with_bus(interface="virtual", channel=channel)
+    path = tmp_path / "sim.sock"
+    with SimulatedRobot(config, realtime=False) as sim, ChannelServer(sim, path), \
+            can.Bus(interface="virtual", channel=channel) as bus:
+        ctl = SimulatorControl(path)
+        ctl.place_object(0.03, 20_000.0)
+        command(sim, bus, 0.0, 0.0, 0.2, -0.8, 1.0)
+        width, force = ctl.gripper()
+        assert force == pytest.approx(20.0, rel=0.02) and width == pytest.approx(0.029, abs=1e-4)
+        ctl.remove_object()
+        assert ctl.gripper()[1] == 0.0
+        with pytest.raises(Exception, match="outside its stroke"):
+            ctl.place_object(0.5)

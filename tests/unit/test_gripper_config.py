@@ -98,6 +98,7 @@ def test_robot_file_without_a_gripper(tmp_path: Path) -> None:
     ("  motor: AK40-10\n", "  motor: AK41-10\n"),          # unknown model
     ("  stroke: 0.08\n", "  stroke: -0.08\n"),             # not positive
     ("  force_limit: 40.0\n", ""),                         # required
+    ("  can_id: 7\n", "  can_id: 7\n  mode: servo\n"),    # no force limit in servo mode
 ])
 def test_gripper_problems(tmp_path: Path, edit: str, fragment: str) -> None:
     text = BASE + GRIPPER.replace(edit, fragment)

@@ -467,12 +467,12 @@ def test_replay_of_an_episode_with_a_gripper_column_drives_the_gripper(tmp_path:
     with SimulatorProcess(robot, channel=channel, control=True) as sim:
         ctl = sim.control
         assert ctl is not None
-        ctl.gripper_object(0.03)
+        ctl.place_object(0.03)
         done = threading.Event()
 
         def watch() -> None:
             while not done.is_set():
-                seen.append(ctl.gripper_object(change=False)[::-1])  # (width, force)
+                seen.append(ctl.gripper())  # (width, force)
                 time.sleep(0.02)
 
         th = threading.Thread(target=watch, daemon=True)
@@ -514,5 +514,5 @@ def test_replay_through_akarm_serve_drives_the_gripper_over_the_socket(tmp_path:
         assert arm.gripper is not None
         s = arm.gripper.state()
         assert s.grasped and abs(s.width - 0.03) < 0.002 and s.target == pytest.approx(0.0, abs=1e-6)
-        force, width = sim.control.gripper_object(change=False)
+        width, force = sim.control.gripper()
         assert 16.0 <= force <= 24.0 and abs(width - 0.03) < 0.002

@@ -444,9 +444,6 @@ def _gripper_episode(tmp_path: Path) -> tuple[Path, Path]:
     from .conftest import relaxed_robot
 
     robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
-    doc = yaml.safe_load(robot.read_text())
-    doc["gripper"]["feedback_timeout"] = 0.5
-    robot.write_text(yaml.safe_dump(doc))
     n = 60
     t = np.arange(n) / 30
     vec = np.hstack([np.zeros((n, 6)), np.interp(t, [0.0, 0.5, 1.0, 2.0], [0.08, 0.08, 0.0, 0.0])[:, None]])

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
-import yaml
 
 pytest.importorskip("cyclonedds")
 pytest.importorskip("rosbags.typesys")
@@ -70,9 +69,6 @@ class Rig:
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
     robot = relaxed_robot(ARM6G, tmp_path_factory.mktemp("gripper-action"))
-    doc = yaml.safe_load(robot.read_text())  # the gripper's motor as tolerant of a loaded machine as the joints
-    doc["gripper"]["feedback_timeout"] = 0.5
-    robot.write_text(yaml.safe_dump(doc))
     channel, ns = unique("gripcmd"), unique("grip")
     with SimulatorProcess(robot, channel=channel, control=True) as sim, Served(channel, ns, robot) as server:
         assert sim.control is not None

@@ -346,15 +346,10 @@ def test_akarm_teleop_of_arms_with_grippers_records_the_gripper_column(tmp_path:
     `gripper`, the follower's width (measured and asked), read back with pyarrow."""
     import json
 
-    import yaml
-
     from akarm.sim.process import SimulatorProcess
 
     pq = pytest.importorskip("pyarrow.parquet")
     robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
-    doc = yaml.safe_load(robot.read_text())
-    doc["gripper"]["feedback_timeout"] = 0.5
-    robot.write_text(yaml.safe_dump(doc))
     tag = f"{os.getpid()}-{time.monotonic_ns() % 10**6}"
     data = tmp_path / "grasps"
     with SimulatorProcess(robot, channel=f"gl-{tag}", control=True) as lead, \

@@ -67,7 +67,7 @@ compiled.choose_at_import()  # AKARM_PURE=1, or compiled modules older than thei
 if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
     from akarm.config import RobotConfig
-    from akarm.control.gripper import Gripper, GripperState
+    from akarm.control.gripper import Gripper, GripperLog, GripperState
     from akarm.control.modes import Mode
     from akarm.control.motions import Motion
     from akarm.robotfile.load import load_robot
@@ -91,6 +91,7 @@ __all__ = [
     "ForeignTraffic",
     "FrameError",
     "Gripper",
+    "GripperLog",
     "GripperState",
     "ImplausibleFeedback",
     "LimitError",
@@ -135,6 +136,7 @@ _LAZY = {
     "Mode": ("akarm.control.modes", "Mode"),
     "Gripper": ("akarm.control.gripper", "Gripper"),
     "GripperState": ("akarm.control.gripper", "GripperState"),
+    "GripperLog": ("akarm.control.gripper", "GripperLog"),
     "Motion": ("akarm.control.motions", "Motion"),
     "ArmServer": ("akarm.serving", "ArmServer"),
     "serve": ("akarm.serving", "serve"),

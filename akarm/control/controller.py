@@ -150,6 +150,8 @@ class Controller:
                                 "(akarm.telemetry.log.MAX_TELEMETRY_VALUES numbers, what a telemetry file may hold)",
                                 fix=f"give telemetry_seconds of at most {longest:.0f}")
         self.telemetry = Telemetry(config.joint_names, max(1, int(options.telemetry_seconds * config.rate_hz)))
+        if self.gripper is not None:
+            self.gripper.keep(self.telemetry.capacity)
         joints = self.joints
 
         lim = [j.limits for j in config.joints]
@@ -843,6 +845,7 @@ class Controller:
             sat[i] = tau >= tmax[i] or tau <= -tmax[i]
         if grip is not None:
             frames.append(grip.joint.track_frame(*grip.command(t)))
+            grip.record(now)
         self.bus.send_frames(frames)
         t5 = pc()
         stage[4] = t5 - t4
@@ -883,12 +886,13 @@ class Controller:
         q, dq, tau, _ = self._feedback() if fb is None else fb
         self.telemetry.record(now, q_d, dq_d, q, dq, tau, ff, self.reflex.estimate_list)
 
-    def _send_gripper(self) -> None:
+    def _send_gripper(self, now: float) -> None:
         """(Teach, a stop's damping) The gripper's command of this cycle, alone."""
         grip = self.gripper
         if grip is not None:
             j = grip.joint
             self.bus.send(j, j.track(*grip.command(self._t_plan)))
+            grip.record(now)
 
     def _gravity_and_gripper(self, q: Sequence[float]) -> np.ndarray:
         """The enabler's gravity: the arm's joints', and none for the gripper's motor (after them)."""
@@ -918,7 +922,7 @@ class Controller:
         send = self.bus.send
         for i, j in enumerate(self.joints):
             send(j, j.carry(self._teach_damping[i], gl[i]))
-        self._send_gripper()
+        self._send_gripper(now)
         self.des = (q, np.zeros(self.n), np.zeros(self.n))
         self.tau_ff = gl
         rec = self.recorder
@@ -964,7 +968,7 @@ class Controller:
             send = self.bus.send
             for i, j in enumerate(self.joints):
                 send(j, j.damp(self._damping[i], tau[i]))
-            self._send_gripper()  # it goes on holding what it holds: a stop opens nothing
+            self._send_gripper(now)  # it goes on holding what it holds: a stop opens nothing
             self._record(now, self.des[0], np.zeros(self.n), tau)
             return
         if self.bus.release_all():

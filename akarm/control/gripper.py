@@ -39,6 +39,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
+import numpy as np
+
 from akarm.errors import StateError
 
 if TYPE_CHECKING:
@@ -47,7 +49,7 @@ if TYPE_CHECKING:
     from akarm.control.safety import Guard
 
 __all__ = ["HOLD_FRACTION", "RELAX_AFTER", "RELAX_TIME", "SHORT_OF", "SLIP", "STALL_SPEED", "STALL_TIME",
-           "Gripper", "GripperDrive", "GripperState", "Host"]
+           "Gripper", "GripperDrive", "GripperLog", "GripperState", "Host"]
 
 #: rad/s: slower than this the jaws are at rest
 STALL_SPEED = 0.05
@@ -65,6 +67,18 @@ RELAX_AFTER = 1.0
 RELAX_TIME = 0.5
 #: what a long hold keeps of the asked force (the asked force, less 15 %: within the 20 % a grasp allows)
 HOLD_FRACTION = 0.85
+
+
+@dataclass(frozen=True)
+class GripperLog:
+    """The gripper's per-cycle record (arrays, oldest first; SI): clock time (s), width (m), velocity
+    (m/s), squeeze estimate (N), target width (m)."""
+
+    t: np.ndarray
+    width: np.ndarray
+    velocity: np.ndarray
+    force: np.ndarray
+    target: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -121,6 +135,34 @@ class GripperDrive:
         self._held_at = 0.0  # rad where the grasp began
         self.mode = "idle"  # idle | approach | settle | grasp: the law of the last command
         self.sequence = 0  # moves asked: a waiter knows its own move ended
+        # the per-cycle record: a ring of (t, angle, velocity, torque, target angle), preallocated
+        self._ring = np.zeros((1, 5))
+        self._rows = 0
+
+    def keep(self, cycles: int) -> None:
+        """Keep the last ``cycles`` cycles of the per-cycle record (the arm's telemetry's length)."""
+        self._ring = np.zeros((max(1, cycles), 5))
+        self._rows = 0
+
+    def record(self, now: float) -> None:
+        """(Loop) This cycle in the per-cycle record: the feedback the command was made from."""
+        s = self.joint.state
+        row = self._ring[self._rows % len(self._ring)]
+        row[0], row[1], row[2], row[3], row[4] = now, s.position, s.velocity, s.torque, self.target
+        self._rows += 1
+
+    def log(self, since: float | None = None) -> GripperLog:
+        """(Caller, under the lock) The per-cycle record since ``since`` (clock time, s)."""
+        n = len(self._ring)
+        rows = self._ring[:self._rows] if self._rows <= n else np.roll(self._ring, -(self._rows % n), axis=0)
+        if since is not None:
+            rows = rows[rows[:, 0] >= since]
+        c = self.config
+        q = rows[:, 1]
+        width = np.array([c.width_at(x) for x in q.tolist()])
+        slope = np.array([c.slope_at(x) for x in q.tolist()])
+        return GripperLog(rows[:, 0].copy(), width, rows[:, 2] * slope, np.maximum(0.0, -rows[:, 3]) / slope,
+                          np.array([c.width_at(x) for x in rows[:, 4].tolist()]))
 
     def guard(self, timeout: float) -> Guard:
         """The gripper's safety limits: silence and temperature as a joint's; no following-error or stuck
@@ -273,6 +315,12 @@ class Gripper:
         """Width, velocity, squeeze, grasped, target, moving, temperature, as of the last reply."""
         with self._ctl.lock:
             return self._drive.state()
+
+    def telemetry(self, since: float | None = None) -> GripperLog:
+        """The per-cycle record (as long as the arm's telemetry) since ``since`` (clock time, s):
+        width, velocity, squeeze estimate and target width, beside ``arm.telemetry()``."""
+        with self._ctl.lock:
+            return self._drive.log(since)
 
     def open(self, wait: bool = True) -> GripperState:
         """Open fully (at the default force)."""

@@ -49,6 +49,9 @@ def test_open_and_move_to_end_within_a_millimetre(lockstep) -> None:
             s = g.move_to(w)
             assert abs(sim.gripper_width() - w) < 0.001, (w, sim.gripper_width())
             assert abs(s.width - sim.gripper_width()) < 1e-4 and s.target == pytest.approx(w)
+        log = g.telemetry(since=arm.clock.now() - 0.5)  # the per-cycle record, beside arm.telemetry()
+        assert 190 <= len(log.t) <= 201 and np.all(np.diff(log.t) > 0)  # 400 Hz
+        assert log.width[-1] == pytest.approx(sim.gripper_width(), abs=1e-4) and log.target[-1] == pytest.approx(0.07)
 
 
 def test_close_on_an_object_holds_it_at_the_force_asked(lockstep) -> None:
@@ -173,3 +176,23 @@ def test_the_gripper_works_while_the_arm_moves(lockstep) -> None:
 def test_without_a_gripper_there_is_none(lockstep) -> None:
     with lockstep("planar2") as (arm, sim):
         assert arm.gripper is None
+
+
+def test_a_hot_gripper_motor_is_a_named_stop(channel: str) -> None:
+    """Holding at the limit heats the AK40-10 (the temperature is reported); past the gripper's
+    max_temperature the supervisor stops the arm and names the gripper."""
+    config = akarm.load_robot(ROBOTS / "arm6g.yaml").with_bus(interface="virtual", channel=channel)
+    assert config.gripper is not None
+    config = replace(config, gripper=replace(config.gripper, max_temperature=26.0))
+    with SimulatedRobot(config, realtime=False) as sim, akarm.Arm(config, clock=sim.clock) as arm:
+        arm.enable()
+        sim.place_object(0.03)
+        g = gripper_of(arm)
+        assert g.close(force=40.0).grasped
+        t0, temp0 = arm.clock.now(), g.state().temperature
+        with pytest.raises(akarm.OverTemperature) as info:
+            for _ in range(100):
+                arm.sleep(0.1)
+                assert g.state().temperature >= temp0  # reported, and rising
+        assert info.value.joint == "gripper" and 1.0 < info.value.at - t0 < 4.0, info.value.at - t0  # 2.15 s
+        assert not arm.enabled

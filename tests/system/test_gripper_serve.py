@@ -44,3 +44,17 @@ def test_the_gripper_served_to_the_control_socket_and_the_cli(tmp_path: Path) ->
         assert grip.returncode == 0, grip.stderr
         assert "at its target" in grip.stdout and "held by akarm serve" in grip.stdout, grip.stdout
         assert abs(arm.gripper.state().width - 0.08) < 0.001  # type: ignore[union-attr]
+
+
+def test_akarm_grip_without_a_server(tmp_path: Path) -> None:
+    robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
+    channel = unique("grip-local")
+    with SimulatorProcess(robot, channel=channel, args=["--object", "0.03"], control=True) as sim:
+        bad = akarm_cli("grip", str(robot), "0.09", "-i", "akarm_local", "-c", channel)
+        assert bad.returncode == 1 and "outside its stroke 0..0.08 m" in bad.stderr, bad.stderr
+        assert not any(s.enabled for s in sim.control.state())  # type: ignore[union-attr]  # nothing was enabled
+        grip = akarm_cli("grip", str(robot), "close", "--force", "20", "-i", "akarm_local", "-c", channel)
+        assert grip.returncode == 0, grip.stderr
+        assert "grasped, force" in grip.stdout and grip.stdout.rstrip().endswith("limp)"), grip.stdout
+        width, force = sim.control.gripper()  # type: ignore[union-attr]
+        assert force < 3.0 and width > 0.029  # limp: the object springs the jaws back, but for what friction holds

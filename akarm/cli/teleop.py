@@ -309,10 +309,11 @@ def _recorder(args: argparse.Namespace, follower: RobotConfig) -> EpisodeRecorde
     """The dataset writer and its recorder (the folder checked before anything is enabled), or None."""
     if args.record is None:
         return None
-    from akarm.datasets import DatasetWriter
+    from akarm.datasets import GRIPPER, DatasetWriter
     from akarm.teleop.recording import EpisodeRecorder
 
-    writer = DatasetWriter(args.record, follower.joint_names, args.fps, robot_type=follower.name)
+    names = (*follower.joint_names, GRIPPER) if follower.gripper is not None else follower.joint_names
+    writer = DatasetWriter(args.record, names, args.fps, robot_type=follower.name)
     return EpisodeRecorder(writer, follower.rate_hz)
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from akarm.datasets.lerobot import (
     CODEBASE_VERSION,
+    GRIPPER,
     DatasetWriter,
     Episode,
     EpisodeFrames,
@@ -14,4 +15,4 @@ from akarm.datasets.lerobot import (
     read_dataset,
 )
 
-__all__ = ["CODEBASE_VERSION", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset", "read_dataset"]
+__all__ = ["CODEBASE_VERSION", "GRIPPER", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset", "read_dataset"]

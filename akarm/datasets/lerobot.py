@@ -14,7 +14,10 @@
         observation.velocity (rad/s), observation.effort (N·m), action (the commanded positions, rad)
 
 The vector features are float32 lists of one value per joint; their ``names`` in info.json are the
-joint names. Written with pyarrow (the ``data`` extra).
+joint names. A robot with a gripper has one more value, last, named :data:`GRIPPER` (``gripper``):
+the width between the jaws (m) in ``observation.state`` and ``action`` (measured, asked), its rate
+(m/s) in ``observation.velocity`` and the squeeze (N) in ``observation.effort``, as LeRobot's robots
+put their gripper last in the same vectors. Written with pyarrow (the ``data`` extra).
 
 **Never half-written.** An episode is committed by rewriting, each atomically (:mod:`akarm.files`),
 the data file it goes into, the episodes file, the tasks file, stats.json, and last info.json, whose
@@ -53,9 +56,9 @@ from akarm.motion.recording import PathRecording
 if TYPE_CHECKING:
     import pyarrow as pa
 
-__all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS", "MAX_JSON_BYTES",
-           "MAX_PARQUET_BYTES", "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames", "LeRobotDataset",
-           "read_dataset", "to_float32"]
+__all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "GRIPPER", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS",
+           "MAX_JSON_BYTES", "MAX_PARQUET_BYTES", "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames",
+           "LeRobotDataset", "read_dataset", "to_float32"]
 
 CODEBASE_VERSION = "v3.0"
 #: The per-joint features of a frame: key → what it holds (info.json's features, float32 per joint).
@@ -65,6 +68,9 @@ VECTORS = {
     "observation.effort": "measured torques, N·m",
     "action": "commanded positions, rad",
 }
+#: The name of the gripper's value in the vector features (its width, m, in ``observation.state`` and
+#: ``action``), whatever the robot file names the gripper: what LeRobot's policies look for.
+GRIPPER = "gripper"
 #: A data file is closed and the next one started past this size (LeRobot's own default).
 DATA_FILE_MB = 100
 #: Files per chunk folder (LeRobot's default).
@@ -157,9 +163,17 @@ class Episode:
     def __len__(self) -> int:
         return len(self.timestamp)
 
-    def path(self, key: str = "action") -> PathRecording:
-        """The feature ``key`` (default: the commanded positions) as a path to replay
-        (:meth:`akarm.Arm.replay`), at its recorded timing."""
+    @property
+    def has_gripper(self) -> bool:
+        """True if the vectors end with the gripper's value (named :data:`GRIPPER`)."""
+        return bool(self.joint_names) and self.joint_names[-1] == GRIPPER
+
+    @property
+    def arm_names(self) -> tuple[str, ...]:
+        """The arm's joints: :attr:`joint_names` without the gripper's."""
+        return self.joint_names[:-1] if self.has_gripper else self.joint_names
+
+    def _values(self, key: str) -> np.ndarray:
         if key not in self.features:
             raise RecordingError(f"episode {self.index} has no feature {key!r}",
                                  fix="features are: " + ", ".join(self.features))
@@ -172,7 +186,18 @@ class Episode:
         if bad.any():
             raise RecordingError(f"episode {self.index}: {key} has a value that is not finite at frame "
                                  f"{int(np.argmax(bad))}", fix="the dataset is damaged; record it again")
-        return PathRecording(self.joint_names, self.timestamp.astype(float), q)
+        return q
+
+    def path(self, key: str = "action") -> PathRecording:
+        """The feature ``key`` (default: the commanded positions) of the arm's joints (the gripper's
+        value left out: :meth:`gripper`) as a path to replay (:meth:`akarm.Arm.replay`), at its recorded timing."""
+        q = self._values(key)
+        return PathRecording(self.arm_names, self.timestamp.astype(float), q[:, :len(self.arm_names)])
+
+    def gripper(self, key: str = "action") -> np.ndarray | None:
+        """The gripper's value of the feature ``key`` per frame (default: the width asked, m), or None
+        if the episode has no gripper."""
+        return self._values(key)[:, -1].copy() if self.has_gripper else None
 
 
 def _feature_spec(names: Sequence[str]) -> dict[str, Any]:

@@ -1,4 +1,5 @@
-"""The DDS types of ``control_msgs/action/FollowJointTrajectory`` and of ``action_msgs``, as ROS 2 lays them out.
+"""The DDS types of ``control_msgs/action/FollowJointTrajectory``, ``control_msgs/action/GripperCommand`` and
+of ``action_msgs``, as ROS 2 lays them out.
 
 A ROS 2 action ``pkg/action/Name`` is three services and two topics (rcl_action ``names.c``); their
 types are the ``.action`` file's three parts wrapped in implicit structs (rosidl):
@@ -55,6 +56,15 @@ __all__ = [
     "GoalInfo",
     "GoalStatus",
     "GoalStatusArray",
+    "GripperCommand",
+    "GripperCommandFeedback",
+    "GripperCommandGoal",
+    "GripperCommandResult",
+    "GripperFeedbackMessage",
+    "GripperGetResultRequest",
+    "GripperGetResultResponse",
+    "GripperSendGoalRequest",
+    "GripperSendGoalResponse",
     "JointComponentTolerance",
     "JointTolerance",
     "MultiDOFJointTrajectory",
@@ -303,3 +313,83 @@ class GetResultResponse(IdlStruct, typename=_FJT + "GetResult_Response_"):
 def feedback_message_type(distro: str) -> Any:
     """The FeedbackMessage type of ``distro`` (humble and jazzy: one layout; rolling: with the indices)."""
     return FeedbackMessageRolling if check_distro(distro) == "rolling" else FeedbackMessageHumble
+
+
+# -- control_msgs/action/GripperCommand ------------------------------------------------------------
+# The same on humble (4.8), jazzy (5.8) and rolling (6.x): control_msgs/msg/GripperCommand is
+# ``float64 position`` (m between the jaws), ``float64 max_effort`` (N); the result and the feedback
+# are ``position`` (m), ``effort`` (N), ``stalled``, ``reached_goal``.
+_GC = "control_msgs::action::dds_::GripperCommand_"
+
+
+@dataclass
+@annotate.final
+class GripperCommand(IdlStruct, typename="control_msgs::msg::dds_::GripperCommand_"):
+    position: float64 = 0.0  # m: the width asked
+    max_effort: float64 = 0.0  # N: the most the jaws may squeeze (0: the server's default)
+
+
+@dataclass
+@annotate.final
+class GripperCommandGoal(IdlStruct, typename=_GC + "Goal_"):
+    command: GripperCommand = field(default_factory=GripperCommand)
+
+
+@dataclass
+@annotate.final
+class GripperCommandResult(IdlStruct, typename=_GC + "Result_"):
+    position: float64 = 0.0  # m
+    effort: float64 = 0.0  # N
+    stalled: bool = False  # stopped short of the goal (on an object)
+    reached_goal: bool = False  # within the goal tolerance of the width asked
+
+
+@dataclass
+@annotate.final
+class GripperCommandFeedback(IdlStruct, typename=_GC + "Feedback_"):
+    position: float64 = 0.0
+    effort: float64 = 0.0
+    stalled: bool = False
+    reached_goal: bool = False
+
+
+@dataclass
+@annotate.final
+class GripperFeedbackMessage(IdlStruct, typename=_GC + "FeedbackMessage_"):
+    goal_id: UUID = field(default_factory=UUID)
+    feedback: GripperCommandFeedback = field(default_factory=GripperCommandFeedback)
+
+
+@dataclass
+@annotate.final
+class GripperSendGoalRequest(IdlStruct, typename=_GC + "SendGoal_Request_"):
+    guid: uint64 = 0  # rmw_cyclonedds_cpp's request header
+    seq: int64 = 0
+    goal_id: UUID = field(default_factory=UUID)
+    goal: GripperCommandGoal = field(default_factory=GripperCommandGoal)
+
+
+@dataclass
+@annotate.final
+class GripperSendGoalResponse(IdlStruct, typename=_GC + "SendGoal_Response_"):
+    guid: uint64 = 0
+    seq: int64 = 0
+    accepted: bool = False
+    stamp: Time = field(default_factory=Time)
+
+
+@dataclass
+@annotate.final
+class GripperGetResultRequest(IdlStruct, typename=_GC + "GetResult_Request_"):
+    guid: uint64 = 0
+    seq: int64 = 0
+    goal_id: UUID = field(default_factory=UUID)
+
+
+@dataclass
+@annotate.final
+class GripperGetResultResponse(IdlStruct, typename=_GC + "GetResult_Response_"):
+    guid: uint64 = 0
+    seq: int64 = 0
+    status: int8 = 0
+    result: GripperCommandResult = field(default_factory=GripperCommandResult)

@@ -44,9 +44,11 @@ from akarm.ros.action import ActionServer
 from akarm.ros.commands import RETRY, CommandQueue
 from akarm.ros.dds import ANY, Discovery, Node, RawSample, TriggerServer, decode, sender, take_raw
 from akarm.ros.graph import DiscoveryInfo
+from akarm.ros.gripper import GripperActionServer
 from akarm.ros.trajectory import TrajectoryRefused, check_size, check_trajectory, refusal
 
 if TYPE_CHECKING:
+    from akarm.control.gripper import Gripper
     from akarm.server.server import ArmServerCore
 
 __all__ = ["RosNode"]
@@ -61,12 +63,15 @@ class RosNode:
 
     def __init__(self, server: ArmServerCore, domain: int, namespace: str, joint_states_hz: float,
                  status_hz: float, reach: Discovery | None = None, *, controller: str = "arm_controller",
-                 distro: str = "jazzy", node_name: str = "akarm") -> None:
+                 distro: str = "jazzy", node_name: str = "akarm",
+                 gripper_controller: str = "gripper_controller") -> None:
         self.server = server
+        self.gripper: Gripper | None = server.arm.gripper
+        self.gripper_action: GripperActionServer | None = None
         self._said = (0.0, 0)  # when a command was last logged, and how many were not since
         try:
             self.node = Node(domain, namespace, reach)
-            self._open(controller, distro, node_name)
+            self._open(controller, distro, node_name, gripper_controller)
         except AkarmError:  # a bad controller or node name, an unknown distribution: nothing left open
             with contextlib.suppress(Exception):
                 self.node.close()
@@ -91,7 +96,7 @@ class RosNode:
         self.published = 0
         self.errors = 0
 
-    def _open(self, controller: str, distro: str, node_name: str) -> None:
+    def _open(self, controller: str, distro: str, node_name: str, gripper_controller: str) -> None:
         n = self.node
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
@@ -101,12 +106,19 @@ class RosNode:
                           TriggerServer(n, "akarm/disable", self._disable, self._heard),
                           TriggerServer(n, "akarm/hold", self._hold, self._heard)]
         self.action = ActionServer(n, self.server, controller, distro, heard=self._heard, commands=self.commands)
+        actions: list[ActionServer | GripperActionServer] = [self.action]
+        if self.gripper is not None:
+            self.gripper_action = GripperActionServer(n, self.server, self.gripper, gripper_controller,
+                                                      heard=self._heard, commands=self.commands)
+            actions.append(self.gripper_action)
+        self._actions = actions
         self.discovery = DiscoveryInfo(n, node_name, distro)
         self.discovery.publish()  # every endpoint is open by now
         self._traj_cond = ReadCondition(self._traj, ANY)
         self._wake = GuardCondition(n.participant)
         self._waitset = WaitSet(n.participant)
-        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services), *self.action.conditions):
+        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services),
+                  *(c for a in self._actions for c in a.conditions)):
             self._waitset.attach(c)
 
     def _heard(self, text: str) -> None:
@@ -146,7 +158,8 @@ class RosNode:
             self._wake.set(True)
         if self._thread is not None:
             self._thread.join(5.0)
-        self.action.close()
+        for a in self._actions:
+            a.close()
         self.node.close()
 
     def _run(self) -> None:
@@ -165,7 +178,7 @@ class RosNode:
 
     def _serve_once(self) -> None:
         next_js, next_status = self._next
-        wait = max(0.0, min(next_js, next_status, self.action.next_due()) - time.monotonic())
+        wait = max(0.0, min(next_js, next_status, *(a.next_due() for a in self._actions)) - time.monotonic())
         if len(self.commands):  # waiting for the server's command lock: try again soon
             wait = min(wait, RETRY)
         self._waitset.wait(int(min(wait, 1.0) * 1e9))
@@ -173,7 +186,8 @@ class RosNode:
             return
         for raw in take_raw(self._traj, 16):
             self.take_topic(raw)
-        self.action.poll()
+        for a in self._actions:
+            a.poll()
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
             for req in s.take():  # joint_states must go on meanwhile
                 self._heard(f"{s.name} called by {s.caller(req)}")
@@ -228,13 +242,39 @@ class RosNode:
         self._heard(f"{what}: accepted")
 
     def publish_joint_states(self) -> None:
-        """``joint_states`` stamped with when its readings were taken (the oldest joint's)."""
+        """``joint_states`` stamped with when its readings were taken (the oldest joint's); the gripper's
+        joints after the arm's (:meth:`gripper_joints`)."""
         s = self.server.arm.state()
         age = max((j.age for j in s.joints), default=0.0)
         stamp = time.time() - (age if age < 1e9 else 0.0)  # never heard: now (the positions are NaN)
-        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(stamp), ""), self.names,
-                                       s.q.tolist(), s.dq.tolist(), s.tau.tolist()))
+        names, q, dq, tau = list(self.names), s.q.tolist(), s.dq.tolist(), s.tau.tolist()
+        for name, position, velocity, effort in self.gripper_joints():
+            names.append(name)
+            q.append(position)
+            dq.append(velocity)
+            tau.append(effort)
+        self._js.write(msgs.JointState(msgs.Header(msgs.Time.from_seconds(stamp), ""), names, q, dq, tau))
         self.published += 1
+
+    def gripper_joints(self) -> list[tuple[str, float, float, float]]:
+        """The gripper's joints in ``joint_states``: (name, position, velocity, effort). The gripper's
+        own name (the robot file's ``gripper.name``) with the width between the jaws (m), its rate (m/s)
+        and the squeeze (N); then each finger joint the robot file names (``gripper.fingers``: the
+        URDF's, prismatic) at half the width (m) and half the rate, each jaw moving half the width.
+        None without a gripper; NaN while the gripper's motor is not heard."""
+        g = self.gripper
+        if g is None:
+            return []
+        try:
+            s = g.state()
+            width, velocity, force = float(s.width), float(s.velocity), float(s.force)
+        except AkarmError:
+            width = velocity = force = float("nan")
+        joints = [(g.name, width, velocity, force)]
+        cfg = self.server.arm.config.gripper
+        fingers = cfg.fingers if cfg is not None else ()
+        joints += [(f, width / 2.0, velocity / 2.0, force) for f in fingers if f != g.name]
+        return joints
 
     def publish_status(self) -> None:
         doc = self.server.status()

@@ -27,6 +27,10 @@ def _floats(values: Iterable[Any]) -> tuple[float, ...]:
     return tuple(math.nan if v is None else float(v) for v in values)
 
 
+def _float(value: Any) -> float:
+    return math.nan if value is None else float(value)
+
+
 @dataclass(frozen=True)
 class Snapshot:
     """The arm at one instant (joint side, SI; per-joint tuples in the robot file's joint order).
@@ -47,6 +51,9 @@ class Snapshot:
             again), as text; ``""`` none.
         rate_hz: the loop's target rate. loop_rate_hz: the rate it kept since its statistics started
             (0: not running). cycles: cycles run. missed_slots: slots skipped because a cycle started late.
+        gripper: the gripper's name (``""``: none). gripper_width: the width between its jaws, m;
+            gripper_target: the width asked, m; gripper_force: its squeeze, N (estimated);
+            gripper_grasped: it holds something; gripper_temperature: its motor's, °C (NaN: unknown).
     """
 
     t: float
@@ -67,6 +74,12 @@ class Snapshot:
     loop_rate_hz: float
     cycles: int
     missed_slots: int
+    gripper: str = ""
+    gripper_width: float = math.nan
+    gripper_target: float = math.nan
+    gripper_force: float = math.nan
+    gripper_grasped: bool = False
+    gripper_temperature: float = math.nan
 
     def to_doc(self) -> dict[str, Any]:
         """A JSON-able dict (tuples as lists; NaN stays NaN, which Python's json reads back)."""
@@ -87,10 +100,29 @@ class Snapshot:
             return cls(t=float(doc["t"]), names=names, **per_joint, fault=tuple(int(x) for x in doc["fault"]),
                        mode=str(doc["mode"]), enabled=bool(doc["enabled"]), moving=bool(doc["moving"]),
                        stop=str(doc["stop"]), rate_hz=float(doc["rate_hz"]), loop_rate_hz=float(doc["loop_rate_hz"]),
-                       cycles=int(doc["cycles"]), missed_slots=int(doc["missed_slots"]))
+                       cycles=int(doc["cycles"]), missed_slots=int(doc["missed_slots"]),
+                       gripper=str(doc.get("gripper", "")), gripper_grasped=bool(doc.get("gripper_grasped", False)),
+                       gripper_width=_float(doc.get("gripper_width")),
+                       gripper_target=_float(doc.get("gripper_target")),
+                       gripper_force=_float(doc.get("gripper_force")),
+                       gripper_temperature=_float(doc.get("gripper_temperature")))
         except (KeyError, TypeError, ValueError) as e:
             raise StateError(f"the server's snapshot is not one this akarm reads ({e!r})",
                              fix="is the server the same akarm version as this view?") from None
+
+
+def _gripper(arm: Arm) -> dict[str, Any]:
+    """The gripper's fields of a snapshot (none without one; NaN while its motor is not heard)."""
+    g = arm.gripper
+    if g is None:
+        return {}
+    try:
+        s = g.state()
+    except StateError:
+        return {"gripper": str(g.name)}
+    return {"gripper": str(g.name), "gripper_width": float(s.width), "gripper_target": float(s.target),
+            "gripper_force": float(s.force), "gripper_grasped": bool(s.grasped),
+            "gripper_temperature": float(s.temperature)}
 
 
 def take(arm: Arm, mode: str | None = None) -> Snapshot:
@@ -112,4 +144,5 @@ def take(arm: Arm, mode: str | None = None) -> Snapshot:
                     fault=tuple(int(j.fault) for j in s.joints),
                     mode=mode if mode is not None else s.mode.name.lower(), enabled=s.enabled, moving=s.moving,
                     stop="" if fault is None else str(fault), rate_hz=float(arm.config.rate_hz),
-                    loop_rate_hz=(cycles - 1) / span if span > 0 else 0.0, cycles=int(cycles), missed_slots=int(missed))
+                    loop_rate_hz=(cycles - 1) / span if span > 0 else 0.0, cycles=int(cycles), missed_slots=int(missed),
+                    **_gripper(arm))

@@ -11,13 +11,21 @@ names holds where it was when following began; a leader joint no pair names move
 
 Torques go back the other way by the same scale (the work done is the same on both sides):
 ``leader torque = scale · follower torque``.
+
+**Grippers.** When both arms have a gripper, the leader's drives the follower's (the same fraction of
+each one's stroke). A leader without one can drive the follower's gripper with a trigger: one of its
+joints, named in the mapping file's ``gripper:`` section (and in no pair), whose angle from ``closed``
+to ``open`` (rad) opens the follower's jaws from 0 to their stroke; ``force`` (N) is the squeeze the
+follower grasps with (default: its gripper's default force; never more than its ``force_limit``)::
+
+    gripper: {trigger: trigger_joint, closed: 0.0, open: 0.6, force: 15.0}
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +34,7 @@ import numpy as np
 from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.files import FileProblem, YamlLimits, load_yaml
 
-__all__ = ["MAP_FILE_LIMITS", "MAX_MAP_BYTES", "MAX_MAP_NODES", "Pair", "Pairing"]
+__all__ = ["MAP_FILE_LIMITS", "MAX_MAP_BYTES", "MAX_MAP_NODES", "GripperPair", "Pair", "Pairing"]
 
 #: A mapping file larger than this is refused unread.
 MAX_MAP_BYTES = 1 << 20
@@ -46,14 +54,35 @@ class Pair:
     offset: float = 0.0
 
 
+@dataclass(frozen=True)
+class GripperPair:
+    """What drives the follower's gripper: leader joint ``trigger`` (its index; None: the leader's own
+    gripper), whose angle ``closed`` closes the jaws and ``open`` opens them fully (rad), and the force
+    the follower grasps with (N; None: its gripper's default)."""
+
+    trigger: int | None = None
+    closed: float = 0.0
+    open: float = 1.0
+    force: float | None = None
+
+    def fraction(self, angle: float) -> float:
+        """How open the trigger at ``angle`` (rad) asks the jaws to be: 0 (closed) .. 1 (fully open)."""
+        f = (angle - self.closed) / (self.open - self.closed)
+        return min(max(f, 0.0), 1.0) if math.isfinite(f) else 0.0
+
+
 class Pairing:
-    """The pairs between a leader's and a follower's joints (see the module's docstring).
+    """The pairs between a leader's and a follower's joints, and what drives the follower's gripper
+    (see the module's docstring).
 
     Raises:
-        ArgumentError: a joint paired twice, a scale that is zero or not finite, an offset that is not finite.
+        ArgumentError: a joint paired twice, a scale that is zero or not finite, an offset that is not
+            finite; a trigger joint that is paired too, a trigger range that is empty or not finite, a
+            negative force.
     """
 
-    def __init__(self, leader_names: Sequence[str], follower_names: Sequence[str], pairs: Sequence[Pair]) -> None:
+    def __init__(self, leader_names: Sequence[str], follower_names: Sequence[str], pairs: Sequence[Pair],
+                 gripper: GripperPair | None = None) -> None:
         self.leader_names = tuple(leader_names)
         self.follower_names = tuple(follower_names)
         if not pairs:
@@ -71,11 +100,33 @@ class Pairing:
             if not (math.isfinite(p.scale) and p.scale != 0.0 and math.isfinite(p.offset)):
                 raise ArgumentError(f"scale {p.scale!r} and offset {p.offset!r} must be finite, the scale not 0",
                                     joint=self.follower_names[p.follower], fix="e.g. scale: -1.0, offset: 0.1")
+        self._check_gripper(gripper, pairs)
+        self.gripper = gripper
         self.pairs = tuple(pairs)
         self.leader_index = np.array([p.leader for p in self.pairs], dtype=int)
         self.follower_index = np.array([p.follower for p in self.pairs], dtype=int)
         self.scale = np.array([p.scale for p in self.pairs], dtype=float)
         self.offset = np.array([p.offset for p in self.pairs], dtype=float)
+
+    def _check_gripper(self, gripper: GripperPair | None, pairs: Sequence[Pair]) -> None:
+        if gripper is None:
+            return
+        if gripper.trigger is not None:
+            if not 0 <= gripper.trigger < len(self.leader_names):
+                raise ArgumentError(f"trigger joint index {gripper.trigger} is out of range",
+                                    fix=f"leader joints: {list(self.leader_names)}")
+            trigger = self.leader_names[gripper.trigger]
+            if any(p.leader == gripper.trigger for p in pairs):
+                raise ArgumentError(f"the trigger joint {trigger!r} also drives a follower joint", joint=trigger,
+                                    fix="a trigger drives the gripper alone: take it out of the pairs")
+            if not (math.isfinite(gripper.closed) and math.isfinite(gripper.open)
+                    and gripper.closed != gripper.open):
+                raise ArgumentError(f"the trigger's closed ({gripper.closed!r}) and open ({gripper.open!r}) "
+                                    "angles must be two different numbers", joint=trigger,
+                                    fix="e.g. closed: 0.0, open: 0.6 (rad)")
+        if gripper.force is not None and not (math.isfinite(gripper.force) and gripper.force >= 0.0):
+            raise ArgumentError(f"the gripper's force {gripper.force!r} must be a number ≥ 0 N",
+                                fix="e.g. force: 15.0 (N), within the follower gripper's force_limit")
 
     @classmethod
     def in_order(cls, leader_names: Sequence[str], follower_names: Sequence[str]) -> Pairing:
@@ -107,6 +158,7 @@ class Pairing:
             doc = load_yaml(p, MAP_FILE_LIMITS)
         except FileProblem as e:
             raise problem(e.what, e.fix, e.line) from None
+        gripper = cls._gripper(doc.get("gripper") if isinstance(doc, dict) else None, leader_names, problem)
         items = doc.get("pairs") if isinstance(doc, dict) else None
         if not isinstance(items, list) or not items:
             raise problem("no `pairs:` list", "pairs: [{leader: JOINT, follower: JOINT, scale: 1.0, offset: 0.0}]")
@@ -133,9 +185,35 @@ class Pairing:
                               "e.g. scale: -1.0, offset: 0.1") from None
             pairs.append(Pair(index[0], index[1], scale, offset))
         try:
-            return cls(leader_names, follower_names, pairs)
+            return cls(leader_names, follower_names, pairs, gripper)
         except ArgumentError as e:
             raise problem(str(e.what), e.fix) from None
+
+    @staticmethod
+    def _gripper(item: object, leader_names: Sequence[str],
+                 problem: Callable[[str, str], ConfigError]) -> GripperPair | None:
+        """The mapping file's ``gripper:`` section (None without one)."""
+        if item is None:
+            return None
+        keys = {"trigger", "closed", "open", "force"}
+        if not isinstance(item, dict) or set(item) - keys:
+            raise problem(f"gripper: is {item!r}", "gripper: {trigger: JOINT, closed: RAD, open: RAD, force: N}, "
+                          "each optional (no trigger: the leader's own gripper)")
+        trigger = item.get("trigger")
+        index = None
+        if trigger is not None:
+            if not isinstance(trigger, str) or trigger not in leader_names:
+                hint = did_you_mean(trigger, leader_names) if isinstance(trigger, str) else ""
+                raise problem(f"gripper: the leader has no joint {trigger!r}{hint}",
+                              f"leader joints: {', '.join(leader_names)}")
+            index = list(leader_names).index(trigger)
+        try:
+            closed, open_ = float(item.get("closed", 0.0)), float(item.get("open", 1.0))
+            force = None if item.get("force") is None else float(item["force"])
+        except (TypeError, ValueError):
+            raise problem("gripper: closed, open and force must be numbers",
+                          "e.g. closed: 0.0, open: 0.6 (rad), force: 15.0 (N)") from None
+        return GripperPair(index, closed, open_, force)
 
     def follower_positions(self, leader_q: np.ndarray, held: np.ndarray) -> np.ndarray:
         """The follower's positions for the leader's ``leader_q`` (rad); unpaired joints at ``held``."""

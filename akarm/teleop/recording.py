@@ -1,7 +1,9 @@
 """Episodes of a teleoperation session, sampled at a dataset's fps and committed as LeRobotDataset
 v3.0 (:mod:`akarm.datasets`): per frame the follower's measured positions, velocities and torques
 (``observation.state``, ``.velocity``, ``.effort``) and the command it was given (``action``: the
-leader's pose in the follower's joints, within its range)."""
+leader's pose in the follower's joints, within its range). A follower with a gripper adds its value
+last, named ``gripper`` (:data:`akarm.datasets.GRIPPER`): the width measured and asked (m), its rate
+(m/s) and squeeze (N): the writer is then made with the follower's joint names and ``gripper``."""
 
 from __future__ import annotations
 
@@ -66,7 +68,15 @@ class EpisodeRecorder:
             return False
         if len(self._rows) >= MAX_PATH_SAMPLES:
             return False  # the episode is as long as one may be: the caller ends it (full)
-        self._rows.append((step.follower_q, step.follower_dq, step.follower_tau, step.command))
+        row: tuple[np.ndarray, ...] = (step.follower_q, step.follower_dq, step.follower_tau, step.command)
+        if step.gripper_command is not None:
+            grip = (step.gripper_width, step.gripper_velocity, step.gripper_force, step.gripper_command)
+            row = tuple(np.append(v, math.nan if g is None else g) for v, g in zip(row, grip, strict=True))
+        if len(row[0]) != len(self.writer.joint_names):
+            raise ArgumentError(f"a step of {len(row[0])} values for a dataset of {len(self.writer.joint_names)} "
+                                f"({', '.join(self.writer.joint_names)})",
+                                fix="make the writer with the follower's joints, and gripper if it has one")
+        self._rows.append(row)
         return True
 
     @property

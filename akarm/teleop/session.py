@@ -31,6 +31,17 @@ It drives both arms through their public API only:
   of each leader joint's torque limit), is the leader's extra torque: the hand feels what the
   follower touches. The follower's collision reflex then reacts by holding: the session holds too
   (and says so) until the leader has been held at the follower for a moment, then engages again.
+- **Grippers** (:mod:`akarm.teleop.pairing`): the leader's gripper (let go while the session runs: asked
+  no force, the hand moves it freely; it holds again when the session finishes), or a trigger joint of
+  the leader named in the mapping file, drives the follower's gripper every cycle (the same fraction of its
+  stroke; a new width asked once it differs by :data:`GRIPPER_DEADBAND`, but none further in while the
+  jaws are stopped on something: the grasp holds), with the force the mapping
+  file or ``gripper_force`` names (default: the gripper's own), never over its ``force_limit``. With
+  force feedback, a trigger feels the grasp (a leader gripper does not: the gripper takes no command
+  while its arm is in teach mode): while the follower's jaws hold something, the trigger
+  joint is pushed open with the torque that does the squeeze's work (``gain · force · stroke / trigger
+  span``), within its force limit. Each :class:`Step` carries the follower gripper's width asked and
+  measured (a dataset's ``gripper`` column).
 - **Safety**: a safety stop of either arm stops both (damped, then disabled) and is raised; without
   force feedback the follower's reflex stays as it was built (armed, "disable" by default).
 """
@@ -52,10 +63,11 @@ from akarm.teleop.pairing import Pairing
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, ArmState
+    from akarm.control.gripper import Gripper
     from akarm.motion.trajectory import JointLimits
 
-__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "RESUME_DWELL", "RESUME_TOLERANCE",
-           "Step", "Summary", "Teleop", "stopping_distance"]
+__all__ = ["DEFAULT_FORCE_SHARE", "ENGAGE_SPEED_TOLERANCE", "ENGAGE_TOLERANCE", "GRIPPER_DEADBAND", "RESUME_DWELL",
+           "RESUME_TOLERANCE", "Step", "Summary", "Teleop", "stopping_distance"]
 
 #: rad: engaging ends when every follower joint's command is this close to the leader's pose ...
 ENGAGE_TOLERANCE = 0.01
@@ -68,6 +80,12 @@ RESUME_TOLERANCE = 0.05
 RESUME_DWELL = 0.5
 #: The default force feedback limit: this share of each leader joint's torque limit.
 DEFAULT_FORCE_SHARE = 0.2
+#: m: the follower's gripper is asked a new width once the leader's differs this much from the last asked.
+GRIPPER_DEADBAND = 0.0005
+#: m, m/s: jaws at rest (slower than GRIPPER_STILL) further than GRIPPER_SHORT from the width asked
+#: are stopped on something: a width further in is not asked (see :meth:`Teleop.step`)
+GRIPPER_SHORT = 0.0015
+GRIPPER_STILL = 0.005
 #: Latencies kept for :meth:`Teleop.summary` (the last ones).
 LATENCY_SAMPLES = 100_000
 
@@ -102,6 +120,9 @@ class Step:
         feedback: the torque applied to the leader (N·m; zeros without force feedback).
         latency: s from the leader's newest feedback to the follower's command that uses it.
         outside: the follower joints the leader would take past their range (held at its edge).
+        gripper_command: the width the follower's gripper is asked (m; None: the follower has none).
+        gripper_width, gripper_velocity, gripper_force: its measured width (m), rate (m/s), squeeze (N).
+        grasped: its jaws hold something.
     """
 
     t: float
@@ -116,6 +137,11 @@ class Step:
     feedback: np.ndarray
     latency: float
     outside: tuple[str, ...]
+    gripper_command: float | None = None
+    gripper_width: float | None = None
+    gripper_velocity: float | None = None
+    gripper_force: float | None = None
+    grasped: bool = False
 
 
 @dataclass(frozen=True)
@@ -155,9 +181,12 @@ class Teleop:
         engage_speed: the fraction of the follower's limits it engages at, in (0, 1].
         damping: the leader's teach-mode damping, N·m·s/rad (see :meth:`akarm.Arm.teach`).
         say: called with a line for the person at the arms (engaged, a range edge, a hold); default none.
+        gripper_force: N, the squeeze the follower's gripper grasps with (default: the mapping file's,
+            else its gripper's default force).
 
     Raises:
-        ArgumentError: the same Arm twice, arms on different clocks, a bad gain, limit or speed.
+        ArgumentError: the same Arm twice, arms on different clocks, a bad gain, limit or speed; a
+            gripper to drive that is missing, a gripper force past the follower gripper's force_limit.
     """
 
     @staticmethod
@@ -174,7 +203,8 @@ class Teleop:
 
     def __init__(self, leader: Arm, follower: Arm, pairing: Pairing | None = None, *, force_feedback: float = 0.0,
                  force_limit: float | Sequence[float] | None = None, engage_speed: float = 0.25,
-                 damping: float = 0.1, say: Callable[[str], None] | None = None) -> None:
+                 damping: float = 0.1, say: Callable[[str], None] | None = None,
+                 gripper_force: float | None = None) -> None:
         if leader is follower:
             raise ArgumentError("the leader and the follower are the same Arm", fix="give two arms")
         stepped = leader.clock.stepped
@@ -217,6 +247,33 @@ class Teleop:
         self._err_max = np.zeros(follower.n)
         self._err_sq = np.zeros(follower.n)
         self.last: Step | None = None
+        self._init_gripper(gripper_force)
+
+    def _init_gripper(self, gripper_force: float | None) -> None:
+        """What drives the follower's gripper (``_grip_source``: "trigger", "gripper" or None) and with
+        what force; ArgumentError when the mapping file asks for a gripper that is missing, or a force
+        past the follower gripper's limit."""
+        self._leader_gripper: Gripper | None = self.leader.gripper
+        self._follower_gripper: Gripper | None = self.follower.gripper
+        self._grip_sent: float | None = None
+        self._grip_width: float | None = None
+        gp = self.pairing.gripper
+        fg = self._follower_gripper
+        self._grip_source = None if fg is None else (
+            "trigger" if gp is not None and gp.trigger is not None else
+            ("gripper" if self._leader_gripper is not None else None))
+        if gp is not None and fg is None:
+            raise ArgumentError("the mapping file's gripper: drives the follower's gripper, but the follower has none",
+                                fix="add a gripper: to the follower's robot file, or leave gripper: out of the map")
+        if gp is not None and gp.trigger is None and self._leader_gripper is None:
+            raise ArgumentError("the mapping file's gripper: names no trigger, and the leader has no gripper",
+                                fix="name a leader joint as the trigger: "
+                                    "gripper: {trigger: JOINT, closed: 0, open: 0.6}")
+        force = gripper_force if gripper_force is not None else (gp.force if gp is not None else None)
+        if force is not None and fg is not None and not (math.isfinite(force) and 0.0 <= force <= fg.force_limit):
+            raise ArgumentError(f"gripper force {force!r} N is outside the follower gripper's 0..{fg.force_limit:g} N",
+                                joint=fg.name, fix=f"ask at most its force_limit, {fg.force_limit:g} N")
+        self.gripper_force = force
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -234,6 +291,7 @@ class Teleop:
         for name, arm in (("leader", self.leader), ("follower", self.follower)):
             if arm.mode is not Mode.ACTIVE:
                 raise StateError(f"the {name} is {arm.mode}, not enabled", fix="enable both arms first")
+        self._free_leader_gripper()
         self.leader.teach(self.damping)
         if self.gain > 0:
             self._reaction = self.follower.collision_reaction
@@ -243,6 +301,14 @@ class Teleop:
         self._engage("engaging: the follower moves to the leader's pose at "
                      f"{self.engage_speed * 100:.0f} % of its speed")
         return self
+
+    def _free_leader_gripper(self) -> None:
+        """A leader gripper that drives the follower's is let go (asked no force: no stiffness, no
+        damping), so the hand opens and closes it freely; :meth:`finish` has it hold again."""
+        lg = self._leader_gripper
+        if self._grip_source == "gripper" and lg is not None:
+            w = float(lg.state().width)
+            lg.move_to(min(max(w, 0.0), lg.stroke) if math.isfinite(w) else lg.stroke, 0.0, wait=False)
 
     def _engage(self, line: str) -> None:
         self._phase = "engaging"
@@ -307,12 +373,47 @@ class Teleop:
                 np.max(np.abs(fs.dq - velocity)) < ENGAGE_SPEED_TOLERANCE:
             self._phase = "following"
             self.say("engaged: the follower follows the leader")
-        feedback = self._feedback(fs.tau_ext)
+        try:
+            grip = self._grip(ls)
+        except SafetyStop as e:
+            self.stop_both()
+            raise e from None
+        feedback = self._feedback(fs.tau_ext, grip)
         latency = self._latency(ls)
         self._account(fs.q, command)
         self.last = Step(fs.time, self._phase, ls.q, ls.dq, fs.q, fs.dq, fs.tau, command, target, feedback, latency,
-                         self._outside)
+                         self._outside, *grip)
         return self.last
+
+    def _grip(self, ls: ArmState) -> tuple[float | None, float | None, float | None, float | None, bool]:
+        """Drive the follower's gripper from the leader's, or its trigger: (width asked, width, rate,
+        squeeze, grasped) of the follower's gripper, all None without one."""
+        fg = self._follower_gripper
+        if fg is None:
+            return None, None, None, None, False
+        fraction = None
+        gp = self.pairing.gripper
+        if self._grip_source == "trigger" and gp is not None and gp.trigger is not None:
+            fraction = gp.fraction(float(ls.q[gp.trigger]))
+        elif self._grip_source == "gripper" and self._leader_gripper is not None:
+            lw = float(self._leader_gripper.state().width)
+            fraction = min(max(lw / self._leader_gripper.stroke, 0.0), 1.0) if math.isfinite(lw) else None
+        s = fg.state()
+        if fraction is not None:
+            width = fraction * fg.stroke
+            # stopped on something (holding it, or about to): a width further in changes nothing (it
+            # presses at the force asked), so it is not asked, and the grasp holds; one past the
+            # object's opens the jaws
+            stopped = s.grasped or (self._grip_sent is not None and s.width - self._grip_sent > GRIPPER_SHORT
+                                    and abs(s.velocity) < GRIPPER_STILL)
+            squeezing = stopped and width < s.width
+            if not squeezing and (self._grip_sent is None or abs(width - self._grip_sent) > GRIPPER_DEADBAND):
+                fg.move_to(min(width, fg.stroke), self.gripper_force, wait=False)
+                self._grip_sent = width
+            self._grip_width = width
+        if self._grip_width is None:  # not driven: what it holds at is asked
+            self._grip_width = min(max(float(s.target), 0.0), fg.stroke)
+        return self._grip_width, float(s.width), float(s.velocity), float(s.force), bool(s.grasped)
 
     def _resume(self, now: float, command: np.ndarray, velocity: np.ndarray, held: np.ndarray) -> None:
         """Engage again once the hand has held the leader at the follower for :data:`RESUME_DWELL` s."""
@@ -339,10 +440,15 @@ class Teleop:
             self.say("the leader is back within the follower's range")
         self._outside = out
 
-    def _feedback(self, tau_ext: np.ndarray | None) -> np.ndarray:
+    def _feedback(self, tau_ext: np.ndarray | None, grip: tuple[float | None, ...] | None = None) -> np.ndarray:
         if self.gain <= 0.0 or tau_ext is None:
             return np.zeros(self.leader.n)
         tau = self.pairing.leader_torques(np.nan_to_num(tau_ext)) * self.gain
+        gp, fg = self.pairing.gripper, self._follower_gripper
+        if grip is not None and grip[4] and gp is not None and gp.trigger is not None and fg is not None:
+            force = grip[3] if grip[3] is not None and math.isfinite(grip[3]) else 0.0
+            span = gp.open - gp.closed  # the squeeze's work over the jaws' stroke, done on the trigger's span
+            tau[gp.trigger] += self.gain * max(force, 0.0) * fg.stroke / abs(span) * math.copysign(1.0, span)
         tau = np.clip(tau, -self.force_limit, self.force_limit)
         if self._phase == "holding":
             tau = np.zeros_like(tau)  # the follower rests against what it touched: no push on the hand
@@ -403,6 +509,12 @@ class Teleop:
         with contextlib.suppress(AkarmError):
             if leader.mode is Mode.TEACH:
                 leader.end_teach()
+        lg = self._leader_gripper
+        with contextlib.suppress(AkarmError):
+            if self._grip_source == "gripper" and lg is not None and leader.enabled:  # it holds where it was left
+                w = float(lg.state().width)
+                if math.isfinite(w):
+                    lg.move_to(min(max(w, 0.0), lg.stroke), None, wait=False)
 
     def __enter__(self) -> Teleop:
         return self.start()

@@ -10,6 +10,11 @@ frame's) for joint positions in the robot file's order.
 
 The geometry comes from the same reduced Pinocchio model the controller uses (:class:`akarm.dynamics.model.RobotModel`):
 what the view shows is where the controller believes the links are.
+
+A gripper's fingers (the robot file's ``gripper.fingers``: URDF joints the reduced model holds at 0)
+slide: :func:`finger_slides` gives, per link a finger joint moves, the direction it slides in its
+body's frame per metre of that joint, so the view draws the jaws at the width measured (each finger
+joint at half of it, as ``joint_states`` has them).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from akarm.dynamics.model import RobotModel
 from akarm.errors import ModelError
 from akarm.view.visuals import read_visuals, visual_mesh
 
-__all__ = ["LINK_COLOR", "Figure", "Part", "Poser", "build_figure", "capsule", "link_radius"]
+__all__ = ["LINK_COLOR", "Figure", "Part", "Poser", "build_figure", "capsule", "finger_slides", "link_radius"]
 
 #: colours (RGB 0-255): links of the kinematic figure, its joints, and a URDF visual without a colour
 LINK_COLOR = (232, 137, 48)
@@ -43,6 +48,7 @@ class Part:
         name: unique among the figure's parts, usable in a scene path.
         vertices: (n, 3) float32, m, in the body's frame. faces: (m, 3) uint32.
         color: RGB 0-255. opacity: 0-1 (a URDF colour's alpha).
+        link: the URDF link it draws (``""``: a part of the kinematic figure).
     """
 
     name: str
@@ -51,6 +57,7 @@ class Part:
     faces: np.ndarray
     color: tuple[int, int, int]
     opacity: float = 1.0
+    link: str = ""
 
 
 @dataclass(frozen=True)
@@ -144,8 +151,39 @@ def _visual_parts(model: pin.Model, urdf: str | os.PathLike[str]) -> tuple[list[
         opacity = 1.0 if vis.rgba is None else min(1.0, max(0.05, vis.rgba[3]))
         parts.append(Part(f"{_scene_name(vis.link)}_{vis.index}", int(frame.parentJoint),
                           np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.uint32),
-                          (color[0], color[1], color[2]), opacity))
+                          (color[0], color[1], color[2]), opacity, vis.link))
     return parts, problems
+
+
+def finger_slides(model: RobotModel) -> dict[str, np.ndarray]:
+    """Per URDF link that one of the gripper's finger joints moves (a prismatic joint of the robot
+    file's ``gripper.fingers``): the direction it slides, in the frame of the body it rides on in the
+    reduced model, per metre of that joint (m/m). Empty without a gripper or fingers."""
+    g = model.config.gripper
+    if g is None or not g.fingers:
+        return {}
+    full = pin.buildModelFromUrdf(str(model.config.urdf))
+    data = full.createData()
+    slides: dict[str, np.ndarray] = {}
+    for finger in g.fingers:
+        if not full.existJointName(finger):
+            continue
+        fj = full.getJointId(finger)
+        if full.nqs[fj] != 1 or full.nvs[fj] != 1:
+            continue
+        q = pin.neutral(full)
+        pin.forwardKinematics(full, data, q)
+        parent = int(full.parents[fj])
+        at_zero = (data.oMi[parent].inverse() * data.oMi[fj]).translation.copy()
+        q[full.idx_qs[fj]] += 0.01
+        pin.forwardKinematics(full, data, q)
+        slide = ((data.oMi[parent].inverse() * data.oMi[fj]).translation - at_zero) / 0.01
+        if np.linalg.norm(slide) < 0.5:  # not a slide (a revolute finger): drawn where it is locked
+            continue
+        for f in full.frames:
+            if int(f.parentJoint) == fj and f.type == pin.FrameType.BODY:
+                slides[str(f.name)] = np.asarray(slide, dtype=float)
+    return slides
 
 
 def build_figure(model: RobotModel, *, visuals: bool = True) -> Figure:

@@ -40,7 +40,7 @@ import numpy as np
 from akarm.dynamics.model import RobotModel
 from akarm.errors import AkarmError, ArgumentError, StateError
 from akarm.server.snapshot import Snapshot
-from akarm.view.figure import Figure, Poser, build_figure, wxyz
+from akarm.view.figure import Figure, Poser, build_figure, finger_slides, wxyz
 from akarm.view.history import History, Window
 from akarm.view.panel import state_html
 from akarm.view.recorded import RecordedSource
@@ -57,6 +57,8 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
 #: the commanded pose's colour (RGB) and opacity
 GHOST = ((70, 150, 255), 0.3)
+#: m: the jaws drawn at the tool frame of a gripper whose fingers the URDF does not draw (x, y, z)
+JAW_SIZE = (0.012, 0.008, 0.04)
 #: triangles above which the ghost is the kinematic figure rather than a second copy of the meshes
 #: (a browser without a GPU draws every triangle in software)
 GHOST_FACES = 20_000
@@ -151,7 +153,7 @@ class ViewServer:
         self._threads: list[threading.Thread] = []
         self._server: viser.ViserServer | None = None
         self._rates: collections.deque[tuple[float, int]] = collections.deque(maxlen=64)
-        self._drawn: tuple[np.ndarray, np.ndarray] | None = None
+        self._drawn: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._jog_cv = threading.Condition()
         self._jog_pending: tuple[str, float] | None = None
         self._hot = tuple(j.max_temperature - HOT_MARGIN for j in config.joints)
@@ -161,6 +163,8 @@ class ViewServer:
         self._sliders_disabled: bool | None = None
         self._plots: list[tuple[Any, Any, Any]] = []
         self._nodes: dict[str, list[tuple[int, Any]]] = {"measured": [], "commanded": []}
+        self.slides = finger_slides(self.model)  # the finger links: drawn at the width measured
+        self._sliding: dict[str, list[tuple[Any, np.ndarray]]] = {"measured": [], "commanded": []}
 
     # ------------------------------------------------------------------------------------------
     # lifecycle
@@ -264,13 +268,29 @@ class ViewServer:
                 node = server.scene.add_frame(f"/{kind}/b{k}", show_axes=False)
                 self._nodes[kind].append((k, node))
                 for part in (p for p in figure.parts if p.body == k):
-                    server.scene.add_mesh_simple(
+                    mesh = server.scene.add_mesh_simple(
                         f"/{kind}/b{k}/{part.name}", part.vertices, part.faces,
                         color=part.color if color is None else color,
                         opacity=(part.opacity if part.opacity < 1 else None) if opacity is None else opacity,
                         cast_shadow=False, receive_shadow=False)  # shadows: costly in a software-rendered browser
+                    if part.link in self.slides:
+                        self._sliding[kind].append((mesh, self.slides[part.link]))
         size = min(0.1, max(0.03, 0.08 * reach))
         self._gui["roots"]["/tool"] = server.scene.add_frame("/tool", axes_length=size, axes_radius=size / 20)
+        self._build_jaws(server)
+
+    def _build_jaws(self, server: viser.ViserServer) -> None:
+        """The gripper's jaws (two boxes at the tool frame, when the URDF draws no fingers) and the
+        label of its width."""
+        if self.config.gripper is None:
+            return
+        if not self._sliding["measured"]:
+            jaws = server.scene.add_frame("/jaws", show_axes=False)
+            self._gui["jaws"] = (jaws, [server.scene.add_box(f"/jaws/{side}", color=(120, 124, 134),
+                                                               dimensions=JAW_SIZE, cast_shadow=False,
+                                                               receive_shadow=False)
+                                        for side in ("left", "right")])
+        self._gui["jaw_label"] = server.scene.add_label("/jaw_label", "gripper", font_screen_scale=0.8)
 
     def _set_visible(self, name: str, visible: bool) -> None:
         self._gui["roots"][name].visible = visible
@@ -414,10 +434,12 @@ class ViewServer:
 
     def _draw(self, snap: Snapshot) -> None:
         q, q_des = np.array(snap.q), np.array(snap.q_des)
+        grip = np.array([snap.gripper_width, snap.gripper_target, snap.gripper_force])
         if self._drawn is not None and np.array_equal(q, self._drawn[0]) and \
-                np.array_equal(q_des, self._drawn[1], equal_nan=True):
+                np.array_equal(q_des, self._drawn[1], equal_nan=True) and \
+                np.array_equal(grip, self._drawn[2], equal_nan=True):
             return
-        self._drawn = (q, q_des)
+        self._drawn = (q, q_des, grip)
         assert self._server is not None
         measured = self.poser.poses(q)
         ghost = bool(np.all(np.isfinite(q_des)))
@@ -429,7 +451,28 @@ class ViewServer:
             node = self._gui["roots"]["/tool"]
             node.position = tuple(tool[:3, 3])
             node.wxyz = wxyz(tool[:3, :3])
+            self._draw_jaws(snap, tool)
         self.draws += 1
+
+    def _draw_jaws(self, snap: Snapshot, tool: np.ndarray) -> None:
+        """The fingers (or the jaws at the tool frame) at the width measured, the ghost's at the width
+        asked, and the label: width and squeeze."""
+        if "jaw_label" not in self._gui:
+            return
+        for kind, width in (("measured", snap.gripper_width), ("commanded", snap.gripper_target)):
+            half = 0.5 * width if math.isfinite(width) else 0.0  # each finger joint: half the width
+            for mesh, slide in self._sliding[kind]:
+                mesh.position = tuple(slide * half)
+        if "jaws" in self._gui:
+            frame, (left, right) = self._gui["jaws"]
+            frame.position = tuple(tool[:3, 3])
+            frame.wxyz = wxyz(tool[:3, :3])
+            half = 0.5 * snap.gripper_width if math.isfinite(snap.gripper_width) else 0.0
+            left.position = (0.0, half + JAW_SIZE[1] / 2, 0.0)
+            right.position = (0.0, -half - JAW_SIZE[1] / 2, 0.0)
+        label = self._gui["jaw_label"]
+        label.position = tuple(tool[:3, 3])
+        label.text = jaw_text(snap)
 
     def _place(self, kind: str, poses: np.ndarray) -> None:
         for k, node in self._nodes[kind]:
@@ -559,6 +602,14 @@ class ViewServer:
             target = round(min(max(target, slider.min), slider.max), 4)
             if abs(float(slider.value) - target) > 5e-4:
                 slider.value = target
+
+
+def jaw_text(snap: Snapshot) -> str:
+    """The label at the jaws: their width (mm), and the squeeze while they hold something."""
+    if not math.isfinite(snap.gripper_width):
+        return f"{snap.gripper or 'gripper'}: not heard"
+    text = f"{snap.gripper_width * 1e3:.1f} mm"
+    return text + (f" · {snap.gripper_force:.1f} N" if snap.gripper_grasped else "")
 
 
 @contextlib.contextmanager

@@ -14,7 +14,7 @@ from html import escape
 
 from akarm.server.snapshot import Snapshot
 
-__all__ = ["state_html"]
+__all__ = ["gripper_html", "state_html"]
 
 _STYLE = ("<style>.akarm-state{font-size:11.5px;line-height:1.35}.akarm-state table{border-collapse:collapse;"
           "width:100%}.akarm-state td,.akarm-state th{padding:1px 3px;text-align:right;white-space:nowrap}"
@@ -68,5 +68,19 @@ def state_html(snap: Snapshot | None, recent_hz: float | None = None, hot: Seque
             f"<p><b>mode</b> <span data-field='mode'>{escape(snap.mode)}</span>"
             + (f" · t = {snap.t:.3f} s" if snap.mode == "recorded" else "") + f"</p>{stop}"
             f"<p data-field='loop'>{escape(_loop(snap, recent_hz))}</p>"
-            f"<table>{''.join(rows)}</table>"
+            f"<table>{''.join(rows)}</table>" + gripper_html(snap)
             + (f"<p>{escape(note)}</p>" if note else "") + "</div>")
+
+
+def gripper_html(snap: Snapshot) -> str:
+    """The gripper's line of the panel: width and width asked (mm), squeeze (N), grasp, temperature;
+    ``""`` without a gripper."""
+    if not snap.gripper:
+        return ""
+    held = "holds something" if snap.gripper_grasped else "empty"
+    return (f"<p data-field='gripper'><b>{escape(snap.gripper)}</b> "
+            f"<span data-field='gripper_width'>{_num(snap.gripper_width * 1e3, '.1f')}</span> mm "
+            f"(asked <span data-field='gripper_target'>{_num(snap.gripper_target * 1e3, '.1f')}</span> mm), "
+            f"squeeze <span data-field='gripper_force'>{_num(snap.gripper_force, '.1f')}</span> N, "
+            f"<span data-field='gripper_grasped'>{held}</span>, "
+            f"{_num(snap.gripper_temperature, '.1f')} °C</p>")

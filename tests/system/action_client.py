@@ -29,7 +29,7 @@ from cyclonedds.util import duration
 from akarm.ros import action_types as at
 from akarm.ros import dds
 
-from ..rosdefs import CANCEL, FJT, serialize, typestore
+from ..rosdefs import CANCEL, FJT, GC, serialize, typestore
 
 __all__ = ["ActionClient", "Received", "roundtrip"]
 
@@ -115,19 +115,28 @@ class Received:
 
 
 class ActionClient:
-    """A FollowJointTrajectory client of the action ``name`` (e.g. ``arm_controller/follow_joint_trajectory``)
-    in ``namespace`` of DDS ``domain``, speaking ``distro``'s layouts."""
+    """A client of the action ``name`` (e.g. ``arm_controller/follow_joint_trajectory``) of type ``action``
+    (FollowJointTrajectory, or GripperCommand: :data:`~tests.rosdefs.GC`) in ``namespace`` of DDS
+    ``domain``, speaking ``distro``'s layouts."""
 
-    def __init__(self, domain: int, namespace: str, name: str, distro: str) -> None:
+    def __init__(self, domain: int, namespace: str, name: str, distro: str, action: str = FJT) -> None:
         self.distro = distro
+        self.action = action
         self.store = typestore(distro)
         self.node = dds.Node(domain, namespace)
         base = name + "/_action/"
-        self.send_goal = _Service(self.node, base + "send_goal", at.SendGoalRequest, at.SendGoalResponse)
+        if action == GC:  # the DDS types name the topics' types; the bytes are rosbags'
+            kinds: tuple[Any, ...] = (at.GripperSendGoalRequest, at.GripperSendGoalResponse,
+                                      at.GripperGetResultRequest, at.GripperGetResultResponse,
+                                      at.GripperFeedbackMessage)
+        else:
+            kinds = (at.SendGoalRequest, at.SendGoalResponse, at.GetResultRequest, at.GetResultResponse,
+                     at.feedback_message_type(distro))
+        self.send_goal = _Service(self.node, base + "send_goal", kinds[0], kinds[1])
         self.cancel_goal = _Service(self.node, base + "cancel_goal", at.CancelGoalRequest, at.CancelGoalResponse)
-        self.get_result = _Service(self.node, base + "get_result", at.GetResultRequest, at.GetResultResponse)
+        self.get_result = _Service(self.node, base + "get_result", kinds[2], kinds[3])
         self.services = (self.send_goal, self.cancel_goal, self.get_result)
-        fb_type = at.feedback_message_type(distro)
+        fb_type = kinds[4]
         self.feedback = self.node.reader(dds.topic_name(namespace, base + "feedback"), fb_type, dds.qos(100))
         status_qos = Qos(Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
                          Policy.Durability.TransientLocal, Policy.History.KeepLast(1))
@@ -152,7 +161,7 @@ class ActionClient:
                     if info.valid_data:
                         t = time.time()
                         self.received.feedback.append((t, roundtrip(self.distro, bytes(data),
-                                                                    f"{FJT}_FeedbackMessage")))
+                                                                    f"{self.action}_FeedbackMessage")))
                 for data, info in ddspy_take(self.status._ref, dds.ANY, 16) or []:  # private-ok: cyclonedds
                     if info.valid_data:
                         t = time.time()
@@ -230,19 +239,26 @@ class ActionClient:
         return self.T("unique_identifier_msgs/msg/UUID")(uuid=np.frombuffer(goal_id, dtype=np.uint8).copy())
 
     # -- the three services ---------------------------------------------------------------------------
+    def gripper_goal(self, width: float, max_effort: float = 0.0) -> Any:
+        """A GripperCommand goal: ``width`` (m), ``max_effort`` (N)."""
+        cmd = self.T("control_msgs/msg/GripperCommand")(position=width, max_effort=max_effort)
+        return self.T(f"{GC}_Goal")(command=cmd)
+
     def send(self, goal_id: bytes, goal: Any, timeout: float = 10.0) -> tuple[float, float, Any]:
         """Send a goal: (time.time() sent, time.time() the reply came, the SendGoal response)."""
-        req = self.T(f"{FJT}_SendGoal_Request")(goal_id=self.uuid(goal_id), goal=goal)
-        payload = serialize(self.distro, req, f"{FJT}_SendGoal_Request")
+        a = self.action
+        req = self.T(f"{a}_SendGoal_Request")(goal_id=self.uuid(goal_id), goal=goal)
+        payload = serialize(self.distro, req, f"{a}_SendGoal_Request")
         sent = time.time()
-        received, reply = self._call(self.send_goal, f"{FJT}_SendGoal_Response", payload, timeout)
+        received, reply = self._call(self.send_goal, f"{a}_SendGoal_Response", payload, timeout)
         return sent, received, reply
 
     def result(self, goal_id: bytes, timeout: float = 30.0) -> tuple[float, Any]:
         """Ask for a goal's result (the server answers when the goal ends): (time.time() it came, the response)."""
-        req = self.T(f"{FJT}_GetResult_Request")(goal_id=self.uuid(goal_id))
-        return self._call(self.get_result, f"{FJT}_GetResult_Response",
-                          serialize(self.distro, req, f"{FJT}_GetResult_Request"), timeout)
+        a = self.action
+        req = self.T(f"{a}_GetResult_Request")(goal_id=self.uuid(goal_id))
+        return self._call(self.get_result, f"{a}_GetResult_Response",
+                          serialize(self.distro, req, f"{a}_GetResult_Request"), timeout)
 
     def cancel(self, goal_id: bytes = bytes(16), stamp: float = 0.0, timeout: float = 10.0) -> Any:
         """Cancel a goal by id, the goals up to a stamp, or (both zero) all of them."""

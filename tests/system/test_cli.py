@@ -434,3 +434,82 @@ def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.Capture
     assert cycles > 100
     assert "feedforward" in out and "CPU: " in out and "% of one core" in out
     assert re.search(r"simulator \d+ %", out)
+
+
+def _gripper_episode(tmp_path: Path) -> tuple[Path, Path]:
+    """arm6g relaxed for a loaded machine (its gripper's watchdog too), and a dataset of one 2 s episode
+    at 30 fps: the arm still at zero, the gripper asked open, then closed from 0.5 s to 1 s."""
+    from akarm.datasets import GRIPPER, DatasetWriter, EpisodeFrames
+
+    from .conftest import relaxed_robot
+
+    robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
+    n = 60
+    t = np.arange(n) / 30
+    vec = np.hstack([np.zeros((n, 6)), np.interp(t, [0.0, 0.5, 1.0, 2.0], [0.08, 0.08, 0.0, 0.0])[:, None]])
+    DatasetWriter(tmp_path / "data", (*load_robot(robot).joint_names, GRIPPER), 30).save_episode(
+        "close on the part", EpisodeFrames(vec, 0 * vec, 0 * vec, vec))
+    return robot, tmp_path / "data"
+
+
+def test_replay_of_an_episode_with_a_gripper_column_drives_the_gripper(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from akarm.sim.process import SimulatorProcess
+
+    from .test_serve import unique
+
+    robot, data = _gripper_episode(tmp_path)
+    channel = unique("replaygrip")
+    seen: list[tuple[float, float]] = []
+    with SimulatorProcess(robot, channel=channel, control=True) as sim:
+        ctl = sim.control
+        assert ctl is not None
+        ctl.place_object(0.03)
+        done = threading.Event()
+
+        def watch() -> None:
+            while not done.is_set():
+                seen.append(ctl.gripper())  # (width, force)
+                time.sleep(0.02)
+
+        th = threading.Thread(target=watch, daemon=True)
+        th.start()
+        try:
+            assert main(["replay", str(robot), "-i", "akarm_local", "-c", channel, str(data), "--episode", "0"]) == 0
+        finally:
+            done.set()
+            th.join()
+    width = np.array([s[0] for s in seen])
+    force = np.array([s[1] for s in seen])
+    opened = int(np.argmax(width > 0.079))
+    assert width[opened] > 0.079, "the jaws first went to the episode's first width, open"
+    held = force[opened:] > 10.0
+    assert held.any(), "then closed on the part"
+    assert np.all(np.abs(width[opened:][held] - 0.03) < 0.003) and force.max() <= 24.0
+
+
+def test_replay_through_akarm_serve_drives_the_gripper_over_the_socket(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    import subprocess
+    import sys
+
+    import akarm
+    from akarm.sim.process import SimulatorProcess
+
+    from .test_serve import unique
+
+    robot, data = _gripper_episode(tmp_path)
+    channel = unique("replaygrip")
+    with SimulatorProcess(robot, channel=channel, control=True, args=["--object", "0.03"]) as sim, \
+            akarm.Arm(load_robot(robot).with_bus(interface="akarm_local", channel=channel)) as arm, \
+            akarm.ArmServer(arm, ros=False, log=lambda text: None):
+        assert sim.control is not None
+        run = subprocess.run([sys.executable, "-m", "akarm", "replay", str(robot), "-i", "akarm_local", "-c", channel,
+                              str(data), "--episode", "0"], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stderr
+        assert "held by akarm serve" in run.stdout, run.stdout
+        assert arm.gripper is not None
+        s = arm.gripper.state()
+        assert s.grasped and abs(s.width - 0.03) < 0.002 and s.target == pytest.approx(0.0, abs=1e-6)
+        width, force = sim.control.gripper()
+        assert 16.0 <= force <= 24.0 and abs(width - 0.03) < 0.002

@@ -339,3 +339,37 @@ def test_the_followers_collision_reflex_stays_armed_or_with_force_feedback_holds
             steps = run(tele, 1.5)
         assert "engaging again" in " ".join(said) and steps[-1].phase == "following"
         assert follower.collision_reaction == "disable"   # as it was before the session
+
+
+def test_akarm_teleop_of_arms_with_grippers_records_the_gripper_column(tmp_path: Path) -> None:
+    """`akarm teleop --record` with a follower that has a gripper: the dataset's vectors end with
+    `gripper`, the follower's width (measured and asked), read back with pyarrow."""
+    import json
+
+    from akarm.sim.process import SimulatorProcess
+
+    pq = pytest.importorskip("pyarrow.parquet")
+    robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
+    tag = f"{os.getpid()}-{time.monotonic_ns() % 10**6}"
+    data = tmp_path / "grasps"
+    with SimulatorProcess(robot, channel=f"gl-{tag}", control=True) as lead, \
+            SimulatorProcess(robot, channel=f"gf-{tag}", control=True) as foll:
+        assert lead.control is not None and foll.control is not None
+        proc = _akarm("teleop", str(robot), str(robot), "-i", "akarm_local", "--leader-channel", f"gl-{tag}",
+                      "--follower-channel", f"gf-{tag}", "--record", str(data), "--task", "grasp", "--fps", "30",
+                      "--episodes", "1", "--episode-time", "1.0")
+        err = _Lines(proc)
+        out = err.finish(timeout=120)
+        assert proc.returncode == 0, str(err)
+        assert "1 episode saved" in out, out
+        leader_width, _ = lead.control.gripper()
+    info = json.loads((data / "meta/info.json").read_text())
+    for key in ("observation.state", "action", "observation.effort"):
+        assert info["features"][key]["names"][-1] == "gripper" and info["features"][key]["shape"] == [7]
+    table = pq.read_table(data / "data/chunk-000/file-000.parquet")
+    state = np.array(table.column("observation.state").to_pylist())
+    action = np.array(table.column("action").to_pylist())
+    assert len(state) == 30 and np.all(np.isfinite(state[:, 6])) and np.all((state[:, 6] >= 0) & (state[:, 6] <= 0.081))
+    # the follower's jaws are asked the leader's width (the same stroke), and are there
+    assert action[-1, 6] == pytest.approx(leader_width, abs=0.001)
+    assert state[-1, 6] == pytest.approx(action[-1, 6], abs=0.002)

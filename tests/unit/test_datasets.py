@@ -340,3 +340,29 @@ def test_a_crash_in_the_first_episodes_commit_leaves_a_dataset_of_none_that_reop
     assert w.save_episode("place", frames(15)) == 0
     ds = read_dataset(tmp_path)
     assert (ds.total_episodes, len(ds.episode(0)), ds.episode(0).task) == (1, 15, "place")
+
+
+def test_a_gripper_is_the_last_value_named_gripper_and_stays_out_of_the_replayed_path(tmp_path: Path) -> None:
+    n = 20
+    q = np.random.default_rng(7).normal(size=(n, len(JOINTS)))
+    width = np.linspace(0.08, 0.03, n)[:, None]  # m: closing on something
+    asked = np.linspace(0.08, 0.0, n)[:, None]
+    names = (*JOINTS, lr.GRIPPER)
+    DatasetWriter(tmp_path, names, 30).save_episode("grasp", EpisodeFrames(
+        np.hstack([q, width]), np.hstack([2 * q, np.gradient(width, axis=0) * 30]), np.hstack([3 * q, 0 * width + 20]),
+        np.hstack([q + 0.5, asked])))
+    info = json.loads((tmp_path / "meta/info.json").read_text())
+    for key in ("observation.state", "action"):
+        assert info["features"][key]["names"] == ["shoulder", "elbow", "gripper"]
+    data = pq.read_table(tmp_path / "data/chunk-000/file-000.parquet")
+    state = np.array(data.column("observation.state").to_pylist())
+    np.testing.assert_allclose(state[:, 2], width[:, 0], rtol=1e-6)
+    e = read_dataset(tmp_path).episode(0)
+    assert e.has_gripper and e.arm_names == JOINTS
+    path = e.path()
+    assert path.joint_names == JOINTS and path.q.shape == (n, 2)
+    np.testing.assert_allclose(e.gripper(), asked[:, 0], rtol=1e-6)
+    np.testing.assert_allclose(e.gripper("observation.state"), width[:, 0], rtol=1e-6)
+    plain = tmp_path / "plain"
+    three_episodes(plain)
+    assert read_dataset(plain).episode(0).gripper() is None

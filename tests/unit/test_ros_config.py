@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -11,7 +12,7 @@ pytest.importorskip("cyclonedds")  # the verb is in akarm.ros (the ros extra)
 
 from akarm import load_robot
 from akarm.cli import main
-from akarm.ros.moveit import FILES
+from akarm.ros.moveit import FILES, gripper_controller
 
 from .conftest import ROBOTS
 
@@ -64,3 +65,24 @@ def test_a_namespace_gives_the_full_names_and_the_remaps(tmp_path: Path) -> None
 def test_a_name_ros_2_would_refuse_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["ros-config", ARM6, "--namespace", "my-arm"]) == 1
     assert "not a valid ROS 2 name" in capsys.readouterr().err
+
+
+def test_a_gripper_adds_moveits_gripper_command_controller(capsys: pytest.CaptureFixture[str]) -> None:
+    arm6g = str(ROBOTS / "arm6g.yaml")
+    assert main(["ros-config", arm6g, "--namespace", "left"]) == 0
+    controllers, limits, about = yaml.safe_load_all(capsys.readouterr().out)
+    manager = controllers["moveit_simple_controller_manager"]
+    assert manager["controller_names"] == ["arm_controller", "gripper_controller"]
+    # two fingers, each half the width: MoveIt's parallel gripper sends their sum, the width asked
+    assert manager["gripper_controller"] == {"type": "GripperCommand", "action_ns": "gripper_cmd", "default": True,
+                                             "joints": ["left_finger_joint", "right_finger_joint"], "parallel": True,
+                                             "max_effort": 0.0}
+    assert "gripper" not in limits["joint_limits"] and len(manager["arm_controller"]["joints"]) == 6
+    assert about["gripper_action"] == "/left/gripper_controller/gripper_cmd"
+    assert ["/gripper_controller/gripper_cmd/_action/send_goal",
+            "/left/gripper_controller/gripper_cmd/_action/send_goal"] in about["move_group_remappings"]
+    g = load_robot(arm6g).gripper
+    assert g is not None
+    one = gripper_controller(dataclasses.replace(load_robot(arm6g), gripper=dataclasses.replace(g, fingers=())))
+    assert one is not None and one["joints"] == ["gripper"] and one["command_joint"] == "gripper"
+    assert gripper_controller(CONFIG) is None

@@ -11,6 +11,7 @@ import ruckig
 from akarm.errors import ArgumentError, ConfigError
 from akarm.motion.trajectory import JointLimits
 from akarm.teleop import Pair, Pairing, stopping_distance
+from akarm.teleop.pairing import GripperPair
 
 LEADER = ("shoulder", "elbow", "wrist")
 FOLLOWER = ("left_shoulder", "left_elbow", "left_wrist", "left_roll")
@@ -64,6 +65,32 @@ def test_a_pairing_checks_its_pairs() -> None:
         Pairing(LEADER, FOLLOWER, [Pair(0, 0), Pair(0, 1)])
     with pytest.raises(ArgumentError, match="at least one pair"):
         Pairing(LEADER, FOLLOWER, [])
+
+
+def test_a_trigger_joint_named_in_the_mapping_file_opens_the_follower_gripper(tmp_path: Path) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text("pairs:\n  - {leader: shoulder, follower: left_shoulder}\n"
+                    "gripper: {trigger: wrist, closed: 0.6, open: 0.0, force: 15}\n")
+    g = Pairing.load(path, LEADER, FOLLOWER).gripper
+    assert g == GripperPair(2, 0.6, 0.0, 15.0)
+    assert [g.fraction(a) for a in (0.6, 0.3, 0.0, -1.0, 2.0)] == pytest.approx([0.0, 0.5, 1.0, 1.0, 0.0])
+    path.write_text("pairs:\n  - {leader: shoulder, follower: left_shoulder}\ngripper: {}\n")
+    assert Pairing.load(path, LEADER, FOLLOWER).gripper == GripperPair()  # the leader's own gripper drives it
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("gripper: {trigger: wirst}\n", r"gripper: the leader has no joint 'wirst' \(did you mean 'wrist'"),
+    ("gripper: {trigger: shoulder}\n", "the trigger joint 'shoulder' also drives a follower joint"),
+    ("gripper: {trigger: wrist, closed: 0.5, open: 0.5}\n", "two different numbers"),
+    ("gripper: {trigger: wrist, force: -3}\n", "must be a number ≥ 0 N"),
+    ("gripper: {trigger: wrist, open: x}\n", "closed, open and force must be numbers"),
+    ("gripper: {trigger: wrist, squeeze: 3}\n", "gripper: is"),
+])
+def test_a_bad_gripper_section_is_refused(tmp_path: Path, text: str, match: str) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text("pairs:\n  - {leader: shoulder, follower: left_shoulder}\n" + text)
+    with pytest.raises(ConfigError, match=match):
+        Pairing.load(path, LEADER, FOLLOWER)
 
 
 @pytest.mark.parametrize("v", [0.05, 0.5, 1.0, 2.0, 3.9, -1.5])
@@ -138,6 +165,34 @@ def test_the_recorder_takes_a_frame_per_fps_tick_and_commits_an_episode_whole(tm
     assert len(ep) == 10 and ep.task == "wave"
     np.testing.assert_allclose(ep.features["action"][:, 0], 20.0 + np.arange(10) * 0.02 + 1, rtol=1e-6)
     np.testing.assert_allclose(ep.features["observation.effort"][:, 1], -3 * (20.0 + np.arange(10) * 0.02), rtol=1e-6)
+
+
+def test_the_recorder_puts_the_gripper_last_in_every_vector(tmp_path: Path) -> None:
+    pa = pytest.importorskip("pyarrow.parquet")
+    from akarm.datasets import GRIPPER, DatasetWriter
+    from akarm.teleop import Step
+    from akarm.teleop.recording import EpisodeRecorder
+
+    def step(t: float) -> Step:
+        q = np.array([t, -t])
+        return Step(t, "following", q, q, q, 2 * q, 3 * q, q + 1, q, np.zeros(2), 0.002, (),
+                    gripper_command=0.01, gripper_width=0.03, gripper_velocity=0.0, gripper_force=19.5, grasped=True)
+
+    rec = EpisodeRecorder(DatasetWriter(tmp_path, ("a", "b", GRIPPER), 50), rate_hz=500.0)
+    rec.begin("grasp", 0.0)
+    for k in range(50):
+        rec.add(step(k * 0.002))
+    assert rec.finish() == 0
+    table = pa.read_table(tmp_path / "data/chunk-000/file-000.parquet")
+    state = np.array(table.column("observation.state").to_pylist())
+    action = np.array(table.column("action").to_pylist())
+    effort = np.array(table.column("observation.effort").to_pylist())
+    np.testing.assert_allclose((state[:, 2], action[:, 2], effort[:, 2]), ([0.03] * 5, [0.01] * 5, [19.5] * 5),
+                               rtol=1e-6)
+    plain = EpisodeRecorder(DatasetWriter(tmp_path / "plain", ("a", "b"), 50), rate_hz=500.0)
+    plain.begin("grasp", 0.0)
+    with pytest.raises(ArgumentError, match="a step of 3 values for a dataset of 2"):
+        plain.add(step(0.0))
 
 
 @pytest.mark.parametrize("force_limit", [[1.0, 2.0, 3.0], "strong", "1.5", [[1.0]], [[1.0, 2.0]], None])

@@ -19,9 +19,10 @@ from akarm.robotfile.starter import suggest
 from akarm.server.snapshot import Snapshot
 from akarm.telemetry.log import TelemetryLog
 from akarm.view import recorded
-from akarm.view.figure import Poser, build_figure, link_radius
+from akarm.view.figure import Poser, build_figure, finger_slides, link_radius
 from akarm.view.history import MAX_POINTS, History
-from akarm.view.panel import state_html
+from akarm.view.page import jaw_text
+from akarm.view.panel import gripper_html, state_html
 from akarm.view.recorded import RecordedSource, read_telemetry, register_reader
 from akarm.view.sources import Controls
 from akarm.view.visuals import Visual, read_visuals
@@ -216,3 +217,47 @@ def test_a_recording_plays_back_at_any_instant_and_by_suffix(tmp_path: Path, mon
     register_reader(".bag", lambda p: log)  # a format of another module joins by suffix
     (tmp_path / "run.bag").write_text("")
     assert read_telemetry(tmp_path / "run.bag") is log
+
+
+def test_the_fingers_slide_to_where_the_urdf_puts_them_at_half_the_width() -> None:
+    import pinocchio as pin
+
+    config = load_robot(ROBOTS / "arm6g.yaml")
+    model = RobotModel(config)
+    slides = finger_slides(model)
+    assert set(slides) == {"left_finger", "right_finger"}
+    np.testing.assert_allclose(slides["left_finger"], -slides["right_finger"])
+    # the left finger's frame with its joint at 15 mm (a 30 mm width), in the full URDF model, is where
+    # the view puts it: the locked (closed) placement, slid by 15 mm along its slide
+    full = pin.buildModelFromUrdf(str(config.urdf))
+    data = full.createData()
+    q = pin.neutral(full)
+    q[full.idx_qs[full.getJointId("left_finger_joint")]] = 0.015
+    pin.framesForwardKinematics(full, data, q)
+    wrist = full.getJointId(config.joint_names[-1])
+    truth = (data.oMi[wrist].inverse() * data.oMf[full.getFrameId("left_finger")]).translation
+    pm = model.pin_model
+    closed = pm.frames[pm.getFrameId("left_finger")].placement.translation
+    np.testing.assert_allclose(closed + slides["left_finger"] * 0.015, truth, atol=1e-9)
+    assert finger_slides(RobotModel(load_robot(ROBOTS / "arm6.yaml"))) == {}
+
+
+def test_the_gripper_is_in_the_snapshot_the_panel_and_the_label() -> None:
+    import json
+
+    plain = snap()
+    assert plain.gripper == "" and gripper_html(plain) == "" and "gripper" not in state_html(plain)
+    s = snap(gripper="gripper", gripper_width=0.0301, gripper_target=0.0, gripper_force=19.84, gripper_grasped=True,
+             gripper_temperature=31.0)
+    back = Snapshot.from_doc(json.loads(json.dumps(s.to_doc())))
+    assert [getattr(back, f.name) for f in dataclasses.fields(back) if f.name.startswith("gripper")] == \
+        ["gripper", 0.0301, 0.0, 19.84, True, 31.0]
+    html = state_html(back)
+    assert "<span data-field='gripper_width'>30.1</span> mm" in html
+    assert "<span data-field='gripper_target'>0.0</span> mm" in html
+    assert "<span data-field='gripper_force'>19.8</span> N" in html and "holds something" in html
+    assert jaw_text(back) == "30.1 mm · 19.8 N"
+    assert jaw_text(dataclasses.replace(back, gripper_grasped=False, gripper_width=0.08)) == "80.0 mm"
+    assert jaw_text(dataclasses.replace(back, gripper_width=math.nan)) == "gripper: not heard"
+    old = {k: v for k, v in plain.to_doc().items() if not k.startswith("gripper")}  # an older server's
+    assert Snapshot.from_doc(old).gripper == "" and math.isnan(Snapshot.from_doc(old).gripper_width)

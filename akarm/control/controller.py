@@ -733,8 +733,9 @@ class Controller:
         return (f"and the simulator on bus {bus!r} has not read the bus for {age * 1e3:.0f} ms, since before the "
                 "first unanswered command: the simulator ran late (this machine did not run it in real time: CPU "
                 "load, other processes, a client keeping it busy), not a motor, a cable or the power supply",
-                "lower the machine's load, or give the simulated arm a longer feedback_timeout (the robot file) or "
-                "the timing profile for slow or shared machines (--profile slow)")
+                "run the simulator at real-time priority (akarm sim --realtime-priority), lower the machine's load, "
+                "or give the simulated arm a longer feedback_timeout (the robot file) or the timing profile for slow "
+                "or shared machines (--profile slow)")
 
     # ------------------------------------------------------------------------------------------
     # the cycle (loop thread, or inline with a stepped clock)

@@ -55,6 +55,7 @@ from akarm.errors import (
     StateError,
     did_you_mean,
     finite_number,
+    num,
 )
 from akarm.motion import recording as rec_mod
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
@@ -780,8 +781,9 @@ class Arm:
             for i, q in enumerate(frame.q):
                 if not lim.lower[i] - 1e-9 <= q <= lim.upper[i] + 1e-9:
                     label = f" {frame.name!r}" if frame.name else ""
-                    raise LimitError(f"keyframe {k}{label} is at {q:+.4f} rad, outside "
-                                     f"[{lim.lower[i]:+.4f}, {lim.upper[i]:+.4f}] rad", joint=self.names[i],
+                    raise LimitError(f"keyframe {k}{label} is at {num(q, sign=True)} rad, outside "
+                                     f"[{num(lim.lower[i], sign=True)}, {num(lim.upper[i], sign=True)}] rad",
+                                     joint=self.names[i],
                                      fix="edit that keyframe or the joint limits")
         return [np.array(f.q) for f in rec.frames]
 

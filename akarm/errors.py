@@ -98,6 +98,7 @@ __all__ = [
     "WiringError",
     "did_you_mean",
     "finite_number",
+    "num",
 ]
 
 
@@ -579,6 +580,18 @@ class BusLost(SafetyStop, BusError):
     def __init__(self, what: str, *, bus: str, joint: str | None = None, fix: str = "") -> None:
         self.bus = bus
         super().__init__(what, joint=joint, fix=fix)
+
+
+def num(x: float, decimals: int = 4, sign: bool = False) -> str:
+    """``x`` for a message that echoes a value: fixed point with ``decimals`` (``0.5000``, ``+1.2000``
+    with ``sign``) while that reads well, else in powers of ten with as many significant digits
+    (``1e+308``, ``-2.5e+07``), and ``nan``/``inf`` as such. A huge value (a refused 1e308 target) is
+    never echoed in hundreds of digits. The one formatting of values in akarm's error texts."""
+    x = float(x)
+    plus = "+" if sign else ""
+    if math.isfinite(x) and abs(x) < 1e6:
+        return f"{x:{plus}.{decimals}f}"
+    return f"{x:{plus}.{max(decimals, 1)}g}"
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

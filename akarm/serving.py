@@ -12,8 +12,9 @@
 the CLI's socket) with, unless ``ros=False``, the ROS 2 node of :mod:`akarm.ros.node` as its
 frontend: ``joint_states``, ``joint_trajectory``, ``akarm/status``, the
 ``akarm/enable|disable|hold`` services and MoveIt's ``CONTROLLER/follow_joint_trajectory`` action
-over Cyclone DDS (the ``ros`` extra), on this machine's loopback interface unless opened
-(``ros_network``, ROS 2's environment variables). This module sits above both layers, so the server
+over Cyclone DDS (the ``ros`` extra), seen by every ROS 2 node on this machine (ROS 2's ``LOCALHOST``)
+unless closed to the loopback interface (``ros_loopback``) or opened (``ros_network``, ROS 2's
+environment variables). This module sits above both layers, so the server
 knows nothing of ROS and ROS only the server's commands.
 
 Stopping it (:meth:`ArmServer.stop`, SIGINT or SIGTERM in :func:`serve`) damps and disables the arm.
@@ -56,10 +57,16 @@ class ArmServer(ArmServerCore):
         status_hz: rate of ``akarm/status``.
         enable: enable (without a kick) and hold when starting.
         log: where the server's one-line reports go (default: stderr).
-        ros_network: let the ROS 2 node talk to other machines (ROS 2's ``SUBNET`` discovery range);
-            by default it talks over the loopback interface only, unless ``ROS_AUTOMATIC_DISCOVERY_RANGE``,
+        ros_network: let the ROS 2 node talk to other machines (ROS 2's ``SUBNET`` discovery range).
+            By default it is a node at ROS 2's ``LOCALHOST`` range, as rmw_cyclonedds_cpp configures
+            one: every ROS 2 node on this machine sees it, whatever its range, and another machine only
+            if it names this one in its static peers; unless ``ROS_AUTOMATIC_DISCOVERY_RANGE``,
             ``ROS_STATIC_PEERS``, ``ROS_LOCALHOST_ONLY`` or a ``CYCLONEDDS_URI`` of the user's own say
             otherwise (:func:`akarm.ros.dds.discovery`).
+        ros_loopback: keep the ROS 2 node on the loopback interface alone, whatever the environment
+            says: no other machine reaches it, even by name, and on this machine only participants that
+            look for it on the loopback interface (``akarm.ros.dds.LOOPBACK_CONFIG``, ROS 2's
+            ``LOCALHOST``).
         controller: the FollowJointTrajectory action is ``NS/CONTROLLER/follow_joint_trajectory``
             (MoveIt's ``moveit_controllers.yaml`` names it: ``akarm ros-config``).
         ros_distro: the ROS 2 distribution whose message layouts to speak: ``humble``, ``jazzy``
@@ -73,7 +80,7 @@ class ArmServer(ArmServerCore):
 
     def __init__(self, arm: Arm, *, domain: int | None = None, namespace: str = "", ros: bool = True,
                  joint_states_hz: float | None = None, status_hz: float = 2.0, enable: bool = True,
-                 log: Callable[[str], None] | None = None, ros_network: bool = False,
+                 log: Callable[[str], None] | None = None, ros_network: bool = False, ros_loopback: bool = False,
                  controller: str = "arm_controller", ros_distro: str = "jazzy", node_name: str = "akarm") -> None:
         for what, hz in (("joint_states_hz", joint_states_hz), ("status_hz", status_hz)):
             if hz is not None and not (isinstance(hz, int | float) and 0 < hz < math.inf):
@@ -85,7 +92,11 @@ class ArmServer(ArmServerCore):
         rate = arm.config.rate_hz
         self.joint_states_hz = joint_states_hz if joint_states_hz is not None else rate / max(1, round(rate / 100.0))
         self.status_hz = status_hz
-        self.ros_network = ros_network
+        if ros_network and ros_loopback:
+            raise ArgumentError("ros_network and ros_loopback contradict each other (--ros-network, --ros-loopback)",
+                                fix="give one of them (neither: every ROS 2 node on this machine, as ROS 2's "
+                                    "LOCALHOST)")
+        self.ros_network, self.ros_loopback = ros_network, ros_loopback
         self.controller, self.ros_distro, self.node_name = controller, ros_distro, node_name
         super().__init__(arm, frontends=[self._ros_node] if ros else [], enable=enable, log=log,
                          about={"domain": self.domain, "namespace": self.namespace})
@@ -95,8 +106,8 @@ class ArmServer(ArmServerCore):
         from akarm.ros.node import RosNode
 
         return RosNode(server, self.domain, self.namespace, self.joint_states_hz, self.status_hz,
-                       discovery(network=self.ros_network), controller=self.controller, distro=self.ros_distro,
-                       node_name=self.node_name)
+                       discovery(network=self.ros_network, loopback=self.ros_loopback), controller=self.controller,
+                       distro=self.ros_distro, node_name=self.node_name)
 
 
 def serve(arm: Arm, **options: Any) -> None:

@@ -67,6 +67,11 @@ _GEN = struct.Struct("<I")
 _GEN_AT = _HEADER.size
 _OWNER = struct.Struct("<III")
 _OWNERS_AT = _GEN_AT + _GEN.size
+# per ring, after the owners: the monotonic time (s) its owner last read the channel to the end
+# (LocalBus.beat(), which a simulator calls; 0: never), so that a controller can tell a simulator
+# that did not run in time from a motor that does not answer
+_BEAT = struct.Struct("<d")
+_BEATS_AT = 1024
 _RINGS_AT = 4096
 # slot: sequence number (frame k of the ring is written with k + 1; 0 = never written), then the
 # CRC-32 of the sequence number and the rest: timestamp, CAN ID with SocketCAN's flag bits, DLC, 3 pad
@@ -230,6 +235,7 @@ class LocalBus(can.BusABC):
             pid, _token, _used = _OWNER.unpack_from(self._mm, _OWNERS_AT + r * _OWNER.size)
             if pid == 0 or not _alive(pid):
                 _OWNER.pack_into(self._mm, _OWNERS_AT + r * _OWNER.size, os.getpid(), self._token, 1)
+                _BEAT.pack_into(self._mm, _BEATS_AT + r * _BEAT.size, 0.0)  # not the last owner's
                 self._bump()
                 return r
             pids.append(pid)
@@ -265,6 +271,29 @@ class LocalBus(can.BusABC):
             return 0  # never used: do not touch (and so allocate) its pages
         base = _slot(ring, 0)
         return max(seq for seq, in struct.iter_unpack(f"<Q{_SLOT_SIZE - 8}x", self._mm[base:base + _RING_SIZE]))
+
+    # -- a simulator's heartbeat -----------------------------------------------------------------
+    def beat(self) -> None:
+        """Say that this bus's process has just read every frame waiting (a simulator calls it after
+        each look at the channel): :meth:`peers_read` of the other processes then tells it."""
+        if not self._closed:
+            _BEAT.pack_into(self._mm, _BEATS_AT + self._ring * _BEAT.size, time.monotonic())
+
+    def peers_read(self) -> float | None:
+        """The monotonic time (s) at which a live process of the channel that beats (a simulator: see
+        :meth:`beat`) last read it to the end, the latest of them; ``None`` when none beats. A
+        simulator that has not read the channel since a command was sent has not seen the command."""
+        if self._closed:
+            return None
+        latest = None
+        for r in range(_RINGS):
+            if r == self._ring:
+                continue
+            beat = _BEAT.unpack_from(self._mm, _BEATS_AT + r * _BEAT.size)[0]
+            pid = _OWNER.unpack_from(self._mm, _OWNERS_AT + r * _OWNER.size)[0]
+            if beat > 0.0 and pid and _alive(pid) and (latest is None or beat > latest):
+                latest = beat
+        return latest
 
     # -- python-can's interface -----------------------------------------------------------------
     def send(self, msg: can.Message, timeout: float | None = None) -> None:

@@ -26,7 +26,7 @@ from akarm.config import BusConfig, RobotConfig
 from akarm.errors import StateError
 from akarm.files import FileProblem, read_text
 
-__all__ = ["BASE", "BusLock", "any_server", "bus_keys", "find_server", "refuse_if_served", "runtime_dir",
+__all__ = ["BASE", "BusLock", "any_server", "bus_keys", "find_server", "lock_path", "refuse_if_served", "runtime_dir",
            "sweep_sockets"]
 
 _LOCAL_ONLY = {"virtual"}  # interfaces whose buses no other process can see
@@ -68,7 +68,8 @@ def bus_keys(robot: RobotConfig | Iterable[BusConfig]) -> list[str]:
     return sorted(keys)
 
 
-def _lock_path(key: str) -> Path:
+def lock_path(key: str) -> Path:
+    """The lock file of bus ``key`` (:func:`bus_keys`); it exists while a server holds the bus."""
     return runtime_dir() / f"serve-{key}.lock"
 
 
@@ -81,36 +82,63 @@ class BusLock:
 
     def __init__(self, config: RobotConfig, info: dict[str, Any]) -> None:
         self.keys = bus_keys(config)
-        self._fds: list[int] = []
+        self._fds: list[tuple[str, int]] = []
         payload = json.dumps({**info, "pid": os.getpid()}).encode()
         try:
             for key in self.keys:
-                try:
-                    fd = os.open(_lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
-                except OSError as e:
-                    raise StateError(f"cannot create the lock file for bus {key}: {e}",
-                                     fix=f"make {runtime_dir()} writable for this user") from None
-                if not _lock_exclusive(fd):
-                    os.close(fd)
-                    other = _read(key)
-                    who = f"akarm serve (pid {other.get('pid', '?')}, {other.get('robot', '?')})" if other else \
-                        "another akarm serve"
-                    raise StateError(f"{who} already controls the bus {key}; two controllers on one bus are refused",
-                                     fix="use that server (the CLI verbs talk to it), or stop it first") from None
+                fd = _claim(key)
                 os.ftruncate(fd, 0)
                 os.pwrite(fd, payload, 0)
-                self._fds.append(fd)
+                self._fds.append((key, fd))
         except BaseException:
             self.release()
             raise
 
     def release(self) -> None:
-        """Give the buses up (the files stay; an unlocked file means no server)."""
+        """Give the buses up and remove the lock files (each while still locked: a process that opened
+        it meanwhile finds, once it has the lock, that the file is no longer the bus's, and tries anew)."""
         fds, self._fds = self._fds, []
-        for fd in fds:
+        for key, fd in fds:
             with contextlib.suppress(OSError):
                 os.ftruncate(fd, 0)
+                if _is_the_file(fd, lock_path(key)):
+                    lock_path(key).unlink()
             os.close(fd)  # closing drops the flock
+
+
+def _is_the_file(fd: int, path: Path) -> bool:
+    """True when ``path`` is still the file open as ``fd`` (not removed, not replaced)."""
+    try:
+        a, b = os.fstat(fd), os.stat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _claim(key: str) -> int:
+    """The lock file of bus ``key``, created if need be and locked exclusively: its descriptor.
+
+    Raises:
+        StateError: another server holds it (named), or it cannot be created.
+    """
+    for _ in range(100):  # a server that ends removes its file: lock the one that is there now
+        try:
+            fd = os.open(lock_path(key), os.O_RDWR | os.O_CREAT, 0o600)
+        except OSError as e:
+            raise StateError(f"cannot create the lock file for bus {key}: {e}",
+                             fix=f"make {runtime_dir()} writable for this user") from None
+        if not _lock_exclusive(fd):
+            os.close(fd)
+            other = _read(key)
+            who = f"akarm serve (pid {other.get('pid', '?')}, {other.get('robot', '?')})" if other else \
+                "another akarm serve"
+            raise StateError(f"{who} already controls the bus {key}; two controllers on one bus are refused",
+                             fix="use that server (the CLI verbs talk to it), or stop it first")
+        if _is_the_file(fd, lock_path(key)):
+            return fd
+        os.close(fd)  # removed by the server that held it while this process waited: not the bus's any more
+    raise StateError(f"the lock file of bus {key} keeps being replaced", fix="is another program removing files in "
+                     f"{runtime_dir()}?")
 
 
 def _lock_exclusive(fd: int, patience: float = 0.05) -> bool:
@@ -131,7 +159,7 @@ def _read(key: str) -> dict[str, Any] | None:
     """What a server wrote in its lock file (a line of JSON; ``None`` when there is none or it is not
     that: anything past 64 KiB is not)."""
     try:
-        text = read_text(_lock_path(key), 1 << 16, what="lock file")
+        text = read_text(lock_path(key), 1 << 16, what="lock file")
         found = json.loads(text) if text else None
     except (FileProblem, ValueError, RecursionError):
         return None
@@ -139,7 +167,7 @@ def _read(key: str) -> dict[str, Any] | None:
 
 
 def _held(key: str) -> bool:
-    path = _lock_path(key)
+    path = lock_path(key)
     try:
         fd = os.open(path, os.O_RDONLY)
     except FileNotFoundError:

@@ -143,7 +143,7 @@ def parse_target(words: str | Sequence[str], config: object) -> str | list[float
 
 def run(args: argparse.Namespace) -> int:
     """Enable, move (and hold), disable."""
-    from akarm.errors import AkarmError, ArgumentError
+    from akarm.errors import AkarmError, ArgumentError, num
 
     if not args.target and args.xyz is None:
         raise ArgumentError("give a TARGET or --xyz X Y Z", fix="e.g. akarm move ROBOT.yaml home")
@@ -169,7 +169,8 @@ def run(args: argparse.Namespace) -> int:
         q = wanted.get(j.name)
         lo = j.limits
         if q is not None and not lo.lower <= q <= lo.upper:
-            raise AkarmError(f"target {q:+.4f} rad is outside [{lo.lower:+.4f}, {lo.upper:+.4f}] rad", joint=j.name,
+            raise AkarmError(f"target {num(q, sign=True)} rad is outside [{num(lo.lower, sign=True)}, "
+                             f"{num(lo.upper, sign=True)}] rad", joint=j.name,
                              fix="choose a target within the joint's limits")
     label = " ".join(args.target)
     q_target = np.zeros(len(config.joints))

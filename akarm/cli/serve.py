@@ -11,10 +11,13 @@ use it (the arm stays held between them), a second controller on its buses is re
 sees ``NS/joint_states``, ``NS/joint_trajectory``, ``NS/akarm/status``, the
 ``NS/akarm/enable|disable|hold`` services and the FollowJointTrajectory action
 ``NS/CONTROLLER/follow_joint_trajectory`` that MoveIt drives (``docs/ros2.md``; ``akarm ros-config``
-writes MoveIt's side): on this machine only (loopback) unless ``--ros-network`` (or ROS 2's
-``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``, ``ROS_STATIC_PEERS``, a ``CYCLONEDDS_URI`` of your own) opens
-it to the network. A safety stop latches: nothing moves until ``akarm enable`` (or the ``akarm/enable``
-service) acknowledges it. Ctrl-C or SIGTERM: the arm is damped, then disabled, and the exit status is 0.
+writes MoveIt's side): by every ROS 2 node on this machine, whatever its discovery range (the node
+is at ROS 2's LOCALHOST range; another machine reaches it only by naming this one in its
+``ROS_STATIC_PEERS``), unless ``--ros-loopback`` closes it to the loopback interface or
+``--ros-network`` (or ROS 2's ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``, ``ROS_STATIC_PEERS``, a
+``CYCLONEDDS_URI`` of your own) opens it to the network. A safety stop latches: nothing moves
+until ``akarm enable`` (or the ``akarm/enable`` service) acknowledges it. Ctrl-C or SIGTERM: the
+arm is damped, then disabled, and the exit status is 0.
 """
 
 from __future__ import annotations
@@ -53,8 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="serve the local CLI only (no DDS; for machines without the ros extra)")
     parser.add_argument("--ros-network", action="store_true",
                         help="let ROS 2 participants on other machines see and command the arm (ROS 2's SUBNET "
-                             "discovery range; default: this machine only, unless ROS_AUTOMATIC_DISCOVERY_RANGE, "
-                             "ROS_STATIC_PEERS or CYCLONEDDS_URI say otherwise)")
+                             "discovery range; default: ROS 2's LOCALHOST: every ROS 2 node on this machine, other "
+                             "machines only by naming this one in ROS_STATIC_PEERS, unless "
+                             "ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS or CYCLONEDDS_URI say otherwise)")
+    parser.add_argument("--ros-loopback", action="store_true",
+                        help="keep ROS 2 on the loopback interface alone, whatever the environment says: no other "
+                             "machine reaches the arm, even by name, and on this machine only participants that "
+                             "look for it on the loopback interface (ROS 2 nodes at ROS_AUTOMATIC_DISCOVERY_RANGE="
+                             "LOCALHOST, or CYCLONEDDS_URI set to akarm.ros.dds.LOOPBACK_CONFIG)")
 
     from akarm.cli.view import add_view_options
 
@@ -75,15 +84,21 @@ def run(args: argparse.Namespace) -> int:
     from akarm.cli.common import format_q
     from akarm.serving import ArmServer
 
-    config = load_from_args(args)
-    arm = Arm(config, feedback_timeout=args.feedback_timeout, **loop_options(args))
-    if args.no_ros and args.ros_network:
+    if args.ros_network and args.ros_loopback:
         from akarm.errors import ArgumentError
 
-        raise ArgumentError("--ros-network and --no-ros contradict each other", fix="give one of them")
+        raise ArgumentError("--ros-network and --ros-loopback contradict each other",
+                            fix="give one of them (neither: every ROS 2 node on this machine, as ROS 2's LOCALHOST)")
+    config = load_from_args(args)
+    arm = Arm(config, feedback_timeout=args.feedback_timeout, **loop_options(args))
+    for flag, given in (("--ros-network", args.ros_network), ("--ros-loopback", args.ros_loopback)):
+        if args.no_ros and given:
+            from akarm.errors import ArgumentError
+
+            raise ArgumentError(f"{flag} and --no-ros contradict each other", fix="give one of them")
     server = ArmServer(arm, domain=args.domain, namespace=args.namespace, ros=not args.no_ros,
                        joint_states_hz=args.joint_states_hz, ros_network=args.ros_network,
-                       controller=args.controller, ros_distro=args.ros_distro)
+                       ros_loopback=args.ros_loopback, controller=args.controller, ros_distro=args.ros_distro)
     view = None
     if args.view:  # made first: a missing view extra is said before anything is enabled
         from akarm.cli.view import make_view_process

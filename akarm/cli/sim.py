@@ -72,6 +72,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--status-hz", type=float, default=4.0, metavar="HZ",
                         help="status line updates per second on a terminal (default 4; 1 when not a terminal)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no status line")
+    parser.add_argument("--realtime-priority", action="store_true",
+                        help="run the simulator's threads at real-time priority (SCHED_FIFO; root or ulimit -r), "
+                             "with a 0.2 ms interpreter switch interval: on a loaded machine a simulator at normal "
+                             "priority may read its bus tens of ms late, and the controller's watchdog stops the arm")
     from akarm.cli.view import add_view_options
 
     add_view_options(parser)
@@ -168,6 +172,10 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     tty = sys.stdout.isatty()
     period = 1.0 / args.status_hz if tty and args.status_hz > 0 else 1.0
     shown = 0  # lines of the status block on screen (a terminal redraws it in place)
+    if args.realtime_priority:  # before the simulator's threads start: they inherit the policy
+        from akarm.control.loop import request_realtime
+
+        print(f"  real time: {request_realtime(switch_interval=2e-4)}", flush=True)
     try:
         with sim, contextlib.ExitStack() as stack:
             print(_describe(sim.config, sim.serial_ports), flush=True)

@@ -183,6 +183,7 @@ class Controller:
         self._gains_changed()
 
         self.bus = BusSet(config, motors, options.can_log, self._bus_lost, clock.now)
+        self.supervisor.simulator_late = self._simulator_late
         self.motions = Motions(n, self.wait_for)
         self.ramp = GainRamp(options.enable_ramp)
         gravity: Callable[[Sequence[float]], np.ndarray] = self.ff.gravity
@@ -743,6 +744,24 @@ class Controller:
     @property
     def buses(self) -> Mapping[str, can.BusABC]:
         return self.bus.buses
+
+    def _simulator_late(self, bus: str, silent_for: float) -> tuple[str, str] | None:
+        """Why bus ``bus`` has been silent for ``silent_for`` s when it is simulated (akarm_local) and its
+        simulator has not read it since before the first command left unanswered: the simulator ran late
+        (this machine did not run it in real time), not a motor or a cable. None otherwise."""
+        read = getattr(self.bus.buses.get(bus), "peers_read", None)
+        last = read() if read is not None else None
+        if last is None:
+            return None
+        age = time.monotonic() - last
+        if age < silent_for - self.period:  # it read the commands and did not answer: the (simulated) motors
+            return None
+        return (f"and the simulator on bus {bus!r} has not read the bus for {age * 1e3:.0f} ms, since before the "
+                "first unanswered command: the simulator ran late (this machine did not run it in real time: CPU "
+                "load, other processes, a client keeping it busy), not a motor, a cable or the power supply",
+                "run the simulator at real-time priority (akarm sim --realtime-priority), lower the machine's load, "
+                "or give the simulated arm a longer feedback_timeout (the robot file) or the timing profile for slow "
+                "or shared machines (--profile slow)")
 
     # ------------------------------------------------------------------------------------------
     # the cycle (loop thread, or inline with a stepped clock)

@@ -60,7 +60,7 @@ which feedback age catches.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from akarm.config import JointConfig
@@ -185,6 +185,10 @@ class Supervisor:
             raise ValueError("lag must be at least 0")
         self.joints = list(joints)
         self.guards = list(guards)
+        #: ``(bus, silent_for) -> (cause, fix)`` when the bus is simulated and its simulator has not read
+        #: it for ``silent_for`` s (it did not run in time), else None: a silent joint's stop then says so
+        #: rather than blame the cables (the controller sets it)
+        self.simulator_late: Callable[[str, float], tuple[str, str] | None] | None = None
         self.implausible_limit = implausible_limit
         self.period = period
         n = len(self.joints)
@@ -402,14 +406,19 @@ class Supervisor:
         age = now - j.state.stamp
         if self._mit[i]:
             k = j.frames_sent - self._sent_then[i]
+            silent_for = k * self.period
             what = (f"no reply to its last {k} commands ({k * self.period * 1e3:.0f} ms of loop time; limit "
                     f"{timeout * 1e3:.0f} ms)")
         else:
+            silent_for = self._ran - self._ran_then[i]
             what = (f"no status frame for {(self._ran - self._ran_then[i]) * 1e3:.0f} ms of loop time (limit "
                     f"{timeout * 1e3:.0f} ms)")
         others = [k for k, o in enumerate(self.joints) if o.bus == j.bus and k != i]
         answering = [self.joints[k].name for k in others if self._answers(k)]
-        if answering:
+        late = self.simulator_late(j.bus, silent_for) if self.simulator_late is not None else None
+        if late is not None:
+            cause, fix = late
+        elif answering:
             cause = (f"while {', '.join(answering)} on bus {j.bus!r} answer: the likelier cause is this motor: its "
                      "power, its CAN cable or connector, its CAN ID")
             fix = ("check this motor's power and CAN connector and its CAN ID (akarm scan); if it answers again, "

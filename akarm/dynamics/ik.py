@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from akarm.dynamics.model import ArrayLike, RobotModel
-from akarm.errors import ArgumentError, LimitError, SingularityError, UnreachableError
+from akarm.errors import ArgumentError, LimitError, SingularityError, UnreachableError, num
 
 __all__ = ["ROTATION_WEIGHT", "IKSolver", "as_pose", "make_pose", "pose_error", "quaternion"]
 
@@ -270,8 +270,8 @@ class IKSolver:
             q = best[1]
             k = int(np.argmax(np.maximum(self.lower - q, q - self.upper)))
             return q, LimitError(
-                f"the pose needs {q[k]:+.3f} rad, outside the joint's range [{self.lower[k]:+.3f}, "
-                f"{self.upper[k]:+.3f}] rad (and no joint positions within the ranges reach it)",
+                f"the pose needs {num(q[k], 3, True)} rad, outside the joint's range [{num(self.lower[k], 3, True)}, "
+                f"{num(self.upper[k], 3, True)}] rad (and no joint positions within the ranges reach it)",
                 joint=self.names[k], fix="choose a pose the arm reaches within its joint limits")
         # out of reach: how close does it get?
         q, e, _ = self.iterate(seed, target, position_only, bounded=True, max_iterations=300)

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from akarm.errors import ArgumentError, LimitError, RecordingError
+from akarm.errors import ArgumentError, LimitError, RecordingError, num
 from akarm.files import FileProblem, YamlLimits, atomic_write, load_yaml, over, read_csv_table
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES
 from akarm.motion.trajectory import JointLimits, Timed
@@ -296,8 +296,8 @@ def check_path(plan: PathPlan, limits: JointLimits) -> None:
         bad = np.nonzero((q < limits.lower[k] - 1e-9) | (q > limits.upper[k] + 1e-9))[0]
         if bad.size:
             i = int(bad[0])
-            raise LimitError(f"the path reaches {q[i]:.4f} rad at t = {plan.t_rec[i] / s:.2f} s, outside "
-                             f"[{limits.lower[k]:.4f}, {limits.upper[k]:.4f}] rad", joint=name,
+            raise LimitError(f"the path reaches {num(q[i])} rad at t = {plan.t_rec[i] / s:.2f} s, outside "
+                             f"[{num(limits.lower[k])}, {num(limits.upper[k])}] rad", joint=name,
                              fix="no speed factor helps: edit the recording or the joint limits")
     worst: tuple[float, str, float, str] | None = None  # (speed factor that passes, joint, time, what)
     for k, name in enumerate(limits.names):

@@ -16,6 +16,7 @@ moves.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -81,7 +82,10 @@ def timed_plan(planner: Planner, start: State, t0: float,
     q[held] = np.broadcast_to(np.asarray(start[0], dtype=float), q.shape)[held]
     ts = _floats(times, "the points' times must be numbers", "give each point a time_from_start, s")
     if ts.shape != (len(q),) or not np.all(np.isfinite(ts)) or np.any(ts < 0) or np.any(np.diff(ts) < 0):
-        raise ArgumentError("the points' times must be finite, non-negative and increasing",
+        bad = [k for k in range(min(len(ts), len(q))) if not math.isfinite(ts[k]) or ts[k] < 0
+               or (k and ts[k] < ts[k - 1])] if ts.ndim == 1 else []
+        which = f" (point {bad[0]}: {ts[bad[0]]} s)" if bad else f" ({ts.size} times for {len(q)} points)"
+        raise ArgumentError(f"the points' times must be finite, non-negative and increasing{which}",
                             fix="give each point a time_from_start later than the previous one")
     for k, p in enumerate(q):
         planner.limits.check_position(p, what=f"point {k}")
@@ -90,9 +94,13 @@ def timed_plan(planner: Planner, start: State, t0: float,
         given = _floats(velocities, "velocities must be numbers", "leave velocities empty to have them estimated")
         if given.shape == q.shape:
             given[held] = 0.0
-        if given.shape != q.shape or not np.all(np.isfinite(given)):
+        if given.shape != q.shape:
             raise ArgumentError("velocities must give one finite value per joint for every point",
                                 fix="leave velocities empty to have them estimated")
+        if not np.all(np.isfinite(given)):
+            k, i = (int(x) for x in np.argwhere(~np.isfinite(given))[0])
+            raise ArgumentError(f"point {k}: velocity {given[k, i]} is not a number", joint=planner.limits.names[i],
+                                fix="give finite velocities in rad/s, or leave them empty to have them estimated")
         estimates = [np.clip(given, -vmax, vmax)]
     else:
         estimates = [_vias(ts, q, np.asarray(start[0], dtype=float), vmax)]

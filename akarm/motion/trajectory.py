@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import ruckig
 
-from akarm.errors import ArgumentError, LimitError, TrajectoryError
+from akarm.errors import ArgumentError, LimitError, TrajectoryError, num
 
 __all__ = ["MAX_RANGE_MARGIN", "RELEASE_CHUNK", "Chain", "JointLimits", "Plan", "Planner", "Segment", "Shifted",
            "State", "Timed", "Vector", "position_extrema", "release"]
@@ -76,9 +76,9 @@ class JointLimits:
             if lo - tol <= v <= hi + tol or (start is not None and abs(v - float(start[i])) <= STAY):
                 continue
             raise LimitError(
-                f"{what} {v:.4f} rad is outside the joint's range [{lo:.4f}, {hi:.4f}] rad"
+                f"{what} {num(v)} rad is outside the joint's range [{num(lo)}, {num(hi)}] rad"
                 + ("" if start is None or lo <= float(start[i]) <= hi else
-                   f" (it starts at {float(start[i]):.4f} rad: it may stay there, or move into the range)"),
+                   f" (it starts at {num(float(start[i]))} rad: it may stay there, or move into the range)"),
                 joint=name, fix="choose a position inside the range (URDF limits, narrowed in the robot YAML)")
 
 

@@ -9,13 +9,17 @@
   and each endpoint's USER_DATA says ``clientid=...;`` or ``serviceid=...;`` so that a service can
   tell when a client's reply reader has been matched. The layout and its source: ``docs/ros2.md``.
 
-Whom a participant talks to (:func:`discovery`) follows ROS 2's own settings, and is this machine
-only unless opened: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (``LOCALHOST``, the default here: the loopback
-interface only; ``SUBNET``: the network, by multicast; ``OFF``; ``SYSTEM_DEFAULT``: Cyclone's own
-defaults), ``ROS_STATIC_PEERS`` (``host;host``: these too), the older ``ROS_LOCALHOST_ONLY=1``, and
-``akarm serve --ros-network`` (``SUBNET``). A ``CYCLONEDDS_URI`` of the user's own replaces all of it:
-Cyclone DDS then reads that configuration alone (:data:`LOOPBACK_CONFIG` is the loopback setting
-spelt out for it).
+Whom a participant talks to (:func:`discovery`) follows ROS 2's own settings, configured as
+rmw_cyclonedds_cpp configures a ROS 2 node (:func:`ros2_config`), except that akarm's default is
+``LOCALHOST`` where ROS 2's is ``SUBNET`` (and that it keeps pinging this machine, see
+:func:`discovery`): ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (``LOCALHOST``, the
+default here: every node on this machine, whatever its range, and another machine only if it names
+this one as a static peer; ``SUBNET``: the network, by multicast; ``OFF``; ``SYSTEM_DEFAULT``:
+Cyclone's own defaults), ``ROS_STATIC_PEERS`` (``host;host``: these too), the older
+``ROS_LOCALHOST_ONLY=1``, ``akarm serve --ros-network`` (``SUBNET``) and ``--ros-loopback`` (the
+loopback interface alone, :data:`LOOPBACK_CONFIG`: no other machine, even by name). A
+``CYCLONEDDS_URI`` of the user's own replaces all of it but ``--ros-loopback``: Cyclone DDS then reads
+that configuration alone.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ from akarm.errors import AkarmError, ArgumentError
 from akarm.ros import msgs
 
 __all__ = [
+    "LOOPBACK",
     "LOOPBACK_CONFIG",
     "RANGES",
     "Discovery",
@@ -55,6 +60,7 @@ __all__ = [
     "discovery",
     "latched_qos",
     "qos",
+    "ros2_config",
     "ros_name",
     "sample_info",
     "sender",
@@ -66,7 +72,10 @@ __all__ = [
 #: ROS 2's discovery ranges (``ROS_AUTOMATIC_DISCOVERY_RANGE``), as rcl spells them
 RANGES = ("LOCALHOST", "SUBNET", "OFF", "SYSTEM_DEFAULT")
 _PEER = re.compile(r"^[A-Za-z0-9_.:%\[\]-]{1,253}$")  # a host name or an IPv4/IPv6 address, nothing else
-_MAX_AUTO_INDEX = 60  # participants one machine can hold in unicast discovery (ROS 2 uses 32)
+_MAX_AUTO_INDEX = 60  # participants the loopback configuration can hold in unicast discovery
+_ROS2_MAX_AUTO_INDEX = 32  # rmw_cyclonedds_cpp's MaxAutoParticipantIndex: the ports a node pings on a host
+#: the range of ``--ros-loopback`` (:data:`LOOPBACK_CONFIG`), not one of ROS 2's
+LOOPBACK = "LOOPBACK"
 
 
 @dataclass(frozen=True)
@@ -74,10 +83,12 @@ class Discovery:
     """Whom a DDS participant talks to, and the Cyclone DDS configuration that says so.
 
     Attributes:
-        range: ``"LOCALHOST"`` (this machine only: the loopback interface, unless static peers are
-            given), ``"SUBNET"`` (the network, by multicast), ``"OFF"`` (no other participant, not even
-            on this machine), ``"SYSTEM_DEFAULT"`` (Cyclone DDS's own defaults), or ``"CYCLONEDDS_URI"``
-            (the user's own configuration, which decides it all).
+        range: ``"LOCALHOST"`` (ROS 2's: every participant on this machine, and hosts that name this
+            one as a static peer), ``"LOOPBACK"`` (the loopback interface alone: participants on this
+            machine that look for it on the loopback interface), ``"SUBNET"`` (the network, by
+            multicast), ``"OFF"`` (no other participant, not even on this machine), ``"SYSTEM_DEFAULT"``
+            (Cyclone DDS's own defaults), or ``"CYCLONEDDS_URI"`` (the user's own configuration, which
+            decides it all).
         peers: the static peers (``ROS_STATIC_PEERS``), looked for in addition.
         config: the Cyclone DDS XML to create the domain with; ``None``: Cyclone's own
             (``CYCLONEDDS_URI``, else its defaults).
@@ -93,14 +104,16 @@ class Discovery:
 
     @property
     def network(self) -> bool:
-        """True when participants on other machines may reach it (or the user's configuration decides)."""
+        """True when participants on other machines may reach it uninvited (or the user's configuration
+        decides): ``LOCALHOST`` without peers answers only hosts that name this one."""
         return self.range in ("SUBNET", "SYSTEM_DEFAULT", "CYCLONEDDS_URI") or bool(self.peers)
 
     def describe(self) -> str:
         """One line for the server's output: who can reach the node."""
         peers = f" and the static peers {', '.join(self.peers)}" if self.peers else ""
         text = {
-            "LOCALHOST": ("this machine only (loopback)" if not self.peers else "this machine") + peers,
+            "LOCALHOST": "this machine (any ROS 2 discovery range; another host only as a static peer)" + peers,
+            LOOPBACK: "this machine only (loopback)",
             "SUBNET": "the network (multicast discovery)" + peers,
             "OFF": "no one (discovery off)",
             "SYSTEM_DEFAULT": "whoever Cyclone DDS's defaults reach (the network)",
@@ -124,24 +137,53 @@ _NO_MULTICAST = "<AllowMulticast>false</AllowMulticast>"
 
 
 #: Cyclone DDS configuration that keeps discovery and data on the loopback interface (no multicast,
-#: unicast discovery of the participants on 127.0.0.1): ``LOCALHOST``, the server's default, spelt out
-#: for other programs: ``export CYCLONEDDS_URI='<the string>'``.
+#: unicast discovery of the participants on 127.0.0.1): ``akarm serve --ros-loopback``, spelt out for
+#: other programs: ``export CYCLONEDDS_URI='<the string>'``. Participants configured so, and ROS 2 nodes
+#: at ``LOCALHOST`` on this machine, reach it; nothing else.
 LOOPBACK_CONFIG = _fragment(f'<Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces>{_NO_MULTICAST}',
                             _AUTO_INDEX + _peers_xml(("127.0.0.1",)))
 
 
-def _config(rng: str, peers: tuple[str, ...]) -> str | None:
-    """The Cyclone DDS configuration of a discovery range with static peers (``None``: Cyclone's defaults)."""
-    if rng == "LOCALHOST" and not peers:  # the loopback interface alone: nothing else can reach it
+def ros2_config(rng: str, peers: tuple[str, ...] = ()) -> str | None:
+    """The Cyclone DDS configuration rmw_cyclonedds_cpp (Iron and later: ``check_create_domain`` in
+    ``rmw_node.cpp``) gives a ROS 2 node of discovery range ``rng`` with static ``peers``; ``None``:
+    none (``SYSTEM_DEFAULT``: Cyclone's own defaults). ``LOOPBACK`` is akarm's own (:data:`LOOPBACK_CONFIG`).
+
+    - ``SUBNET``: multicast (Cyclone's default) and participant index ``auto`` (at most 32), plus the
+      peers: the index gives the node a well-known unicast port, where a ``LOCALHOST`` node on the same
+      host finds it.
+    - ``LOCALHOST``: no multicast, participant index ``auto`` (at most 32), the peers ``localhost``
+      and ``peers``, on the default network interface.
+    - ``OFF``: no multicast, participant index ``none`` and a tag of this process's own.
+    """
+    auto = ("<ParticipantIndex>auto</ParticipantIndex>"
+            f"<MaxAutoParticipantIndex>{_ROS2_MAX_AUTO_INDEX}</MaxAutoParticipantIndex>")
+    if rng == LOOPBACK:
         return LOOPBACK_CONFIG
-    if rng == "LOCALHOST":  # ROS 2's own: no multicast, this machine and the peers, on the default interface
-        return _fragment(_NO_MULTICAST, _AUTO_INDEX + _peers_xml(("localhost", *peers)))
+    if rng == "LOCALHOST":
+        return _fragment(_NO_MULTICAST, auto + _peers_xml(("localhost", *peers)))
     if rng == "SUBNET":
-        return _fragment(discovery=_AUTO_INDEX + _peers_xml(peers)) if peers else None
+        return _fragment(discovery=auto + _peers_xml(peers))
     if rng == "OFF":
         return _fragment(_NO_MULTICAST, f"<ParticipantIndex>none</ParticipantIndex><Tag>akarm_discovery_off_"
                                         f"{os.getpid()}</Tag>")
     return None
+
+
+#: what the server adds to ROS 2's LOCALHOST: ping this host's participant ports every second for
+#: good. rmw_cyclonedds_cpp's fragment alone pings them at start and stops after 30 s (Cyclone's
+#: InitialLocatorPruneDelay); a SUBNET node, which pings no one but answers a ping, started on this
+#: machine after that never found the server (tried: not in 38 s).
+_KEEP_PINGING = "<InitialLocatorPruneDelay>inf</InitialLocatorPruneDelay><SPDPInterval>1 s</SPDPInterval>"
+
+
+def _server_config(rng: str, peers: tuple[str, ...]) -> str | None:
+    """The server's Cyclone DDS configuration of range ``rng``: :func:`ros2_config`'s, and for
+    ``LOCALHOST`` pings of this machine that go on (:data:`_KEEP_PINGING`)."""
+    config = ros2_config(rng, peers)
+    if rng == "LOCALHOST" and config is not None:
+        config = config.replace("</Discovery>", _KEEP_PINGING + "</Discovery>")
+    return config
 
 
 def _range(env: Mapping[str, str], network: bool, warnings: list[str]) -> tuple[str, str, bool]:
@@ -156,20 +198,36 @@ def _range(env: Mapping[str, str], network: bool, warnings: list[str]) -> tuple[
     if wanted:
         warnings.append(f"ROS_AUTOMATIC_DISCOVERY_RANGE={wanted[:40]!r} is not one of {', '.join(RANGES)}; "
                         "using LOCALHOST")
-    return "LOCALHOST", "default (--ros-network or ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET opens it)", True
+    return "LOCALHOST", "default (--ros-loopback closes it to the loopback interface; --ros-network or " \
+                        "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET opens it)", True
 
 
-def discovery(env: Mapping[str, str] | None = None, network: bool = False) -> Discovery:
+def discovery(env: Mapping[str, str] | None = None, network: bool = False, loopback: bool = False) -> Discovery:
     """Whom the server's participant talks to, from ROS 2's environment variables in ``env`` (default
-    ``os.environ``) and ``network`` (``akarm serve --ros-network``), as rmw_cyclonedds_cpp reads them,
-    except that the default, ``LOCALHOST``, uses the loopback interface alone.
+    ``os.environ``), ``network`` (``akarm serve --ros-network``) and ``loopback`` (``--ros-loopback``),
+    configured as rmw_cyclonedds_cpp configures a ROS 2 node (:func:`ros2_config`), but for the
+    default: ``LOCALHOST``, not ROS 2's ``SUBNET``, and at ``LOCALHOST`` the server keeps pinging this
+    machine's participant ports every second (rmw's stops after 30 s), so that a ROS 2 node of any
+    range started on this machine later finds it (within a second).
 
-    Precedence: a ``CYCLONEDDS_URI`` of the user's own (Cyclone reads it, alone); ``network``
-    (``SUBNET``); ``ROS_LOCALHOST_ONLY=1`` (``LOCALHOST``, peers ignored, as ROS 2 does);
-    ``ROS_AUTOMATIC_DISCOVERY_RANGE``; else ``LOCALHOST``. ``ROS_STATIC_PEERS`` (``;``-separated
-    host names or addresses) adds peers to ``LOCALHOST`` and ``SUBNET``.
+    Precedence: ``loopback`` (the loopback interface alone, whatever else is set: a ``CYCLONEDDS_URI``
+    too, said in :attr:`Discovery.warnings`); a ``CYCLONEDDS_URI`` of the user's own (Cyclone reads
+    it, alone); ``network`` (``SUBNET``); ``ROS_LOCALHOST_ONLY=1`` (``LOCALHOST``, peers ignored, as
+    ROS 2 does); ``ROS_AUTOMATIC_DISCOVERY_RANGE``; else ``LOCALHOST``. ``ROS_STATIC_PEERS``
+    (``;``-separated host names or addresses) adds peers to ``LOCALHOST`` and ``SUBNET``.
+
+    Raises:
+        ArgumentError: both ``network`` and ``loopback``.
     """
     env = os.environ if env is None else env
+    if network and loopback:
+        raise ArgumentError("--ros-network and --ros-loopback contradict each other",
+                            fix="give one of them (neither: this machine, as ROS 2's LOCALHOST)")
+    if loopback:
+        ignored = [k for k in ("CYCLONEDDS_URI", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
+                               "ROS_LOCALHOST_ONLY") if env.get(k, "").strip()]
+        notes = (f"{', '.join(ignored)} ignored with --ros-loopback",) if ignored else ()
+        return Discovery(LOOPBACK, (), LOOPBACK_CONFIG, "--ros-loopback", notes)
     if env.get("CYCLONEDDS_URI", "").strip():
         return Discovery("CYCLONEDDS_URI", source="CYCLONEDDS_URI is set")
     warnings: list[str] = []
@@ -183,7 +241,7 @@ def discovery(env: Mapping[str, str] | None = None, network: bool = False) -> Di
     if peers and not with_peers:
         warnings.append(f"ROS_STATIC_PEERS is ignored with {source}")
         peers = []
-    return Discovery(rng, tuple(peers), _config(rng, tuple(peers)), source, tuple(warnings))
+    return Discovery(rng, tuple(peers), _server_config(rng, tuple(peers)), source, tuple(warnings))
 
 
 _domains: dict[int, tuple[Domain, str]] = {}  # the domains this process created with a configuration: kept

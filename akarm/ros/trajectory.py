@@ -29,7 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from akarm.errors import ArgumentError, did_you_mean
+from akarm.errors import ArgumentError, did_you_mean, num
 from akarm.motion.bounds import MAX_TRAJECTORY_POINTS
 from akarm.motion.trajectory import JointLimits
 from akarm.ros import msgs
@@ -134,21 +134,28 @@ def _check_point(k: int, p: msgs.JointTrajectoryPoint, names: list[str], index: 
     if len(p.positions) != n:
         raise TrajectoryRefused(f"point {k} has {len(p.positions)} positions for {n} joint_names", INVALID_GOAL,
                                 fix="give one position (rad) per name in joint_names")
-    for field, values, allow_empty in (("positions", p.positions, False), ("velocities", p.velocities, True),
-                                       ("accelerations", p.accelerations, True)):
-        if (len(values) != n and not (allow_empty and len(values) == 0)) or not all(math.isfinite(x) for x in values):
-            raise TrajectoryRefused(f"point {k} has {len(values)} {field} for {n} joint_names, or one that is not a "
-                                    "number", INVALID_GOAL, fix=f"give one {field[:-1]} per name, or none")
+    for field, one, unit, values, allow_empty in (
+            ("positions", "position", "rad", p.positions, False),
+            ("velocities", "velocity", "rad/s", p.velocities, True),
+            ("accelerations", "acceleration", "rad/s²", p.accelerations, True)):
+        if len(values) != n and not (allow_empty and len(values) == 0):
+            raise TrajectoryRefused(f"point {k} has {len(values)} {field} for {n} joint_names", INVALID_GOAL,
+                                    fix=f"give one {one} ({unit}) per name in joint_names"
+                                        + ("" if not allow_empty else ", or none"))
+        for name, x in zip(names, values, strict=False):
+            if not math.isfinite(x):
+                raise TrajectoryRefused(f"point {k}: {one} {x} is not a number", INVALID_GOAL, joint=name,
+                                        fix=f"give a finite {one} in {unit}")
     for name, i, q in zip(names, index, p.positions, strict=True):
         lo, hi = float(limits.lower[i]), float(limits.upper[i])
         if not lo - 1e-9 <= q <= hi + 1e-9:
-            raise TrajectoryRefused(f"point {k}: position {q:.4f} rad is outside the joint's range [{lo:.4f}, "
-                                    f"{hi:.4f}] rad", INVALID_GOAL, joint=name,
+            raise TrajectoryRefused(f"point {k}: position {num(q)} rad is outside the joint's range [{num(lo)}, "
+                                    f"{num(hi)}] rad", INVALID_GOAL, joint=name,
                                     fix="keep every point inside the joint's range (the robot file's limits)")
     for name, i, v in zip(names, index, p.velocities, strict=False):
         vmax = float(limits.velocity[i])
         if abs(v) > vmax * (1 + 1e-9):
-            raise TrajectoryRefused(f"point {k}: velocity {v:.6g} rad/s is beyond the joint's limit {vmax:g} rad/s",
+            raise TrajectoryRefused(f"point {k}: velocity {num(v)} rad/s is beyond the joint's limit {vmax:g} rad/s",
                                     INVALID_GOAL, joint=name,
                                     fix="time the trajectory within the joint limits (akarm ros-config writes "
                                         "them for MoveIt: joint_limits.yaml)")

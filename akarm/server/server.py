@@ -152,6 +152,20 @@ FrontendFactory = Callable[["ArmServerCore"], Frontend]
 _Server = TypeVar("_Server", bound="ArmServerCore")
 
 
+
+def _check_row(k: int, row: Sequence[float], joint_names: Sequence[str], what: str, unit: str, or_none: str) -> None:
+    """Point ``k``'s ``row`` of ``what`` (one per joint name, finite), else ArgumentError naming the
+    point, and the joint and value that is not a number."""
+    if len(row) != len(joint_names):
+        plural = "velocities" if what == "velocity" else what + "s"
+        raise ArgumentError(f"point {k} has {len(row)} {plural} for {len(joint_names)} joint_names",
+                            fix=f"give one {what} ({unit}) per name in joint_names{or_none}")
+    for name, x in zip(joint_names, row, strict=True):
+        if not math.isfinite(x):
+            raise ArgumentError(f"point {k}: {what} {x} is not a number", joint=name,
+                                fix=f"give a finite {what} in {unit}")
+
+
 class ArmServerCore:
     """Serves ``arm`` to the CLI (local socket) and to its frontends until :meth:`stop`.
 
@@ -491,17 +505,12 @@ class ArmServerCore:
                 full = np.full((len(times), len(names)), math.nan)
                 vel = None
                 for k, p in enumerate(positions):
-                    if len(p) != len(index) or not all(math.isfinite(x) for x in p):
-                        raise ArgumentError(f"point {k} has {len(p)} positions for {len(index)} joint_names, or "
-                                            "one that is not a number",
-                                            fix="give one position (rad) per name in joint_names")
+                    _check_row(k, p, joint_names, "position", "rad", "")
                     full[k, index] = p
                 if velocities is not None and any(len(v) for v in velocities):
                     vel = np.full((len(times), len(names)), math.nan)
                     for k, v in enumerate(velocities):
-                        if len(v) != len(index):
-                            raise ArgumentError(f"point {k} has {len(v)} velocities for {len(index)} joint_names",
-                                                fix="give one velocity per name in joint_names, or none at all")
+                        _check_row(k, v, joint_names, "velocity", "rad/s", ", or none at all")
                         vel[k, index] = v
                 motion = self.arm.follow(list(times), full, vel, wait=False)
                 self.counts["accepted"] += 1

@@ -19,7 +19,9 @@ by a client that misbehaves:
   server's urgent operations (``disable``, ``stop``, ``hold``, the status: what an operator needs
   when every connection is held by long requests); anything else is answered there with a
   :class:`~akarm.StateError`, and a connection past those is answered so and closed;
-- a request is at most :data:`MAX_REQUEST_BYTES` long, and must arrive whole within
+- a request is at most :data:`MAX_REQUEST_BYTES` long (a longer one is answered with the error, and
+  the rest of it, up to :data:`DRAIN_BYTES`, read and dropped before the connection is closed, so
+  that a client still writing reads why rather than a broken pipe), and must arrive whole within
   :data:`REQUEST_TIMEOUT` s of its first byte; a connection with no request for
   :data:`IDLE_TIMEOUT` s is closed;
 - NaN and infinities are not numbers a request may carry; what is not a JSON object, or not one
@@ -51,14 +53,15 @@ from typing import Any
 from akarm import errors
 from akarm.errors import AkarmError, ArgumentError, StateError
 
-__all__ = ["IDLE_TIMEOUT", "MAX_CONNECTIONS", "MAX_REQUEST_BYTES", "REQUEST_TIMEOUT", "RESERVED_CONNECTIONS",
-           "SocketClient", "SocketServer"]
+__all__ = ["DRAIN_BYTES", "IDLE_TIMEOUT", "MAX_CONNECTIONS", "MAX_REQUEST_BYTES", "REQUEST_TIMEOUT",
+           "RESERVED_CONNECTIONS", "SocketClient", "SocketServer"]
 
 MAX_CONNECTIONS = 32  #: control connections open at once
 #: connections more, for one urgent request each, when all the others are busy with requests
 RESERVED_CONNECTIONS = 4
 MAX_REQUEST_BYTES = 1 << 20  #: bytes of one request line (1 MiB)
 REQUEST_TIMEOUT = 10.0  #: s for a request to arrive whole, from its first byte
+DRAIN_BYTES = 16 << 20  #: bytes of a request too long read (and dropped) after its answer, at most
 IDLE_TIMEOUT = 600.0  #: s a connection may wait between requests before it is closed
 SEND_TIMEOUT = 10.0  #: s an answer may take to be taken by a client that does not read
 _ACCEPT_RETRY = 0.05  # s between accepts while the process has no file descriptor to spare
@@ -323,6 +326,7 @@ class SocketServer:
                 self._answer(c, None, ArgumentError(
                     f"a request is at most {MAX_REQUEST_BYTES} bytes; this one is longer",
                     fix="send smaller requests (a recording or trajectory: a file, by its path)"))
+                _drain(conn)
                 return
             limit = REQUEST_TIMEOUT if buf or c.reserve else IDLE_TIMEOUT
             left = c.since + limit - time.monotonic()
@@ -409,6 +413,22 @@ class SocketServer:
                 c.kick()
         with contextlib.suppress(FileNotFoundError):
             self.path.unlink()
+
+
+def _drain(conn: socket.socket) -> None:
+    """After the answer to a request too long: end the answer (the client reads it, then the end),
+    and read and drop what the client is still sending, up to :data:`DRAIN_BYTES` and
+    :data:`REQUEST_TIMEOUT` s (a second at most between chunks). Closed at once, the connection would
+    cut a client still writing short with a broken pipe, before it could read why."""
+    end, got = time.monotonic() + REQUEST_TIMEOUT, 0
+    with contextlib.suppress(OSError):  # the client went, or went quiet (a timeout): done
+        conn.shutdown(socket.SHUT_WR)
+        while got < DRAIN_BYTES and (left := end - time.monotonic()) > 0:
+            conn.settimeout(min(left, 1.0))
+            data = conn.recv(1 << 16)
+            if not data:
+                return
+            got += len(data)
 
 
 class SocketClient:

@@ -849,6 +849,7 @@ class SimulatedRobot:
         import can
 
         routes = self._routes.get(name, {})
+        beat = getattr(bus, "beat", None)  # akarm_local: tell the controllers when this simulator last read
         try:
             while not self._stop.is_set():
                 try:
@@ -865,6 +866,8 @@ class SimulatedRobot:
                     time.sleep(0.01)
                     continue
                 self._rx_empty[name] = time.monotonic()
+                if beat is not None:
+                    beat()
         except BaseException as e:  # reported through thread_error
             if not self._stop.is_set():
                 self.thread_error = e

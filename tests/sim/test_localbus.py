@@ -288,3 +288,19 @@ def test_an_akarm_local_bus_that_refuses_the_loops_frames_is_lost_and_stops_the_
         with pytest.raises(akarm.BusLost, match="Transmit buffer full"):
             arm.sleep(0.5)
         assert arm.mode is akarm.Mode.FAULT
+
+
+def test_a_simulators_beat_tells_the_others_when_it_last_read_the_channel(bus):
+    controller, simulator, viewer = bus(), bus(), bus()
+    assert controller.peers_read() is None  # nobody beats: no simulator to judge
+    before = time.monotonic()
+    simulator.beat()
+    last = controller.peers_read()
+    assert last is not None and before <= last <= time.monotonic()
+    assert simulator.peers_read() is None, "its own beat is not a peer's"
+    time.sleep(0.01)
+    assert controller.peers_read() == last and viewer.peers_read() == last  # an old read stays old
+    simulator.shutdown()
+    assert controller.peers_read() is None, "a simulator gone says nothing"
+    bus()  # its ring taken anew: the new owner does not inherit the old beat
+    assert controller.peers_read() is None

@@ -6,8 +6,10 @@ Cyclone DDS's defaults (multicast on the veth) and with the server's address as 
 The simulator runs in this namespace: akarm_local is shared memory, the server's control socket a
 file, so both cross namespaces.
 
-- By default the other participant neither discovers the server (no match, no ``joint_states``) nor
-  moves the arm (the simulated joint stays put); a participant on the server's own loopback does both.
+- With ``--ros-loopback`` the other participant, though it names the server's address as a peer,
+  neither discovers the server (no match, no ``joint_states``) nor moves the arm (the simulated joint
+  stays put); a participant on the server's own loopback does both. (The default, ROS 2's LOCALHOST,
+  answers a host that names it: tests/system/test_ros_discovery.py.)
 - With ``--ros-network`` the other participant does both, and the server logs the trajectory and the
   service call with the participant that sent them.
 
@@ -50,8 +52,8 @@ def _ip(*args: str) -> None:
 class Namespaces:
     """Two network namespaces joined by a veth pair; removed (with the veth) on exit."""
 
-    def __init__(self) -> None:
-        tag = f"{os.getpid() % 100000}"
+    def __init__(self, tag: str = "") -> None:
+        tag = f"{tag}{os.getpid() % 100000}"
         self.server, self.peer = f"akarm-srv-{tag}", f"akarm-peer-{tag}"
         self.links = (f"akva{tag}", f"akvb{tag}")
 
@@ -138,14 +140,15 @@ def commands(ns: Namespaces, where: str, srv: Served, sim: SimulatorProcess, rob
     return seen
 
 
-def test_by_default_a_participant_outside_loopback_neither_sees_nor_moves_the_arm_and_with_ros_network_it_does(
+def test_with_ros_loopback_a_participant_outside_neither_sees_nor_moves_the_arm_and_with_ros_network_it_does(
         namespaces: Namespaces, tmp_path: Path):
     robot = relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)
     channel, domain = unique("net"), 50 + os.getpid() % 50
     with SimulatorProcess(robot, channel=channel, pose="down", control=True) as sim:
-        # default: this machine only (the server's namespace's loopback)
+        # --ros-loopback: this machine only (the server's namespace's loopback)
         ns_default = unique("closed")
-        with Served(channel, ns_default, robot, domain, prefix=namespaces.run(namespaces.server), env=ros_env()) as srv:
+        with Served(channel, ns_default, robot, domain, args=["--ros-loopback"],
+                    prefix=namespaces.run(namespaces.server), env=ros_env()) as srv:
             assert any("this machine only (loopback)" in line for line in srv.lines), "".join(srv.lines)
             q0 = elbow(sim)
             outside = peer(namespaces, namespaces.peer, domain, ns_default, OUTSIDE, q0 + 0.5)

@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 from akarm.buses.ownership import find_server, runtime_dir
-from akarm.errors import StateError
+from akarm.errors import ArgumentError, StateError
 from akarm.robotfile.load import load_robot
 from akarm.server import socket as control
 from akarm.server.socket import SocketClient, SocketServer
@@ -196,6 +196,21 @@ def test_a_64_mib_line_is_cut_off_at_the_limit(served: Serve, idle: int):
             s.sendall(b"x" * (control.MAX_REQUEST_BYTES + (1 << 17)))
         answer = json.loads(s.makefile("rb").readline())
     assert answer["error"]["type"] == "ArgumentError" and "at most 1048576 bytes" in answer["error"]["text"]
+
+
+def test_a_client_still_writing_a_2_mib_request_reads_why_it_is_refused(served: Serve, idle: int):
+    """Once past the 1 MiB limit the server answers and reads the rest away (up to DRAIN_BYTES):
+    the client's write of 2 MiB completes, with no broken pipe, and the answer says why."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(30)
+        s.connect(served.path)
+        s.sendall(b'{"id": 3, "op": "state", "args": {"x": "' + b"a" * (2 << 20) + b'"}}\n')  # raises if cut short
+        answer = json.loads(s.makefile("rb").readline())
+    assert answer["ok"] is False and answer["error"]["type"] == "ArgumentError", answer
+    assert "a request is at most 1048576 bytes; this one is longer" in answer["error"]["text"]
+    with SocketClient(served.path, timeout=30) as c, pytest.raises(ArgumentError, match="at most 1048576 bytes"):
+        c.call("state", x="a" * (2 << 20))  # the library's client says it too
+    served.status_within()  # and the server goes on
 
 
 @pytest.mark.parametrize("request_line", [

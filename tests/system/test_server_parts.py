@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import _thread
+import fcntl
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -17,6 +19,7 @@ from akarm.errors import AkarmError, ArgumentError, LimitError, MotorFault, Stat
 from akarm.server.server import ArmServerCore
 from akarm.server.socket import SocketClient, SocketServer
 from akarm.sim import SimulatedRobot
+from akarm.sim.process import SimulatorProcess
 
 from .conftest import ROBOTS, relaxed_robot, wait_until
 
@@ -53,6 +56,50 @@ sys.stdin.readline()
         assert registry.find_server(config) is None, "this process's own server does not count"
     finally:
         lock.release()
+
+
+def test_a_released_bus_lock_leaves_no_file_and_a_stale_one_is_not_taken_for_the_bus(channel):
+    config = config_on(channel)
+    (path,) = [registry.lock_path(k) for k in registry.bus_keys(config)]
+    lock = registry.BusLock(config, {"robot": "mine"})
+    stale = os.open(path, os.O_RDONLY)  # a process that opened the file to wait for it
+    try:
+        assert path.exists()
+        lock.release()
+        assert not path.exists(), "the lock file is removed with the lock"
+        fcntl.flock(stale, fcntl.LOCK_EX | fcntl.LOCK_NB)  # it gets the lock of the removed file ...
+        again = registry.BusLock(config, {"robot": "again"})  # ... which holds no bus: the next server's file is new
+        try:
+            assert path.exists() and registry.find_server(config) is None
+            with pytest.raises(StateError, match="two controllers"):
+                registry.BusLock(config, {"robot": "third"})
+        finally:
+            again.release()
+    finally:
+        os.close(stale)
+    assert not path.exists()
+
+
+def test_a_server_that_ends_removes_its_lock_files(tmp_path, channel):
+    robot = relaxed_robot(ROBOTS / "planar2.yaml", tmp_path)
+    config = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)
+    paths = [registry.lock_path(k) for k in registry.bus_keys(config)]
+    assert paths
+    with SimulatorProcess(robot, channel=channel, pose="down"):
+        serve = subprocess.Popen([sys.executable, "-m", "akarm", "serve", str(robot), "-i", "akarm_local", "-c",
+                                  channel, "--no-ros"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            lines = [serve.stdout.readline()]  # type: ignore[union-attr]
+            while lines[-1] and not lines[-1].startswith("serving"):
+                lines.append(serve.stdout.readline())  # type: ignore[union-attr]
+            assert all(p.exists() for p in paths), "".join(lines)
+            serve.send_signal(signal.SIGTERM)
+            assert serve.wait(60) == 0
+        finally:
+            if serve.poll() is None:
+                serve.kill()
+                serve.wait()
+    assert not any(p.exists() for p in paths), "the lock files went with the server"
 
 
 def test_virtual_buses_are_never_locked(channel):

@@ -131,3 +131,15 @@ def test_cli_process_stops_cleanly_on_a_signal(sig: signal.Signals) -> None:
     assert proc.returncode == 0, err
     assert "akarm sim: stopped at" in out
     assert "Traceback" not in err
+
+
+def test_realtime_priority_is_asked_for_before_the_threads_start_and_said() -> None:
+    """``akarm sim --realtime-priority``: SCHED_FIFO for the simulator's threads (they inherit it from the
+    thread that starts them), granted or refused with the reason, never a failure."""
+    argv = [sys.executable, "-m", "akarm", "sim", PLANAR2, "-i", "virtual", "-c", f"rt-{os.getpid()}", "--seconds",
+            "0.5", "--realtime-priority", "-q"]
+    out = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    line = next(x for x in out.stdout.splitlines() if x.strip().startswith("real time:"))
+    assert "SCHED_FIFO priority 80 granted" in line or "real-time priority refused" in line, line
+    assert "switch interval 200 µs" in line or "SCHED_FIFO" in line, line

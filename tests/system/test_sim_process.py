@@ -69,3 +69,40 @@ def test_the_simulator_says_how_late_it_took_frames_in(channel):
         time.sleep(0.3)
         assert sim.control.late() >= 0.55  # it waited while the simulator was stopped
         assert sim.control.late() == 0.0   # and that was reported once: no frame since
+
+
+def test_a_simulator_that_stops_running_is_named_in_the_stop_not_the_cables(channel, tmp_path):
+    """The simulator's process stopped (SIGSTOP: a machine that does not run it in time) while an arm
+    holds: the watchdog's FeedbackTimeout says that the simulator has not read the bus since before
+    the unanswered commands, not "the adapter, the cable". A simulated power loss of every motor (the
+    simulator runs and reads the commands) still blames the bus's hardware."""
+    import signal
+    import time
+
+    import akarm
+    from akarm.errors import FeedbackTimeout
+    from akarm.sim import faults
+
+    robot = ROBOTS / "planar2.yaml"
+    config = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)
+    with SimulatorProcess(robot, channel=channel, control=True, pose="down") as sim, akarm.Arm(config) as arm:
+        assert sim.control is not None
+        arm.enable()
+        os.kill(sim.pid, signal.SIGSTOP)
+        try:
+            with pytest.raises(FeedbackTimeout) as e:
+                arm.sleep(2.0)
+        finally:
+            os.kill(sim.pid, signal.SIGCONT)
+        text = str(e.value)
+        assert "and the simulator on bus 'arm' has not read the bus for" in text, text
+        assert "the simulator ran late" in text and "adapter" not in text and "--profile slow" in e.value.fix
+        # the simulator runs, the motors are silent: the bus's hardware is the likelier cause
+        time.sleep(0.3)
+        arm.enable()
+        for joint in config.joint_names:
+            sim.control.inject(joint, faults.Unplugged())
+        with pytest.raises(FeedbackTimeout) as e:
+            arm.sleep(2.0)
+        assert "simulator" not in str(e.value) and ("the bus (the adapter" in str(e.value)
+                                                    or "this motor" in str(e.value)), str(e.value)

@@ -157,8 +157,14 @@ def test_only_the_three_distributions_are_spoken() -> None:
     (["elbow"], [point([0.1], 1.0), point([0.2], 1.0)], INVALID_GOAL, "point 1's time_from_start (1 s) is not after"),
     (["elbow"], [point([0.1], 1.0), point([0.2], 0.5)], INVALID_GOAL, "is not after point 0's (1 s)"),
     (["elbow"], [point([0.1, 0.2], 1.0)], INVALID_GOAL, "point 0 has 2 positions for 1 joint_names"),
-    (["elbow"], [point([float("nan")], 1.0)], INVALID_GOAL, "or one that is not a number"),
+    (["elbow", "wrist_roll"], [point([0.1, 0.1], 1.0), point([0.1, float("nan")], 2.0)], INVALID_GOAL,
+     "joint 'wrist_roll': point 1: position nan is not a number"),
+    (["elbow"], [point([0.1], 1.0, [0.3, 0.1]), point([0.2], 2.0)], INVALID_GOAL, "point 0 has 2 velocities for 1"),
+    (["elbow"], [point([0.1], 1.0, [float("inf")]), point([0.2], 2.0, [0.0])], INVALID_GOAL,
+     "joint 'elbow': point 0: velocity inf is not a number"),
     (["elbow"], [point([2.6], 1.0)], INVALID_GOAL, "position 2.6000 rad is outside the joint's range"),
+    (["elbow"], [point([1e308], 1.0)], INVALID_GOAL, "position 1e+308 rad is outside the joint's range [-2.5000, "
+                                                     "2.5000] rad"),
     (["elbow"], [point([0.1], 1.0, [1e6]), point([0.2], 2.0, [0.0])], INVALID_GOAL,
      "velocity 1e+06 rad/s is beyond the joint's limit 2.5 rad/s"),
     (["elbow"], [point([0.1], 1.0, [0.3]), point([0.2], 2.0)], INVALID_GOAL, "some points have velocities"),
@@ -170,6 +176,13 @@ def test_what_joint_trajectory_controller_refuses_is_refused_with_its_code(names
         check_trajectory(traj(names, points), NAMES, LIMITS, now=1000.0)
     assert e.value.code == code and text in str(e.value)
     assert isinstance(e.value, ArgumentError) and e.value.fix
+    assert "velocitie " not in e.value.fix and len(str(e.value)) < 400  # no 309 digits of a huge value
+
+
+def test_the_fix_for_a_count_of_velocities_is_grammatical() -> None:
+    with pytest.raises(TrajectoryRefused) as e:
+        check_trajectory(traj(["elbow"], [point([0.1], 1.0, [0.3, 0.1]), point([0.2], 2.0)]), NAMES, LIMITS, now=0.0)
+    assert e.value.fix == "give one velocity (rad/s) per name in joint_names, or none"
 
 
 def test_a_velocity_at_the_limit_is_taken_and_one_past_it_refused() -> None:

@@ -112,6 +112,23 @@ def test_a_bus_on_which_nobody_answers_names_the_bus_first(rig) -> None:
     assert "the bus (the adapter" in str(e) and "power supply" in e.fix
 
 
+def test_a_silent_simulated_bus_whose_simulator_ran_late_says_so_and_not_cables(rig) -> None:
+    js, sup = rig
+    asked: list[tuple[str, float]] = []
+
+    def simulator_late(bus: str, silent_for: float) -> tuple[str, str] | None:
+        asked.append((bus, silent_for))
+        return ("and the simulator ran late", "lower the load") if silent_for >= 0.02 else None
+
+    sup.simulator_late = simulator_late
+    for k in range(1, 11):
+        assert cycle(js, sup, k * DT, [False, False]) is None
+    e = cycle(js, sup, 11 * DT, [False, False])
+    assert isinstance(e, FeedbackTimeout) and asked == [("arm", pytest.approx(0.02))]
+    assert "no reply to its last 10 commands (20 ms of loop time; limit 20 ms), and the simulator ran late" in str(e)
+    assert "cable" not in str(e) and "adapter" not in str(e) and e.fix == "lower the load"
+
+
 def test_a_gap_in_which_the_loop_did_not_run_is_not_a_joint_s_silence(rig) -> None:
     js, sup = rig
     assert cycle(js, sup, DT, [True, True]) is None

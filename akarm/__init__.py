@@ -60,6 +60,7 @@ from akarm.errors import (
     UnknownMotorError,
     UnreachableError,
     WiringError,
+    WorkspaceExit,
 )
 
 compiled.choose_at_import()  # AKARM_PURE=1, or compiled modules older than their sources: pure Python
@@ -120,6 +121,7 @@ __all__ = [
     "UnknownMotorError",
     "UnreachableError",
     "WiringError",
+    "WorkspaceExit",
     "__version__",
     "load_robot",
     "serve",

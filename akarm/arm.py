@@ -443,8 +443,21 @@ class Arm:
         return np.array([finite_number(v, what, joint=name, unit=unit, at_least=at_least)
                          for v, name in zip(items, self.names, strict=True)])
 
-    def _start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
-        return self._ctl.start(make_plan)
+    def _start(self, make_plan: Callable[[State, float], Timed], *, walls: bool = True) -> Motion:
+        """Plan (``make_plan(start, t)``) and follow; a plan whose path takes the tool outside the robot
+        file's ``workspace:`` is refused before anything moves (:func:`akarm.motion.walls.check_path`; not
+        a stop: ``walls=False``)."""
+        workspace = self.config.workspace
+        if workspace is None or not walls:
+            return self._ctl.start(make_plan)
+        from akarm.motion.walls import check_path
+
+        def checked(start: State, now: float) -> Timed:
+            plan = make_plan(start, now)
+            check_path(self.ik.model, workspace, plan)
+            return plan
+
+        return self._ctl.start(checked)
 
     def move_to(self, target: Target, speed: float = 1.0, wait: bool = True) -> Motion:
         """Move to ``target``: jerk-limited, every joint arriving together.
@@ -518,7 +531,7 @@ class Arm:
 
     def stop(self, wait: bool = True) -> Motion:
         """Bring the commanded motion to rest, jerk-limited, and hold there."""
-        return self._run(self._start(lambda start, now: Plan([self.planner.stop(start, now)])), wait)
+        return self._run(self._start(lambda start, now: Plan([self.planner.stop(start, now)]), walls=False), wait)
 
     def hold(self) -> None:
         """Hold the current commanded position (stopping, jerk-limited, first if moving)."""

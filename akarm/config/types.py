@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
+from akarm.config.workspace import Workspace
 from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.protocol.motors import Catalogue, MotorModel
 
@@ -206,6 +207,8 @@ class RobotConfig:
             ``locked`` are held at their neutral position (0, or the identity for floating joints).
         warnings: what the loader found questionable but accepted (a joint held at a default
             position, gravity above a motor's rated torque, ...), each with its line and a fix.
+        workspace: the walls the tool frame's origin stays within (``workspace:``;
+            :class:`~akarm.config.workspace.Workspace`), or ``None``: no walls.
     """
 
     name: str
@@ -221,6 +224,7 @@ class RobotConfig:
     catalogue: Catalogue | None = None
     locked: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[ConfigProblem, ...] = ()
+    workspace: Workspace | None = None
 
     @property
     def joint_names(self) -> tuple[str, ...]:

@@ -55,6 +55,7 @@ from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
 from akarm.control.turns import PositionMemory, stays_put
+from akarm.control.walls import WallGuard
 from akarm.dynamics.model import RobotModel
 from akarm.errors import (
     AkarmError,
@@ -175,6 +176,8 @@ class Controller:
                                settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
                                at_contact=self._turn_check, lag=options.timing.lag)
         self.reflex = self._make_reflex()
+        # the robot file's walls: the tool measured outside them is a safety stop (akarm.control.walls)
+        self.walls = WallGuard(model, config.workspace) if config.workspace is not None else None
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,
                                 on_crash=self._crashed)
@@ -790,6 +793,9 @@ class Controller:
         fb = self._feedback()
         if stop is None:
             stop = self._collision_check(now, True, fb)
+        walls = self.walls
+        if stop is None and walls is not None:
+            stop = walls.check(now, fb[0], qd)
         t3 = pc()
         stage[2] = t3 - t2
         if stop is not None:

@@ -105,6 +105,7 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     at = top["joints"].key if "joints" in top and top["joints"].ok else root
     locked = checks.locked(found, top.get("locked"), urdf, joints.driven, at) if urdf is not None else {}
     poses = checks.poses(found, top.get("poses"), configs, joints.entries)
+    walls = checks.workspace(found, top.get("workspace"))
     checks.bus_load(found, buses, configs, rate_hz, rate_line)
     checks.serial_ports(found, buses, configs, top.get("buses"))
     found.raise_if_any()
@@ -112,7 +113,8 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     g = top.value("gravity", ROBOT_FILE["gravity"].default)
     config = RobotConfig(name=top.value("name", path.stem), urdf=urdf_path, buses=buses, joints=tuple(configs),
                          rate_hz=rate_hz, source=path, tool_frame=tool_frame, gravity=(g[0], g[1], g[2]),
-                         payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked)
+                         payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked,
+                         workspace=walls)
     checks.gravity(found, config, top.get("urdf"), joints.torque_lines)
     found.raise_if_any()
     return replace(config, warnings=tuple(found.sorted(found.warnings)))

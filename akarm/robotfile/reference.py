@@ -17,6 +17,7 @@ from akarm.robotfile.schema import (
     LIMITS,
     PAYLOAD,
     ROBOT_FILE,
+    WORKSPACE,
     Section,
 )
 
@@ -46,6 +47,7 @@ _HEADINGS = (
     (FRICTION, "`friction:`"),
     (COLLISION, "`collision:`"),
     (PAYLOAD, "`payload:`"),
+    (WORKSPACE, "`workspace:`"),
 )
 
 

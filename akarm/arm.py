@@ -58,6 +58,7 @@ from akarm.errors import (
 from akarm.motion import recording as rec_mod
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
 from akarm.motion.cartesian import plan_linear
+from akarm.motion.servo import Servo, ServoStream
 from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner, Timed
 from akarm.telemetry.log import TelemetryLog
 from akarm.timing import TimingProfile, get_profile
@@ -640,6 +641,41 @@ class Arm:
             return plan.at(now)
 
         return self._run(self._start(make), wait)
+
+    def servo(self, timeout: float = 0.1, frame: str = "base", *, max_speed: float = 0.25,
+              max_rotation: float = 1.0) -> Servo:
+        """Steer the tool live: ``with arm.servo() as s: s.twist([vx, vy, vz, wx, wy, wz])`` or
+        ``s.pose(T)``, at any rate up to the loop's (:mod:`akarm.motion.servo`).
+
+        Every cycle the command becomes joint motion by damped least squares, within each joint's
+        velocity, acceleration and jerk limits and its range less a margin; near a singularity, a joint
+        limit or a wall of ``workspace:`` the arm slows and stops short (``s.status`` says which).
+        Commands that stop coming for ``timeout`` s bring it to rest, jerk-limited, and hold it; the next
+        resumes. Leaving the block brings it to rest and holds. Another motion (or a stop) ends servoing.
+
+        Args:
+            timeout: s a command lasts. frame: ``"base"`` or ``"tool"``: the axes of a twist.
+            max_speed, max_rotation: m/s and rad/s the tool goes at most (a faster twist is scaled down).
+
+        Raises:
+            ArgumentError: a timeout, speed or rotation that is not a finite number > 0, an unknown frame.
+            StateError: the arm is not enabled.
+        """
+        timeout = finite_number(timeout, "servo timeout", above=0.0, unit="s", fix="e.g. timeout=0.1")
+        max_speed = finite_number(max_speed, "servo max_speed", above=0.0, unit="m/s", fix="e.g. max_speed=0.25")
+        max_rotation = finite_number(max_rotation, "servo max_rotation", above=0.0, unit="rad/s",
+                                     fix="e.g. max_rotation=1.0")
+        if frame not in ("base", "tool"):
+            raise ArgumentError(f"frame must be \"base\" or \"tool\", got {frame!r}",
+                                fix="the axes a twist is given in: frame=\"base\" or frame=\"tool\"")
+        self._ctl.require_enabled()
+        stream = ServoStream(RobotModel(self.config), self.limits, self.config.workspace, 1.0 / self.config.rate_hz,
+                             timeout, "tool" if frame == "tool" else "base", max_speed, max_rotation)
+
+        def start(s: ServoStream) -> Motion:
+            return self._start(s.begin, walls=False)
+
+        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model)
 
     @property
     def moving(self) -> bool:

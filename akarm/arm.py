@@ -33,6 +33,7 @@ from akarm.config import RobotConfig
 from akarm.control.collision import DEFAULT_GAIN, Reaction
 from akarm.control.controller import Controller
 from akarm.control.feedforward import FeedForwardKind
+from akarm.control.impedance import Impedance
 from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
@@ -676,6 +677,62 @@ class Arm:
             return self._start(s.begin, walls=False)
 
         return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model)
+
+    def impedance(self, stiffness: Sequence[float] | None = None, damping_ratio: float = 1.0, *,
+                  joint_stiffness: Sequence[float] | None = None, max_deviation: tuple[float, float] = (0.1, 0.5),
+                  joint_damping: float = 0.3) -> Impedance:
+        """Make the arm soft about where it is: ``with arm.impedance(stiffness=[kx, ky, kz, krx, kry, krz]) as
+        imp:`` holds the tool there as a spring-damper (N/m, N·m/rad, base axes; damping ``damping_ratio``
+        of critical), or with ``joint_stiffness=[...]`` (N·m/rad per joint) each joint
+        (:mod:`akarm.control.impedance`). The torque is computed every cycle from the measured state and
+        sent as the MIT feed-forward with kp = 0, the arm's weight carried; a null-space posture keeps
+        redundant joints where they were. ``imp.set_target(...)``, ``imp.set_stiffness(...)``,
+        ``imp.wrench()`` (the external wrench, from the collision observer). Meanwhile the collision
+        reflex only watches (a push is the point); a deviation from the target past ``max_deviation``
+        (m, rad; a joint's in rad under joint impedance) is a :class:`~akarm.DeviationError` safety stop.
+        Leaving the block holds the arm where it is, stiff again.
+
+        Args:
+            joint_damping: each joint's own damping meanwhile, N·m·s/rad (the MIT kd, at most its motor's).
+
+        Raises:
+            ArgumentError: not exactly one of ``stiffness`` (6 values) and ``joint_stiffness`` (one per
+                joint), values that are not finite and ≥ 0, a damping ratio or bound that is not > 0.
+            StateError: the arm is not enabled, or a joint is in servo mode (no torque control).
+        """
+        from akarm.control.impedance import ImpedanceLaw, stiffness_values
+
+        if (stiffness is None) == (joint_stiffness is None):
+            raise ArgumentError("give either stiffness (Cartesian: 6 values) or joint_stiffness (one per joint)",
+                                fix="e.g. arm.impedance(stiffness=[500, 500, 500, 20, 20, 20])")
+        k = None if stiffness is None else stiffness_values(stiffness, 6, "stiffness")
+        kj = None if joint_stiffness is None else stiffness_values(joint_stiffness, self.n, "joint_stiffness")
+        zeta = finite_number(damping_ratio, "damping_ratio", above=0.0, fix="e.g. 1.0: critically damped")
+        try:
+            bound = (finite_number(max_deviation[0], "max_deviation", above=0.0, unit="m"),
+                     finite_number(max_deviation[1], "max_deviation", above=0.0, unit="rad"))
+        except (TypeError, IndexError, KeyError):
+            raise ArgumentError(f"max_deviation must be (m, rad), got {max_deviation!r}", fix="e.g. (0.1, 0.5)") \
+                from None
+        kd = finite_number(joint_damping, "joint_damping", at_least=0.0, unit="N·m·s/rad", fix="e.g. 0.3")
+        for j in self.joints:
+            if not j.answers_commands:
+                raise StateError("impedance needs torque control, and this joint is in servo mode",
+                                 joint=j.name, fix="drive it in MIT mode (`mode: mit` in the robot file)")
+        self._ctl.require_enabled()
+        self.hold()
+        fr = [j.friction_model() for j in self.config.joints]
+        on = 1.0 if self._ctl.options.friction_compensated else 0.0
+        law = ImpedanceLaw(RobotModel(self.config, armature=True), self.names, self._ctl.torque_limit,
+                           np.array([j.state.position for j in self.joints]), k, kj, zeta, bound,
+                           [f.coulomb * on for f in fr], [f.viscous * on for f in fr])
+        kds = [min(kd, j.motor.kd_max) for j in self.joints]
+
+        def measured() -> np.ndarray:
+            with self._ctl.lock:
+                return np.array([j.state.position for j in self.joints])
+
+        return Impedance(self._ctl, law, kds, self.ik.model, measured)
 
     @property
     def moving(self) -> bool:

@@ -63,6 +63,7 @@ __all__ = [
     "ConfigError",
     "ConfigProblem",
     "ConfigWarning",
+    "DeviationError",
     "DriverReset",
     "DuplicateCanId",
     "FeedbackTimeout",
@@ -506,6 +507,21 @@ class NotSettled(SafetyStop):
 
     def __init__(self, what: str, *, speed: float, limit: float, joint: str | None = None, fix: str = "") -> None:
         self.speed = speed
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class DeviationError(SafetyStop):
+    """Under impedance control (``arm.impedance()``) the tool (or a joint) was further from its target than
+    the bound the impedance was started with: the arm was pushed far away, or is held; the arm was
+    damped and disabled rather than pulled back with ever more torque.
+
+    Attributes:
+        deviation: how far, m (position), rad (orientation, or a joint). limit: the bound, same unit.
+    """
+
+    def __init__(self, what: str, *, deviation: float, limit: float, joint: str | None = None, fix: str = "") -> None:
+        self.deviation = deviation
         self.limit = limit
         super().__init__(what, joint=joint, fix=fix)
 

@@ -33,6 +33,7 @@ from akarm.config import RobotConfig
 from akarm.control.collision import DEFAULT_GAIN, Reaction
 from akarm.control.controller import Controller
 from akarm.control.feedforward import FeedForwardKind
+from akarm.control.guard import Contact
 from akarm.control.impedance import Impedance
 from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
@@ -733,6 +734,66 @@ class Arm:
                 return np.array([j.state.position for j in self.joints])
 
         return Impedance(self._ctl, law, kds, self.ik.model, measured)
+
+    def move_until_contact(self, direction: Sequence[float], speed: float = 0.02, force: float = 5.0, *,
+                           max_distance: float = 0.2, back_off: float = 0.0) -> Contact:
+        """A guarded move: the tool in a straight line along ``direction`` (base frame; its length does not
+        matter) at ``speed`` m/s, its orientation kept, until the external force against the motion reaches
+        ``force`` N (from the collision observer's estimate, :mod:`akarm.control.guard`); then it stops,
+        jerk-limited (the collision reflex's "stop and report"), goes back to where it touched (its
+        command went on past it as far as the arm gave), or ``back_off`` m short of it, and holds there.
+        At most ``max_distance`` m. Meanwhile the collision thresholds are suspended:
+        a force of twice ``force`` in any direction stops the move too.
+
+        Returns:
+            the :class:`~akarm.control.guard.Contact`: whether it touched, where (measured), with what force.
+
+        Raises:
+            ArgumentError: a direction that is not 3 finite numbers (not all 0), a speed, force or distance
+                that is not a finite number > 0 (back_off ≥ 0).
+            StateError: the arm is moving or not enabled. LimitError, UnreachableError, SingularityError:
+                the line is refused before anything moves (as :meth:`move_linear`'s).
+        """
+        from akarm.control.guard import ContactWatch
+
+        try:
+            d = np.asarray(direction, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            d = np.full(0, math.nan)
+        if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.linalg.norm(d) > 0:
+            raise ArgumentError(f"direction must be 3 finite numbers, not all 0 (base frame), got {direction!r}",
+                                fix="e.g. [0, 0, -1]: down")
+        d = d / np.linalg.norm(d)
+        speed = finite_number(speed, "speed", above=0.0, unit="m/s", fix="e.g. speed=0.02")
+        force = finite_number(force, "force", above=0.0, unit="N", fix="e.g. force=5.0")
+        max_distance = finite_number(max_distance, "max_distance", above=0.0, unit="m", fix="e.g. 0.2")
+        back_off = finite_number(back_off, "back_off", at_least=0.0, unit="m", fix="e.g. 0.005, or 0 to hold")
+        start = self.ik.model.tool_pose(self._ctl.desired_now()[0])
+        end = start.copy()
+        end[:3, 3] += d * max_distance
+        watch = ContactWatch(RobotModel(self.config), d, force, start[:3, 3])
+        self._ctl.begin_watch(watch)
+        try:
+            motion = self.move_linear(end, wait=False, max_velocity=speed)
+            while not motion.done and not watch.fired:
+                self.sleep(1.0 / self.config.rate_hz)
+            found = watch.found
+            if found is None:
+                motion.wait()
+            else:
+                while self.moving:  # the stop, to rest
+                    self.sleep(1.0 / self.config.rate_hz)
+                # the command went on past the contact as far as the arm gave: back to where it touched
+                # (less back_off), so that it holds there without pressing
+                away = self.ik.model.tool_pose(self._ctl.desired_now()[0])
+                away[:3, 3] = found[1] - d * back_off
+                self.move_linear(away, max_velocity=max(speed, 0.01))
+        finally:
+            self._ctl.end_watch()
+        if found is None:
+            here = self.tool_pose()
+            return Contact(False, watch.peak, here[:3, 3], np.zeros(6), float((here[:3, 3] - start[:3, 3]) @ d), here)
+        return Contact(True, found[0], found[1], found[2], found[3], self.tool_pose())
 
     @property
     def moving(self) -> bool:

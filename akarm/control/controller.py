@@ -48,6 +48,7 @@ from akarm.control.collision import CollisionReflex, reflex_for
 from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Refusal
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
+from akarm.control.guard import ContactWatch
 from akarm.control.impedance import ImpedanceLaw
 from akarm.control.joints import Joint, make_joint
 from akarm.control.loop import ControlLoop, StatsSummary, collector_paused, keep_from_collections
@@ -180,6 +181,9 @@ class Controller:
         # a torque law (impedance, akarm.control.impedance): its torque each cycle, kp = 0 meanwhile
         self.law: ImpedanceLaw | None = None
         self._saved_gains = (self._kp.copy(), self._kd.copy(), np.zeros(n))  # (kp, kd, thresholds) before it
+        # a guarded move's contact watch (akarm.control.guard), the collision thresholds it suspended
+        self.watch: ContactWatch | None = None
+        self._watch_thresholds = np.zeros(n)
         # the robot file's walls: the tool measured outside them is a safety stop (akarm.control.walls)
         self.walls = WallGuard(model, config.workspace) if config.workspace is not None else None
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
@@ -489,6 +493,7 @@ class Controller:
         self.enabler.abandon()
         self.motions.cancel()
         self._drop_law()  # (impedance: the arm is damped now; its gains are back for the next enable)
+        self.end_watch()
 
     def _require_active(self) -> None:
         """(Under the lock) raise the fault, or a StateError, unless the arm is still active: a stop may
@@ -670,6 +675,26 @@ class Controller:
             if reaction is not None:
                 self.reflex.set_reaction(reaction)
 
+    # -- guarded moves: a contact watch ------------------------------------------------------------
+    def begin_watch(self, watch: ContactWatch) -> None:
+        """Watch for contact (a guarded move) from the next cycle; the collision thresholds are suspended
+        meanwhile (the contact is expected: the watch stops the arm instead)."""
+        with self.lock:
+            self._require_active()
+            if self.watch is None:
+                self._watch_thresholds = self.reflex.thresholds.copy()
+                self.reflex.set_thresholds([None] * self.n)
+            self.watch = watch
+
+    def end_watch(self) -> None:
+        """(Any thread; under the lock) No contact watch: the collision thresholds are back."""
+        with self.lock:
+            if self.watch is None:
+                return
+            self.watch = None
+            self.reflex.set_thresholds([None if math.isinf(x) else float(x)
+                                        for x in self._watch_thresholds.tolist()])
+
     # -- impedance: a torque law -------------------------------------------------------------------
     def begin_torque_law(self, law: ImpedanceLaw, kd: Sequence[float]) -> None:
         """Hold still, then from the next cycle on send ``law``'s torque (on top of the arm's weight at the
@@ -843,6 +868,10 @@ class Controller:
         walls = self.walls
         if stop is None and walls is not None:
             stop = walls.check(now, fb[0], qd)
+        watch = self.watch
+        if stop is None and watch is not None and watch.step(fb[0], self.reflex.estimate_list):
+            # a guarded move felt its contact: stop (jerk-limited, from this cycle's command) and hold
+            self.motions.replace(Plan([self.planner.stop(self.des, t)]), None)
         law = self.law
         if stop is None and law is not None:  # impedance: this cycle's torque from the measured state
             out = law.step(t, fb[0], fb[1])

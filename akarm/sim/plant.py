@@ -102,6 +102,7 @@ class Plant:
         self._wrench: np.ndarray | None = None  # N, N·m at the tool frame's origin, base axes (set_external_wrench)
         self._surface: tuple[float, float, float] | None = None  # (height m, N/m, N·s/m): set_surface
         self.contact_force = 0.0  # N: the surface's push on the tool, last step
+        self.contact_peak = 0.0  # N: its largest since the surface was set
         self.blocked: dict[int, float] = {}  # joint index → the position it is held at (mechanically blocked)
         self._drivers: list[SimulatedDriver] = []
         # config order is Pinocchio's order and q/v hold nothing else: no mapping in the step
@@ -181,6 +182,7 @@ class Plant:
             raise ModelError(f"a surface needs a finite height, a stiffness > 0 and a damping >= 0, got {values}",
                              fix="e.g. set_surface(0.3, stiffness=2e4, damping=200)")
         self._surface = values
+        self.contact_peak = 0.0
 
     def _contact(self) -> list[float]:
         """The joint torques of the external wrench and the surface this step, N·m."""
@@ -193,6 +195,7 @@ class Plant:
             if z < height:
                 vz = float(J[2] @ self.dq)
                 self.contact_force = max(0.0, k * (height - z) - d * vz)
+                self.contact_peak = max(self.contact_peak, self.contact_force)
                 w[2] += self.contact_force
         return (np.asarray(self._external) + J.T @ w).tolist()
 

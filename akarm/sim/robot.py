@@ -442,6 +442,11 @@ class SimulatedRobot:
         """The surface's push on the tool at the last step, N (0 off it)."""
         return self.plant.contact_force
 
+    @property
+    def contact_peak(self) -> float:
+        """The surface's largest push on the tool since :meth:`set_surface`, N."""
+        return self.plant.contact_peak
+
     def clear_payload(self) -> None:
         """Remove the payload."""
         self.set_payload(0.0)

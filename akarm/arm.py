@@ -45,6 +45,7 @@ from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
 from akarm.dynamics.model import RobotModel
+from akarm.dynamics.selfcollision import SelfCollision
 from akarm.errors import (
     ArgumentError,
     CollisionError,
@@ -228,7 +229,8 @@ class Arm:
                  range_margin: float = 0.05, implausible_limit: int = 3,
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN,
-                 remember_positions: bool | str | PathLike[str] = True) -> None:
+                 remember_positions: bool | str | PathLike[str] = True, self_collision: str | None = None,
+                 self_collision_margin: float = 0.0) -> None:
         for name, flag in (("realtime_priority", realtime_priority), ("friction_feedforward", friction_feedforward),
                            ("busy_wait", busy_wait)):
             if not isinstance(flag, bool | np.bool_):
@@ -272,6 +274,9 @@ class Arm:
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ik_solver: IKSolver | None = None
+        self.self_collision: SelfCollision | None = None
+        if self_collision is not None:
+            self.self_collision = SelfCollision(config, self_collision, self_collision_margin)  # type: ignore[arg-type]
         self._ctl = Controller(config, self.model, self.planner, self.clock, options)
         self.joints: list[Joint] = self._ctl.joints
         self._observe = ControllerView(self._ctl)
@@ -450,14 +455,17 @@ class Arm:
         """Plan (``make_plan(start, t)``) and follow; a plan whose path takes the tool outside the robot
         file's ``workspace:`` is refused before anything moves (:func:`akarm.motion.walls.check_path`; not
         a stop: ``walls=False``)."""
-        workspace = self.config.workspace
-        if workspace is None or not walls:
+        workspace, sc = self.config.workspace, self.self_collision
+        if (workspace is None and sc is None) or not walls:
             return self._ctl.start(make_plan)
-        from akarm.motion.walls import check_path
+        from akarm.motion.walls import check_path, path_samples
 
         def checked(start: State, now: float) -> Timed:
             plan = make_plan(start, now)
-            check_path(self.ik.model, workspace, plan)
+            if workspace is not None:
+                check_path(self.ik.model, workspace, plan)
+            if sc is not None:
+                sc.check_path(path_samples(plan), sc.collides(start[0]))
             return plan
 
         return self._ctl.start(checked)
@@ -671,8 +679,10 @@ class Arm:
             raise ArgumentError(f"frame must be \"base\" or \"tool\", got {frame!r}",
                                 fix="the axes a twist is given in: frame=\"base\" or frame=\"tool\"")
         self._ctl.require_enabled()
+        sc = self.self_collision
         stream = ServoStream(RobotModel(self.config), self.limits, self.config.workspace, 1.0 / self.config.rate_hz,
-                             timeout, "tool" if frame == "tool" else "base", max_speed, max_rotation)
+                             timeout, "tool" if frame == "tool" else "base", max_speed, max_rotation,
+                             None if sc is None else SelfCollision(self.config, sc.source, sc.margin))  # type: ignore[arg-type]
 
         def start(s: ServoStream) -> Motion:
             return self._start(s.begin, walls=False)

@@ -39,10 +39,12 @@ import ruckig
 from akarm.config.workspace import Workspace
 from akarm.dynamics.ik import ROTATION_WEIGHT, as_pose
 from akarm.dynamics.model import RobotModel
+from akarm.dynamics.selfcollision import SelfCollision
 from akarm.errors import ArgumentError, StateError
 from akarm.motion.trajectory import JointLimits, State, Timed
 
 __all__ = [
+    "COLLISION_LOOK_AHEAD",
     "DAMPING",
     "FEEDBACK_GAIN",
     "GOAL_LEAD",
@@ -77,18 +79,20 @@ RANGE_MARGIN = 0.05
 #: m short of a wall the tool stops, and the deceleration it brakes for a wall with, m/s²
 WALL_STOP = 0.002
 WALL_DECELERATION = 0.5
+#: s ahead servoing looks for the arm colliding with itself (it stops short of that pose)
+COLLISION_LOOK_AHEAD = 0.25
 #: the fraction of each joint's velocity limit servoing uses (the tracking adds a little)
 VELOCITY_SHARE = 0.9
 
-Reason = Literal["", "no command", "singularity", "joint limit", "wall", "ended"]
+Reason = Literal["", "no command", "singularity", "joint limit", "wall", "collision", "ended"]
 
 
 @dataclass(frozen=True)
 class ServoStatus:
     """What servoing does now: ``state`` ``"ok"``, ``"slowing"`` or ``"stopped"``; ``reason`` why it slows
-    or stopped (``"singularity"``, ``"joint limit"``, ``"wall"``, ``"no command"``, ``"ended"``; ``""``
-    when ok); ``scale``: the share of the commanded speed it goes at (0..1); ``joint``: the joint at its
-    limit, if that is the reason."""
+    or stopped (``"singularity"``, ``"joint limit"``, ``"wall"``, ``"collision"``: the arm against itself,
+    ``"no command"``, ``"ended"``; ``""`` when ok); ``scale``: the share of the commanded speed it goes at
+    (0..1); ``joint``: the joint at its limit, if that is the reason."""
 
     state: Literal["ok", "slowing", "stopped"]
     reason: Reason = ""
@@ -120,11 +124,13 @@ class ServoStream(Timed):
         timeout: s without a command after which the arm comes to rest and holds.
         frame: ``"base"`` or ``"tool"``: the axes a twist is in.
         max_speed, max_rotation: m/s and rad/s the tool goes at most.
+        collision: the arm's self-collision check (its own: the loop's thread uses it), or ``None``.
     """
 
     def __init__(self, model: RobotModel, limits: JointLimits, walls: Workspace | None, period: float, timeout: float,
-                 frame: Literal["base", "tool"], max_speed: float, max_rotation: float) -> None:
-        self.model, self.limits, self.walls = model, limits, walls
+                 frame: Literal["base", "tool"], max_speed: float, max_rotation: float,
+                 collision: SelfCollision | None = None) -> None:
+        self.model, self.limits, self.walls, self.collision = model, limits, walls, collision
         self.period, self.timeout, self.frame = period, timeout, frame
         self.max_speed, self.max_rotation = max_speed, max_rotation
         n = len(limits.names)
@@ -271,25 +277,29 @@ class ServoStream(Timed):
             s = self.max_rotation / ang
         return twist * s
 
+    def _singular_scale(self, dq: np.ndarray, velocity: np.ndarray) -> float:
+        """The share of ``dq`` the arm may go at for a singularity ahead: the joint speed this command needs
+        per tool speed (its stretch r) growing. x = 1/r - 1/STRETCH_STOP falls to 0 at the stop;
+        extrapolated along dq, it gets there after D rad of joint travel, and the joints go no faster
+        than they can brake in D (at half their acceleration)."""
+        stretch = self._stretch(dq, velocity)
+        size = float(np.linalg.norm(dq))
+        if stretch <= STRETCH_LOOK or size <= 1e-12:
+            return 1.0
+        ahead = self._stretch(self._dls(self.model.jacobian(self.q + dq * (LOOK_STEP / size)), velocity), velocity)
+        x_now, x_ahead = 1.0 / stretch - 1.0 / STRETCH_STOP, 1.0 / max(ahead, 1e-9) - 1.0 / STRETCH_STOP
+        if x_ahead >= x_now:  # away from it
+            return 1.0
+        room = LOOK_STEP * x_now / (x_now - x_ahead) if x_now > 0.0 else 0.0
+        room -= float(np.linalg.norm(self.v)) * self._brake_lag
+        allowed = math.sqrt(self._a_brake * max(0.0, room))
+        return min(1.0, allowed / size)
+
     def _scaled(self, dq: np.ndarray, velocity: np.ndarray, T: np.ndarray,
                 J: np.ndarray) -> tuple[np.ndarray, ServoStatus]:
         """``dq`` scaled down (as one vector) for the velocity limits, a singularity, the ranges and the walls."""
-        scale, reason, joint = 1.0, "", None
-        # a singularity ahead: the joint speed this command needs per tool speed (its stretch r) growing.
-        # x = 1/r - 1/STRETCH_STOP falls to 0 at the stop; extrapolated along dq, it gets there after D rad
-        # of joint travel, and the joints go no faster than they can brake in D (at half their acceleration)
-        stretch = self._stretch(dq, velocity)
-        size = float(np.linalg.norm(dq))
-        if stretch > STRETCH_LOOK and size > 1e-12:
-            step = LOOK_STEP / size
-            ahead = self._stretch(self._dls(self.model.jacobian(self.q + dq * step), velocity), velocity)
-            x_now, x_ahead = 1.0 / stretch - 1.0 / STRETCH_STOP, 1.0 / max(ahead, 1e-9) - 1.0 / STRETCH_STOP
-            if x_ahead < x_now:  # toward it
-                room = LOOK_STEP * x_now / (x_now - x_ahead) if x_now > 0.0 else 0.0
-                room -= float(np.linalg.norm(self.v)) * self._brake_lag
-                allowed = math.sqrt(self._a_brake * max(0.0, room))
-                if size > allowed:
-                    scale, reason = allowed / size, "singularity"
+        scale = self._singular_scale(dq, velocity)
+        reason, joint = ("singularity" if scale < 1.0 else ""), None
         big = np.abs(dq)
         s_vel = float(np.min(np.where(big > 1e-12, self._v_cap / np.maximum(big, 1e-12), np.inf), initial=1.0))
         dq = dq * min(1.0, s_vel)
@@ -313,6 +323,12 @@ class ServoStream(Timed):
                 allowed = math.sqrt(2.0 * WALL_DECELERATION * max(0.0, depth - WALL_STOP))
                 if vn * scale > allowed:
                     scale, reason, joint = allowed / vn, "wall", None
+        # the arm against itself: stop short of a pose that collides a braking time ahead
+        sc = self.collision
+        if sc is not None and scale > 0.0:
+            reach = self.q + dq * scale * COLLISION_LOOK_AHEAD
+            if sc.collides(reach) and not sc.collides(self.q):
+                scale, reason, joint = 0.0, "collision", None
         if scale >= 0.999:
             return dq, ServoStatus("ok", "", 1.0)
         state: Literal["slowing", "stopped"] = "stopped" if scale < 0.01 else "slowing"

@@ -17,7 +17,7 @@ from akarm.dynamics.model import RobotModel
 from akarm.errors import LimitError
 from akarm.motion.trajectory import Timed
 
-__all__ = ["MAX_WALL_SAMPLES", "WALL_STEP", "WALL_TOLERANCE", "check_path"]
+__all__ = ["MAX_WALL_SAMPLES", "WALL_STEP", "WALL_TOLERANCE", "check_path", "path_samples"]
 
 #: s between the samples of a plan checked against the walls (the tool moves < 1 m/s: < 5 mm between)
 WALL_STEP = 0.005
@@ -25,6 +25,15 @@ WALL_STEP = 0.005
 MAX_WALL_SAMPLES = 20000
 #: m a path may touch past a wall (rounding)
 WALL_TOLERANCE = 1e-6
+
+
+def path_samples(plan: Timed, step: float = 0.01, most: int = 5000) -> list[tuple[float, np.ndarray]]:
+    """``(t, q)``: ``plan``'s joint positions every ``step`` s from its start (at most ``most`` of them,
+    the ends included); none for a live stream (servoing checks itself every cycle)."""
+    if not math.isfinite(plan.duration):
+        return []
+    n = min(most, max(2, math.ceil(plan.duration / step) + 1))
+    return [(float(t) - plan.t0, np.asarray(plan.sample(float(t))[0])) for t in np.linspace(plan.t0, plan.t_end, n)]
 
 
 def check_path(model: RobotModel, walls: Workspace, plan: Timed) -> None:

@@ -170,6 +170,13 @@ class ServoStream(Timed):
         self.t0 = self.last = t0
         return self
 
+    def shifted(self, dt: float) -> ServoStream:
+        """Start ``dt`` s later (a plan from rest taking over later than planned): the stream itself, its
+        start moved (it has not been sampled yet; a wrapper would keep an end time it cannot change)."""
+        self.t0 += dt
+        self.last += dt
+        return self
+
     def command_twist(self, twist: np.ndarray, stamp: float) -> None:
         with self._lock:
             self.command = _Command("twist", twist, stamp)

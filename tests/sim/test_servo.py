@@ -160,3 +160,26 @@ def test_servo_arguments_and_states_are_checked(channel: str) -> None:
             arm.move_to("ready")  # another motion ends servoing
             with pytest.raises(StateError, match="servoing ended"):
                 s.twist([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+
+
+def test_a_stream_taking_over_late_is_moved_itself_and_still_ends() -> None:
+    """A plan from rest takes over later than planned (real time): the stream moves its own start, so the
+    end it sets when it comes to rest is the one the controller sees (a wrapper kept its endless one)."""
+    from akarm.motion.servo import ServoStream
+    from akarm.motion.trajectory import JointLimits
+
+    lim = [j.limits for j in ARM6.joints]
+    limits = JointLimits(ARM6.joint_names, LOWER, UPPER, V_MAX, np.array([x.acceleration for x in lim]),
+                         np.array([x.jerk for x in lim]))
+    s = ServoStream(FK, limits, None, 1 / 480, 0.1, "base", 0.25, 1.0)
+    assert s.begin((READY, np.zeros(6), np.zeros(6)), 1.0).shifted(0.25) is s
+    assert s.t0 == 1.25 and s.last == 1.25
+    s.command_twist(np.array([0.0, 0.0, 0.05, 0.0, 0.0, 0.0]), 1.25)
+    for k in range(1, 100):
+        s.sample(1.25 + k / 480)
+    s.finish()
+    k = 100
+    while not s.done(1.25 + k / 480) and k < 1000:
+        s.sample(1.25 + k / 480)
+        k += 1
+    assert s.done(1.25 + k / 480) and np.all(s.v == 0.0)

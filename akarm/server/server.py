@@ -630,9 +630,13 @@ class ArmServerCore:
                 m.wait()
 
     def _op_servo_twist(self, twist: list[float], timeout: float = 0.1, frame: str = "base") -> dict[str, Any]:
-        """Servo the tool by a twist (``arm.servo()``): the first command starts a session that later ones
-        go on (another timeout or frame starts a new one); commands that stop for ``timeout`` s bring the
-        arm to rest, holding; a motion, a stop or ``servo_stop`` ends the session. Returns the status."""
+        return self.servo_twist(twist, timeout, frame)
+
+    def servo_twist(self, twist: Sequence[float], timeout: float = 0.1, frame: str = "base") -> dict[str, Any]:
+        """Servo the tool by a twist (``arm.servo()``; the control socket's ``servo_twist``, ROS 2's
+        ``servo/twist``): the first command starts a session that later ones go on (another timeout or
+        frame starts a new one); commands that stop for ``timeout`` s bring the arm to rest, holding; a
+        motion, a stop or ``servo_stop`` ends the session. Returns the status."""
         with self._cmd:
             self._require_commandable()
             s = self._servo

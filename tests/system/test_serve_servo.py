@@ -20,7 +20,7 @@ def test_twists_over_the_socket_steer_the_tool_and_servo_stop_holds_it(channel, 
     config = akarm.load_robot(relaxed_robot(ROBOTS / "arm6.yaml", tmp_path)).with_bus(interface="virtual",
                                                                                       channel=channel)
     fk = RobotModel(config)
-    with SimulatedRobot(config, q0=config.pose("ready")) as sim, akarm.Arm(config) as arm, \
+    with SimulatedRobot(config, q0=config.pose("ready")) as sim, akarm.Arm(config, stall_limit=1.0) as arm, \
             ArmServerCore(arm) as server:
         assert wait_until(lambda: arm.observe.loop.stats.cycles > 50, 10)
         z0 = fk.tool_pose(sim.q)[2, 3]

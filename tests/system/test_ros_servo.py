@@ -11,12 +11,12 @@ import pytest
 
 pytest.importorskip("cyclonedds")
 
-import akarm  # noqa: E402
-from akarm.dynamics.model import RobotModel  # noqa: E402
-from akarm.ros import dds, msgs  # noqa: E402
-from akarm.sim import SimulatedRobot  # noqa: E402
+import akarm
+from akarm.dynamics.model import RobotModel
+from akarm.ros import dds, msgs
+from akarm.sim import SimulatedRobot
 
-from .conftest import ROBOTS, relaxed_robot, wait_until  # noqa: E402
+from .conftest import ROBOTS, relaxed_robot, wait_until
 
 DOMAIN = 100 + os.getpid() % 40
 

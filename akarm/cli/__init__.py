@@ -33,7 +33,6 @@ VERBS: dict[str, tuple[str, str]] = {
     "move": ("akarm.cli.move", "move to a named pose or to joint values"),
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording or a dataset's episode, checked against the limits first"),
-    "servo": ("akarm.cli.servo", "steer the tool live with a SpaceMouse (spacemouse extra)"),
     "teleop": ("akarm.cli.teleop", "a hand guides a leader arm, a follower copies it; record episodes (LeRobot)"),
     "serve": ("akarm.cli.serve", "hold the arm and serve it to the CLI and to ROS 2 (DDS) until stopped"),
     "ros-config": ("akarm.cli.ros_config", "print or write what MoveIt needs to drive akarm serve for a robot"),

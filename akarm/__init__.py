@@ -27,6 +27,7 @@ from akarm.errors import (
     ConfigError,
     ConfigProblem,
     ConfigWarning,
+    DeviationError,
     DriverReset,
     DuplicateCanId,
     FeedbackTimeout,
@@ -60,6 +61,7 @@ from akarm.errors import (
     UnknownMotorError,
     UnreachableError,
     WiringError,
+    WorkspaceExit,
 )
 
 compiled.choose_at_import()  # AKARM_PURE=1, or compiled modules older than their sources: pure Python
@@ -85,6 +87,7 @@ __all__ = [
     "ConfigError",
     "ConfigProblem",
     "ConfigWarning",
+    "DeviationError",
     "DriverReset",
     "DuplicateCanId",
     "FeedbackTimeout",
@@ -124,6 +127,7 @@ __all__ = [
     "UnknownMotorError",
     "UnreachableError",
     "WiringError",
+    "WorkspaceExit",
     "__version__",
     "load_robot",
     "serve",

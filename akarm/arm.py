@@ -34,6 +34,8 @@ from akarm.control.collision import DEFAULT_GAIN, Reaction
 from akarm.control.controller import Controller
 from akarm.control.feedforward import FeedForwardKind
 from akarm.control.gripper import Gripper
+from akarm.control.guard import Contact
+from akarm.control.impedance import Impedance
 from akarm.control.joints import Joint
 from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
@@ -44,6 +46,7 @@ from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
 from akarm.dynamics.model import RobotModel
+from akarm.dynamics.selfcollision import SelfCollision
 from akarm.errors import (
     ArgumentError,
     CollisionError,
@@ -60,6 +63,7 @@ from akarm.errors import (
 from akarm.motion import recording as rec_mod
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
 from akarm.motion.cartesian import plan_linear
+from akarm.motion.servo import Servo, ServoStream
 from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner, Timed
 from akarm.telemetry.log import TelemetryLog
 from akarm.timing import TimingProfile, get_profile
@@ -227,7 +231,8 @@ class Arm:
                  range_margin: float = 0.05, implausible_limit: int = 3,
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN,
-                 remember_positions: bool | str | PathLike[str] = True) -> None:
+                 remember_positions: bool | str | PathLike[str] = True, self_collision: str | None = None,
+                 self_collision_margin: float = 0.0) -> None:
         for name, flag in (("realtime_priority", realtime_priority), ("friction_feedforward", friction_feedforward),
                            ("busy_wait", busy_wait)):
             if not isinstance(flag, bool | np.bool_):
@@ -271,6 +276,9 @@ class Arm:
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ik_solver: IKSolver | None = None
+        self.self_collision: SelfCollision | None = None
+        if self_collision is not None:
+            self.self_collision = SelfCollision(config, self_collision, self_collision_margin)  # type: ignore[arg-type]
         self._ctl = Controller(config, self.model, self.planner, self.clock, options)
         self.joints: list[Joint] = self._ctl.joints
         self._observe = ControllerView(self._ctl)
@@ -447,8 +455,24 @@ class Arm:
         return np.array([finite_number(v, what, joint=name, unit=unit, at_least=at_least)
                          for v, name in zip(items, self.names, strict=True)])
 
-    def _start(self, make_plan: Callable[[State, float], Timed]) -> Motion:
-        return self._ctl.start(make_plan)
+    def _start(self, make_plan: Callable[[State, float], Timed], *, walls: bool = True) -> Motion:
+        """Plan (``make_plan(start, t)``) and follow; a plan whose path takes the tool outside the robot
+        file's ``workspace:`` is refused before anything moves (:func:`akarm.motion.walls.check_path`; not
+        a stop: ``walls=False``)."""
+        workspace, sc = self.config.workspace, self.self_collision
+        if (workspace is None and sc is None) or not walls:
+            return self._ctl.start(make_plan)
+        from akarm.motion.walls import check_path, path_samples
+
+        def checked(start: State, now: float) -> Timed:
+            plan = make_plan(start, now)
+            if workspace is not None:
+                check_path(self.ik.model, workspace, plan)
+            if sc is not None:
+                sc.check_path(path_samples(plan), sc.collides(start[0]))
+            return plan
+
+        return self._ctl.start(checked)
 
     def move_to(self, target: Target, speed: float = 1.0, wait: bool = True) -> Motion:
         """Move to ``target``: jerk-limited, every joint arriving together.
@@ -522,7 +546,7 @@ class Arm:
 
     def stop(self, wait: bool = True) -> Motion:
         """Bring the commanded motion to rest, jerk-limited, and hold there."""
-        return self._run(self._start(lambda start, now: Plan([self.planner.stop(start, now)])), wait)
+        return self._run(self._start(lambda start, now: Plan([self.planner.stop(start, now)]), walls=False), wait)
 
     def hold(self) -> None:
         """Hold the current commanded position (stopping, jerk-limited, first if moving)."""
@@ -631,6 +655,159 @@ class Arm:
             return plan.at(now)
 
         return self._run(self._start(make), wait)
+
+    def servo(self, timeout: float = 0.1, frame: str = "base", *, max_speed: float = 0.25,
+              max_rotation: float = 1.0) -> Servo:
+        """Steer the tool live: ``with arm.servo() as s: s.twist([vx, vy, vz, wx, wy, wz])`` or
+        ``s.pose(T)``, at any rate up to the loop's (:mod:`akarm.motion.servo`).
+
+        Every cycle the command becomes joint motion by damped least squares, within each joint's
+        velocity, acceleration and jerk limits and its range less a margin; near a singularity, a joint
+        limit or a wall of ``workspace:`` the arm slows and stops short (``s.status`` says which).
+        Commands that stop coming for ``timeout`` s bring it to rest, jerk-limited, and hold it; the next
+        resumes. Leaving the block brings it to rest and holds. Another motion (or a stop) ends servoing.
+
+        Args:
+            timeout: s a command lasts. frame: ``"base"`` or ``"tool"``: the axes of a twist.
+            max_speed, max_rotation: m/s and rad/s the tool goes at most (a faster twist is scaled down).
+
+        Raises:
+            ArgumentError: a timeout, speed or rotation that is not a finite number > 0, an unknown frame.
+            StateError: the arm is not enabled.
+        """
+        timeout = finite_number(timeout, "servo timeout", above=0.0, unit="s", fix="e.g. timeout=0.1")
+        max_speed = finite_number(max_speed, "servo max_speed", above=0.0, unit="m/s", fix="e.g. max_speed=0.25")
+        max_rotation = finite_number(max_rotation, "servo max_rotation", above=0.0, unit="rad/s",
+                                     fix="e.g. max_rotation=1.0")
+        if frame not in ("base", "tool"):
+            raise ArgumentError(f"frame must be \"base\" or \"tool\", got {frame!r}",
+                                fix="the axes a twist is given in: frame=\"base\" or frame=\"tool\"")
+        self._ctl.require_enabled()
+        sc = self.self_collision
+        stream = ServoStream(RobotModel(self.config), self.limits, self.config.workspace, 1.0 / self.config.rate_hz,
+                             timeout, "tool" if frame == "tool" else "base", max_speed, max_rotation,
+                             None if sc is None else SelfCollision(self.config, sc.source, sc.margin))  # type: ignore[arg-type]
+
+        def start(s: ServoStream) -> Motion:
+            return self._start(s.begin, walls=False)
+
+        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model)
+
+    def impedance(self, stiffness: Sequence[float] | None = None, damping_ratio: float = 1.0, *,
+                  joint_stiffness: Sequence[float] | None = None, max_deviation: tuple[float, float] = (0.1, 0.5),
+                  joint_damping: float = 0.3) -> Impedance:
+        """Make the arm soft about where it is: ``with arm.impedance(stiffness=[kx, ky, kz, krx, kry, krz]) as
+        imp:`` holds the tool there as a spring-damper (N/m, N·m/rad, base axes; damping ``damping_ratio``
+        of critical), or with ``joint_stiffness=[...]`` (N·m/rad per joint) each joint
+        (:mod:`akarm.control.impedance`). The torque is computed every cycle from the measured state and
+        sent as the MIT feed-forward with kp = 0, the arm's weight carried; a null-space posture keeps
+        redundant joints where they were. ``imp.set_target(...)``, ``imp.set_stiffness(...)``,
+        ``imp.wrench()`` (the external wrench, from the collision observer). Meanwhile the collision
+        reflex only watches (a push is the point); a deviation from the target past ``max_deviation``
+        (m, rad; a joint's in rad under joint impedance) is a :class:`~akarm.DeviationError` safety stop.
+        Leaving the block holds the arm where it is, stiff again.
+
+        Args:
+            joint_damping: each joint's own damping meanwhile, N·m·s/rad (the MIT kd, at most its motor's).
+
+        Raises:
+            ArgumentError: not exactly one of ``stiffness`` (6 values) and ``joint_stiffness`` (one per
+                joint), values that are not finite and ≥ 0, a damping ratio or bound that is not > 0.
+            StateError: the arm is not enabled, or a joint is in servo mode (no torque control).
+        """
+        from akarm.control.impedance import ImpedanceLaw, stiffness_values
+
+        if (stiffness is None) == (joint_stiffness is None):
+            raise ArgumentError("give either stiffness (Cartesian: 6 values) or joint_stiffness (one per joint)",
+                                fix="e.g. arm.impedance(stiffness=[500, 500, 500, 20, 20, 20])")
+        k = None if stiffness is None else stiffness_values(stiffness, 6, "stiffness")
+        kj = None if joint_stiffness is None else stiffness_values(joint_stiffness, self.n, "joint_stiffness")
+        zeta = finite_number(damping_ratio, "damping_ratio", above=0.0, fix="e.g. 1.0: critically damped")
+        try:
+            bound = (finite_number(max_deviation[0], "max_deviation", above=0.0, unit="m"),
+                     finite_number(max_deviation[1], "max_deviation", above=0.0, unit="rad"))
+        except (TypeError, IndexError, KeyError):
+            raise ArgumentError(f"max_deviation must be (m, rad), got {max_deviation!r}", fix="e.g. (0.1, 0.5)") \
+                from None
+        kd = finite_number(joint_damping, "joint_damping", at_least=0.0, unit="N·m·s/rad", fix="e.g. 0.3")
+        for j in self.joints:
+            if not j.answers_commands:
+                raise StateError("impedance needs torque control, and this joint is in servo mode",
+                                 joint=j.name, fix="drive it in MIT mode (`mode: mit` in the robot file)")
+        self._ctl.require_enabled()
+        self.hold()
+        fr = [j.friction_model() for j in self.config.joints]
+        on = 1.0 if self._ctl.options.friction_compensated else 0.0
+        law = ImpedanceLaw(RobotModel(self.config, armature=True), self.names, self._ctl.torque_limit,
+                           np.array([j.state.position for j in self.joints]), k, kj, zeta, bound,
+                           [f.coulomb * on for f in fr], [f.viscous * on for f in fr])
+        kds = [min(kd, j.motor.kd_max) for j in self.joints]
+
+        def measured() -> np.ndarray:
+            with self._ctl.lock:
+                return np.array([j.state.position for j in self.joints])
+
+        return Impedance(self._ctl, law, kds, self.ik.model, measured)
+
+    def move_until_contact(self, direction: Sequence[float], speed: float = 0.02, force: float = 5.0, *,
+                           max_distance: float = 0.2, back_off: float = 0.0) -> Contact:
+        """A guarded move: the tool in a straight line along ``direction`` (base frame; its length does not
+        matter) at ``speed`` m/s, its orientation kept, until the external force against the motion reaches
+        ``force`` N (from the collision observer's estimate, :mod:`akarm.control.guard`); then it stops,
+        jerk-limited (the collision reflex's "stop and report"), goes back to where it touched (its
+        command went on past it as far as the arm gave), or ``back_off`` m short of it, and holds there.
+        At most ``max_distance`` m. Meanwhile the collision thresholds are suspended:
+        a force of twice ``force`` in any direction stops the move too.
+
+        Returns:
+            the :class:`~akarm.control.guard.Contact`: whether it touched, where (measured), with what force.
+
+        Raises:
+            ArgumentError: a direction that is not 3 finite numbers (not all 0), a speed, force or distance
+                that is not a finite number > 0 (back_off ≥ 0).
+            StateError: the arm is moving or not enabled. LimitError, UnreachableError, SingularityError:
+                the line is refused before anything moves (as :meth:`move_linear`'s).
+        """
+        from akarm.control.guard import ContactWatch
+
+        try:
+            d = np.asarray(direction, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            d = np.full(0, math.nan)
+        if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.linalg.norm(d) > 0:
+            raise ArgumentError(f"direction must be 3 finite numbers, not all 0 (base frame), got {direction!r}",
+                                fix="e.g. [0, 0, -1]: down")
+        d = d / np.linalg.norm(d)
+        speed = finite_number(speed, "speed", above=0.0, unit="m/s", fix="e.g. speed=0.02")
+        force = finite_number(force, "force", above=0.0, unit="N", fix="e.g. force=5.0")
+        max_distance = finite_number(max_distance, "max_distance", above=0.0, unit="m", fix="e.g. 0.2")
+        back_off = finite_number(back_off, "back_off", at_least=0.0, unit="m", fix="e.g. 0.005, or 0 to hold")
+        start = self.ik.model.tool_pose(self._ctl.desired_now()[0])
+        end = start.copy()
+        end[:3, 3] += d * max_distance
+        watch = ContactWatch(RobotModel(self.config), d, force, start[:3, 3])
+        self._ctl.begin_watch(watch)
+        try:
+            motion = self.move_linear(end, wait=False, max_velocity=speed)
+            while not motion.done and not watch.fired:
+                self.sleep(1.0 / self.config.rate_hz)
+            found = watch.found
+            if found is None:
+                motion.wait()
+            else:
+                while self.moving:  # the stop, to rest
+                    self.sleep(1.0 / self.config.rate_hz)
+                # the command went on past the contact as far as the arm gave: back to where it touched
+                # (less back_off), so that it holds there without pressing
+                away = self.ik.model.tool_pose(self._ctl.desired_now()[0])
+                away[:3, 3] = found[1] - d * back_off
+                self.move_linear(away, max_velocity=max(speed, 0.01))
+        finally:
+            self._ctl.end_watch()
+        if found is None:
+            here = self.tool_pose()
+            return Contact(False, watch.peak, here[:3, 3], np.zeros(6), float((here[:3, 3] - start[:3, 3]) @ d), here)
+        return Contact(True, found[0], found[1], found[2], found[3], self.tool_pose())
 
     @property
     def moving(self) -> bool:

@@ -63,6 +63,7 @@ __all__ = [
     "ConfigError",
     "ConfigProblem",
     "ConfigWarning",
+    "DeviationError",
     "DriverReset",
     "DuplicateCanId",
     "FeedbackTimeout",
@@ -96,6 +97,7 @@ __all__ = [
     "UnknownMotorError",
     "UnreachableError",
     "WiringError",
+    "WorkspaceExit",
     "did_you_mean",
     "finite_number",
     "num",
@@ -507,6 +509,39 @@ class NotSettled(SafetyStop):
     def __init__(self, what: str, *, speed: float, limit: float, joint: str | None = None, fix: str = "") -> None:
         self.speed = speed
         self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class DeviationError(SafetyStop):
+    """Under impedance control (``arm.impedance()``) the tool (or a joint) was further from its target than
+    the bound the impedance was started with: the arm was pushed far away, or is held; the arm was
+    damped and disabled rather than pulled back with ever more torque.
+
+    Attributes:
+        deviation: how far, m (position), rad (orientation, or a joint). limit: the bound, same unit.
+    """
+
+    def __init__(self, what: str, *, deviation: float, limit: float, joint: str | None = None, fix: str = "") -> None:
+        self.deviation = deviation
+        self.limit = limit
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class WorkspaceExit(SafetyStop):
+    """The tool frame's origin was measured outside the robot file's ``workspace:`` by more than its
+    ``margin`` (further out than its command: the arm was pushed out, or lags far behind); the arm was
+    damped and disabled.
+
+    Attributes:
+        distance: how far outside the workspace the tool was measured, m. margin: the margin, m.
+        position: the measured tool position (x, y, z), m, base frame.
+    """
+
+    def __init__(self, what: str, *, distance: float, margin: float, position: tuple[float, float, float],
+                 joint: str | None = None, fix: str = "") -> None:
+        self.distance = distance
+        self.margin = margin
+        self.position = position
         super().__init__(what, joint=joint, fix=fix)
 
 

@@ -32,6 +32,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "zero": ("akarm.cli.zero", "make a joint's current position its zero"),
     "move": ("akarm.cli.move", "move to a named pose or to joint values"),
     "grip": ("akarm.cli.grip", "open, close or move the gripper's jaws (force-limited)"),
+    "servo": ("akarm.cli.servo", "steer the tool live with a SpaceMouse (spacemouse extra)"),
     "teach": ("akarm.cli.teach", "hand-guide the arm and record keyframes or a continuous path"),
     "replay": ("akarm.cli.replay", "replay a recording or a dataset's episode, checked against the limits first"),
     "teleop": ("akarm.cli.teleop", "a hand guides a leader arm, a follower copies it; record episodes (LeRobot)"),

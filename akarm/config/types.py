@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
+from akarm.config.workspace import Workspace
 from akarm.errors import ArgumentError, ConfigError, ConfigProblem, did_you_mean
 from akarm.protocol.motors import Catalogue, MotorModel
 
@@ -371,6 +372,8 @@ class RobotConfig:
             position, gravity above a motor's rated torque, ...), each with its line and a fix.
         gripper: the gripper (:class:`GripperConfig`), ``None`` without one. Its motor is never one of
             ``joints``: every joint vector of the arm leaves it out.
+        workspace: the walls the tool frame's origin stays within (``workspace:``;
+            :class:`~akarm.config.workspace.Workspace`), or ``None``: no walls.
     """
 
     name: str
@@ -387,6 +390,7 @@ class RobotConfig:
     locked: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[ConfigProblem, ...] = ()
     gripper: GripperConfig | None = None
+    workspace: Workspace | None = None
 
     @property
     def motors(self) -> tuple[JointConfig, ...]:

@@ -49,6 +49,8 @@ from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Ref
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
 from akarm.control.gripper import GripperDrive
+from akarm.control.guard import ContactWatch
+from akarm.control.impedance import ImpedanceLaw
 from akarm.control.joints import Joint, make_joint
 from akarm.control.loop import ControlLoop, StatsSummary, collector_paused, keep_from_collections
 from akarm.control.modes import Mode, ModeMachine
@@ -56,6 +58,7 @@ from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
 from akarm.control.turns import PositionMemory, stays_put
+from akarm.control.walls import WallGuard
 from akarm.dynamics.model import RobotModel
 from akarm.errors import (
     AkarmError,
@@ -196,6 +199,14 @@ class Controller:
                                settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
                                at_contact=self._turn_check, lag=options.timing.lag)
         self.reflex = self._make_reflex()
+        # a torque law (impedance, akarm.control.impedance): its torque each cycle, kp = 0 meanwhile
+        self.law: ImpedanceLaw | None = None
+        self._saved_gains = (self._kp.copy(), self._kd.copy(), np.zeros(n))  # (kp, kd, thresholds) before it
+        # a guarded move's contact watch (akarm.control.guard), the collision thresholds it suspended
+        self.watch: ContactWatch | None = None
+        self._watch_thresholds = np.zeros(n)
+        # the robot file's walls: the tool measured outside them is a safety stop (akarm.control.walls)
+        self.walls = WallGuard(model, config.workspace) if config.workspace is not None else None
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,
                                 on_crash=self._crashed)
@@ -506,6 +517,8 @@ class Controller:
         self._releases = 0
         self.enabler.abandon()
         self.motions.cancel()
+        self._drop_law()  # (impedance: the arm is damped now; its gains are back for the next enable)
+        self.end_watch()
 
     def _require_active(self) -> None:
         """(Under the lock) raise the fault, or a StateError, unless the arm is still active: a stop may
@@ -528,6 +541,9 @@ class Controller:
                 :data:`PLAN_ATTEMPTS` plans. Whatever ``make_plan`` raises (nothing is changed).
         """
         self.require_enabled()
+        if self.law is not None:
+            raise StateError("the arm is under impedance control: it follows no planned motion",
+                             fix="leave the `with arm.impedance(...)` block first, or move its target (set_target)")
         ahead = 0.0  # plan time between now and where the new plan starts
         for _ in range(PLAN_ATTEMPTS):
             with self.lock:
@@ -684,6 +700,65 @@ class Controller:
             if reaction is not None:
                 self.reflex.set_reaction(reaction)
 
+    # -- guarded moves: a contact watch ------------------------------------------------------------
+    def begin_watch(self, watch: ContactWatch) -> None:
+        """Watch for contact (a guarded move) from the next cycle; the collision thresholds are suspended
+        meanwhile (the contact is expected: the watch stops the arm instead)."""
+        with self.lock:
+            self._require_active()
+            if self.watch is None:
+                self._watch_thresholds = self.reflex.thresholds.copy()
+                self.reflex.set_thresholds([None] * self.n)
+            self.watch = watch
+
+    def end_watch(self) -> None:
+        """(Any thread; under the lock) No contact watch: the collision thresholds are back."""
+        with self.lock:
+            if self.watch is None:
+                return
+            self.watch = None
+            self.reflex.set_thresholds([None if math.isinf(x) else float(x)
+                                        for x in self._watch_thresholds.tolist()])
+
+    # -- impedance: a torque law -------------------------------------------------------------------
+    def begin_torque_law(self, law: ImpedanceLaw, kd: Sequence[float]) -> None:
+        """Hold still, then from the next cycle on send ``law``'s torque (on top of the arm's weight at the
+        measured pose) with kp = 0 and ``kd`` (N·m·s/rad) on every joint; the collision reflex watches only."""
+        with self.lock:
+            self._require_active()
+            if self.law is not None:
+                raise StateError("the arm is already under impedance control", fix="one impedance block at a time")
+            self._saved_gains = (self._kp.copy(), self._kd.copy(), self.reflex.thresholds.copy())
+            self.motions.hold_at(np.array([j.state.position for j in self.joints]))
+            self._kp[:] = 0.0
+            self._kd[:] = np.asarray(kd, dtype=float)
+            self._gains_changed()
+            self.reflex.set_thresholds([None] * self.n)
+            self.ff.extra = [0.0] * self.n
+            self.law = law
+
+    def _drop_law(self) -> None:
+        """(Under the lock) No torque law: the gains and collision thresholds in force before it again."""
+        if self.law is None:
+            return
+        self.law = None
+        kp, kd, thresholds = self._saved_gains
+        self.ff.extra = [0.0] * self.n
+        self._kp[:], self._kd[:] = kp, kd
+        self._gains_changed()
+        self.reflex.set_thresholds([None if math.isinf(x) else float(x) for x in thresholds.tolist()])
+
+    def end_torque_law(self) -> None:
+        """Back to position control: hold the measured pose, the gains in force before ramping up from zero."""
+        with self.lock:
+            if self.law is None:
+                return
+            self._drop_law()
+            if self.modes.mode is not Mode.ACTIVE:
+                return
+            self._hold_here()
+        self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
+
     # -- teach mode and its recorder ---------------------------------------------------------------
     def enter_teach(self, damping: float) -> None:
         with self.lock:
@@ -836,6 +911,20 @@ class Controller:
         fb = self._feedback()
         if stop is None:
             stop = self._collision_check(now, True, fb)
+        walls = self.walls
+        if stop is None and walls is not None:
+            stop = walls.check(now, fb[0], qd)
+        watch = self.watch
+        if stop is None and watch is not None and watch.step(fb[0], self.reflex.estimate_list):
+            # a guarded move felt its contact: stop (jerk-limited, from this cycle's command) and hold
+            self.motions.replace(Plan([self.planner.stop(self.des, t)]), None)
+        law = self.law
+        if stop is None and law is not None:  # impedance: this cycle's torque from the measured state
+            out = law.step(t, fb[0], fb[1])
+            if isinstance(out, SafetyStop):
+                stop = out
+            else:
+                self.ff.extra = out
         t3 = pc()
         stage[2] = t3 - t2
         if stop is not None:

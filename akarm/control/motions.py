@@ -235,9 +235,9 @@ class Motions:
         self._drop()
         self.plan = None
 
-    def replace(self, plan: Timed, error: AkarmError) -> None:
-        """Follow ``plan`` from now, which no caller waits for (the collision reflex's stop): the motion
-        in force ends with ``error``, those waiting are superseded."""
+    def replace(self, plan: Timed, error: AkarmError | None) -> None:
+        """Follow ``plan`` from now, which no caller waits for (the collision reflex's stop; a guarded
+        move's, ``error`` None): the motion in force ends with ``error``, those waiting are superseded."""
         self._end(superseded=True, error=error)
         self._drop()
         self.plan = plan

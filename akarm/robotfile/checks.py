@@ -33,6 +33,7 @@ from akarm.config import (
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.canconfig import resolve_bus
 from akarm.config.urdf import Urdf, UrdfJoint, pinocchio_complaint, read_urdf
+from akarm.config.workspace import Box, Plane, Workspace
 from akarm.errors import AkarmError
 from akarm.protocol.motors import Catalogue, MotorModel, did_you_mean
 from akarm.robotfile.nodes import Findings, line, plain
@@ -748,3 +749,81 @@ def _fingers(found: Findings, item: Item | None, owner: str, joints: Joints, urd
                       "a finger is moved by the gripper, not by a motor of the arm: remove it from joints:")
             bad = True
     return None if bad else list(v)
+# --------------------------------------------------------------------------- walls
+
+#: boxes and planes a `workspace:` may list (each is checked on every planned path's samples)
+MAX_WALLS = 32
+
+
+def _triple(value: Any) -> tuple[float, float, float] | None:
+    """Three finite numbers, or ``None``."""
+    if not isinstance(value, list | tuple) or len(value) != 3:
+        return None
+    if not all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value):
+        return None
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
+def workspace(found: Findings, item: Item | None) -> Workspace | None:
+    """The walls of ``workspace:``: its box (``min``/``max``), its ``boxes`` and ``planes``, each box's
+    ``min`` below its ``max`` on every axis, each plane's normal not zero."""
+    given = _usable(item)
+    if given is None or item is None:
+        return None
+    at = item.key if item.key is not None else item.node
+    boxes: list[Box] = []
+    planes: list[Plane] = []
+    if ("min" in given) != ("max" in given):
+        found.add(at, "workspace: gives one of min and max", "give both corners of the box, min: [x, y, z] and "
+                  "max: [x, y, z] (m, base frame)")
+    elif "min" in given:
+        boxes.append(_box(found, given["min"].node, given.value("min"), given.value("max"), "workspace"))
+    for key in ("boxes", "planes"):
+        entries = given.value(key)
+        if entries is not None:
+            _walls(found, given[key].node, key, entries, boxes, planes)
+    if not boxes and not planes:
+        found.add(at, "workspace: gives no box and no plane", "give min and max (a box), or boxes or planes")
+        return None
+    return Workspace(tuple(boxes), tuple(planes), float(given.value("margin", 0.02)))
+
+
+def _box(found: Findings, node: Any, lower: Any, upper: Any, what: str) -> Box:
+    lo, hi = _triple(lower), _triple(upper)
+    if lo is None or hi is None:
+        found.add(node, f"{what}: min and max must each be 3 finite numbers (m)", "e.g. min: [-0.5, -0.5, 0.0]")
+        return Box((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    if not all(a < b for a, b in zip(lo, hi, strict=True)):
+        found.add(node, f"{what}: min {list(lo)} is not below max {list(hi)} on every axis",
+                  "give the lower corner as min and the upper one as max")
+    return Box(lo, hi)
+
+
+def _walls(found: Findings, node: Any, key: str, entries: Any, boxes: list[Box], planes: list[Plane]) -> None:
+    """The boxes or planes of a ``workspace:`` (``key``), added to ``boxes`` or ``planes``."""
+    if not isinstance(entries, list) or len(entries) > MAX_WALLS:
+        found.add(node, f"workspace {key} must be a list of at most {MAX_WALLS} entries (MAX_WALLS)",
+                  "write `- {min: [x, y, z], max: [x, y, z]}` items" if key == "boxes" else
+                  "write `- {normal: [x, y, z], offset: d}` items")
+        return
+    for k, e in enumerate(entries):
+        what = f"workspace {key}[{k}]"
+        if key == "boxes":
+            if not isinstance(e, dict) or set(e) != {"min", "max"}:
+                found.add(node, f"{what} must be {{min: [x, y, z], max: [x, y, z]}}, got {e!r}",
+                          "give both corners of the box (m, base frame)")
+                continue
+            boxes.append(_box(found, node, e["min"], e["max"], what))
+            continue
+        if not isinstance(e, dict) or set(e) != {"normal", "offset"}:
+            found.add(node, f"{what} must be {{normal: [x, y, z], offset: d}}, got {e!r}",
+                      "the tool stays where normal · p ≤ offset (normal pointing out of the workspace; m)")
+            continue
+        n = _triple(e["normal"])
+        off = e["offset"]
+        if n is None or not any(n) or not (isinstance(off, int | float) and not isinstance(off, bool)
+                                           and math.isfinite(off)):
+            found.add(node, f"{what}: the normal must be 3 finite numbers, not all zero, and the offset a "
+                      f"finite number (m); got {e!r}", "e.g. {normal: [0, 0, -1], offset: -0.05}: z ≥ 0.05 m")
+            continue
+        planes.append(Workspace.plane(n, float(off)))

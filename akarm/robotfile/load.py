@@ -107,6 +107,7 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     fingers = set(gripper.fingers) if gripper is not None else set()
     locked = checks.locked(found, top.get("locked"), urdf, joints.driven, at, fingers) if urdf is not None else {}
     poses = checks.poses(found, top.get("poses"), configs, joints.entries)
+    walls = checks.workspace(found, top.get("workspace"))
     motors = configs + ([gripper.joint] if gripper is not None else [])  # the gripper's motor loads its bus too
     checks.bus_load(found, buses, motors, rate_hz, rate_line)
     checks.serial_ports(found, buses, motors, top.get("buses"))
@@ -116,7 +117,7 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     config = RobotConfig(name=top.value("name", path.stem), urdf=urdf_path, buses=buses, joints=tuple(configs),
                          rate_hz=rate_hz, source=path, tool_frame=tool_frame, gravity=(g[0], g[1], g[2]),
                          payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked,
-                         gripper=gripper)
+                         gripper=gripper, workspace=walls)
     checks.gravity(found, config, top.get("urdf"), joints.torque_lines)
     found.raise_if_any()
     return replace(config, warnings=tuple(found.sorted(found.warnings)))

@@ -18,6 +18,7 @@ from akarm.robotfile.schema import (
     LIMITS,
     PAYLOAD,
     ROBOT_FILE,
+    WORKSPACE,
     Section,
 )
 
@@ -48,6 +49,7 @@ _HEADINGS = (
     (COLLISION, "`collision:`"),
     (PAYLOAD, "`payload:`"),
     (GRIPPER, "`gripper:`"),
+    (WORKSPACE, "`workspace:`"),
 )
 
 

@@ -47,6 +47,7 @@ __all__ = [
     "NO_DEFAULT",
     "PAYLOAD",
     "ROBOT_FILE",
+    "WORKSPACE",
     "Choice",
     "Context",
     "Fields",
@@ -725,6 +726,20 @@ GRIPPER = Section("gripper", nested=False, doc=(
         default=_GRIPPER["max_temperature"]),
 ))
 
+WORKSPACE = Section("workspace", term="workspace {key}", doc="Walls: where the tool frame's origin may be (m, base "
+                    "frame). A planned move whose path leaves it is refused, servoing stops at its walls, and an arm "
+                    "measured outside it by more than `margin` is a safety stop. With `min`/`max` and `boxes`, the "
+                    "tool may be in any of the boxes; `planes` bound it further.", keys=(
+    Key("min", Vector(3, unit="m"), "the box's lower corner", fix="[x, y, z] in m, base frame"),
+    Key("max", Vector(3, unit="m"), "the box's upper corner", fix="[x, y, z] in m, base frame"),
+    Key("boxes", Raw("a list of {min: [x, y, z], max: [x, y, z]}"), "more boxes the tool may be in",
+        default_text="none"),
+    Key("planes", Raw("a list of {normal: [x, y, z], offset: d}"), "walls: the tool stays where normal · p ≤ offset "
+        "(normal pointing out)", default_text="none"),
+    Key("margin", Number(minimum=0.0, maximum=1.0, unit="m"), "how far outside a measured pose may be before the "
+        "safety stop", default=0.02, fix="m, e.g. 0.02"),
+))
+
 ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a robot file.", keys=(
     Key("name", Name(), "the robot's name", default_text="the file's name without .yaml"),
     Key("urdf", Name(), "its URDF: kinematics, masses, position limits", required=True,
@@ -734,6 +749,7 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
     Key("gravity", Vector(3, unit="m/s²"), "gravity in the URDF's base frame (wall or ceiling mounts)",
         default=_ROBOT["gravity"]),
     Key("payload", PAYLOAD, "a load at the tool frame"),
+    Key("workspace", WORKSPACE, "walls the tool frame's origin stays within", default_text="none"),
     Key("rate_hz", Number(minimum=MIN_RATE_HZ, maximum=MAX_RATE_HZ, unit="Hz"),
         "the control loop's rate; the bus load must carry it", default=_ROBOT["rate_hz"],
         fix=f"give the loop rate in Hz, e.g. 500 ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g})"),

@@ -34,6 +34,9 @@ __all__ = [
     "Time",
     "TriggerRequest",
     "TriggerResponse",
+    "Twist",
+    "TwistStamped",
+    "Vector3",
 ]
 
 
@@ -137,3 +140,27 @@ class TriggerResponse(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response
     seq: int64 = 0
     success: bool = False
     message: str = ""
+
+
+@dataclass
+@annotate.final
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+
+
+@dataclass
+@annotate.final
+class Twist(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
+    linear: Vector3 = field(default_factory=Vector3)
+    angular: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+@annotate.final
+class TwistStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"):
+    """What MoveIt Servo takes on its twist topic: m/s and rad/s, in ``header.frame_id``'s axes."""
+
+    header: Header = field(default_factory=Header)
+    twist: Twist = field(default_factory=Twist)

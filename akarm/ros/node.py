@@ -51,9 +51,13 @@ if TYPE_CHECKING:
     from akarm.control.gripper import Gripper
     from akarm.server.server import ArmServerCore
 
-__all__ = ["RosNode"]
+__all__ = ["MAX_TWIST_BYTES", "RosNode"]
 
 _LEVEL = {"holding": 0, "moving": 0, "teach": 0, "disabled": 1, "fault": 2}
+
+
+#: bytes a servo/twist sample may have (a TwistStamped is 68 bytes and its frame_id)
+MAX_TWIST_BYTES = 1024
 
 
 class RosNode:
@@ -101,6 +105,7 @@ class RosNode:
         self._js = n.publisher("joint_states", msgs.JointState)
         self._status = n.publisher("akarm/status", msgs.DiagnosticArray)
         self._traj = n.subscription("joint_trajectory", msgs.JointTrajectory)
+        self._twist = n.subscription("servo/twist", msgs.TwistStamped)  # as MoveIt Servo takes it
         self.commands = CommandQueue(self.server)  # the topic's and the action's, in order
         self._services = [TriggerServer(n, "akarm/enable", self._enable, self._heard),
                           TriggerServer(n, "akarm/disable", self._disable, self._heard),
@@ -115,9 +120,10 @@ class RosNode:
         self.discovery = DiscoveryInfo(n, node_name, distro)
         self.discovery.publish()  # every endpoint is open by now
         self._traj_cond = ReadCondition(self._traj, ANY)
+        self._twist_cond = ReadCondition(self._twist, ANY)
         self._wake = GuardCondition(n.participant)
         self._waitset = WaitSet(n.participant)
-        for c in (self._traj_cond, self._wake, *(s.condition for s in self._services),
+        for c in (self._traj_cond, self._twist_cond, self._wake, *(s.condition for s in self._services),
                   *(c for a in self._actions for c in a.conditions)):
             self._waitset.attach(c)
 
@@ -186,6 +192,9 @@ class RosNode:
             return
         for raw in take_raw(self._traj, 16):
             self.take_topic(raw)
+        twists = take_raw(self._twist, 16)
+        if twists:
+            self.take_twist(twists[-1])  # the latest: older ones are already out of date
         for a in self._actions:
             a.poll()
         for s in self._services:  # answered in threads of their own: enabling takes a while, and
@@ -219,6 +228,22 @@ class RosNode:
         except AkarmError as e:  # too much waits for the server
             self.server.note_refusal(e)
             self._heard(f"joint_trajectory from {sender(self._traj, raw)}: refused ({type(e).__name__})")
+
+    def take_twist(self, raw: RawSample) -> None:
+        """A ``servo/twist`` sample (geometry_msgs/TwistStamped): servo the tool by it
+        (:meth:`~akarm.server.server.ArmServerCore.servo_twist`), in the tool's axes when ``frame_id``
+        names the tool frame, else the base's; a refusal is logged (rate-limited) and nothing moves."""
+        who = sender(self._twist, raw)
+        try:
+            if len(raw.data) > MAX_TWIST_BYTES:
+                raise ArgumentError(f"a TwistStamped of {len(raw.data)} bytes (at most {MAX_TWIST_BYTES})")
+            msg = decode(msgs.TwistStamped, raw)
+            t = msg.twist
+            frame = "tool" if msg.header.frame_id == self.server.arm.ik.model.tool_frame else "base"
+            self.server.servo_twist([t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z],
+                                    frame=frame)
+        except AkarmError as e:
+            self._heard(f"servo/twist from {who}: refused ({type(e).__name__}: {e.what})")
 
     def follow_topic(self, msg: msgs.JointTrajectory) -> None:
         """A ``joint_trajectory`` message: checked as the action's goals are, then followed (no points:

@@ -55,6 +55,7 @@ from akarm.server.socket import SocketServer
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion
+    from akarm.motion.servo import Servo
 
 __all__ = ["ArmServerCore", "Frontend", "FrontendFactory", "LatchedStop", "copy_error"]
 
@@ -194,6 +195,7 @@ class ArmServerCore:
         self._motions: OrderedDict[int, tuple[Motion, int]] = OrderedDict()  # id → (motion, stops seen before it)
         self._next_id = 0
         self._teaching = False
+        self._servo: Servo | None = None  # the control socket's servoing session (servo_twist), if any
         self._teacher: int | None = None  # the control connection that started teach mode (None: ROS, Python)
         self._teach_seq = 0  # stops seen before teach mode began
         self._opened_arm = False
@@ -636,6 +638,35 @@ class ArmServerCore:
         for m, _ in list(self._motions.values()):
             with contextlib.suppress(AkarmError), self._fresh_errors():
                 m.wait()
+
+    def _op_servo_twist(self, twist: list[float], timeout: float = 0.1, frame: str = "base") -> dict[str, Any]:
+        return self.servo_twist(twist, timeout, frame)
+
+    def servo_twist(self, twist: Sequence[float], timeout: float = 0.1, frame: str = "base") -> dict[str, Any]:
+        """Servo the tool by a twist (``arm.servo()``; the control socket's ``servo_twist``, ROS 2's
+        ``servo/twist``): the first command starts a session that later ones go on (another timeout or
+        frame starts a new one); commands that stop for ``timeout`` s bring the arm to rest, holding; a
+        motion, a stop or ``servo_stop`` ends the session. Returns the status."""
+        with self._cmd:
+            self._require_commandable()
+            s = self._servo
+            live = s is not None and s.motion is not None and not s.motion.done
+            if s is None or not live or (s.stream.timeout, s.stream.frame) != (timeout, frame):
+                if s is not None and live:
+                    s.__exit__(None, None, None)
+                s = self.arm.servo(timeout=timeout, frame=frame)
+                s.__enter__()
+                self._servo = s
+            s.twist(twist)
+            st = s.status
+            return {"state": st.state, "reason": st.reason, "scale": st.scale, "joint": st.joint}
+
+    def _op_servo_stop(self) -> None:
+        """End the control socket's servoing session: the arm comes to rest, jerk-limited, and holds."""
+        with self._cmd:
+            s, self._servo = self._servo, None
+            if s is not None and s.motion is not None and not s.motion.done:
+                s.__exit__(None, None, None)
 
     def _motion_doc(self, motion: Motion, seq: int) -> dict[str, Any]:
         return {"id": self._register(motion, seq), "duration": motion.duration, "t0": motion.plan.t0,

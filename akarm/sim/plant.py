@@ -99,6 +99,10 @@ class Plant:
         self._hi = [float(hi) if h else math.inf for hi, h in zip(self.model.upper, hard, strict=True)]
         self._clim = [0.0] * n
         self._external = [0.0] * n
+        self._wrench: np.ndarray | None = None  # N, N·m at the tool frame's origin, base axes (set_external_wrench)
+        self._surface: tuple[float, float, float] | None = None  # (height m, N/m, N·s/m): set_surface
+        self.contact_force = 0.0  # N: the surface's push on the tool, last step
+        self.contact_peak = 0.0  # N: its largest since the surface was set
         self.blocked: dict[int, float] = {}  # joint index → the position it is held at (mechanically blocked)
         self._drivers: list[SimulatedDriver] = []
         # config order is Pinocchio's order and q/v hold nothing else: no mapping in the step
@@ -152,6 +156,49 @@ class Plant:
                              fix="give one torque per joint, or None to clear")
         self._external = t.tolist()
 
+    def set_external_wrench(self, wrench: Sequence[float] | np.ndarray | None) -> None:
+        """Apply ``wrench`` (force N and torque N·m, ``[fx, fy, fz, tx, ty, tz]``, at the tool frame's origin in
+        the base frame's axes) from outside until changed, as joint torques ``Jᵀ·wrench`` at every step
+        (on top of :meth:`set_external_torque`'s); ``None`` clears it."""
+        if wrench is None:
+            self._wrench = None
+            return
+        w = np.asarray(wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise ModelError(f"an external wrench must be 6 finite numbers (N, N·m), got {wrench!r}",
+                             fix="give [fx, fy, fz, tx, ty, tz] at the tool frame's origin, base axes, or None")
+        self._wrench = w
+
+    def set_surface(self, height: float | None, stiffness: float = 2e4, damping: float = 200.0) -> None:
+        """A horizontal surface at ``height`` (m, base frame z) the tool frame's origin cannot go below
+        without it pushing back up: ``stiffness · depth − damping · vz`` N (never pulling), applied as
+        joint torques at every step; ``None`` removes it. :attr:`contact_force` is its push, N."""
+        if height is None:
+            self._surface = None
+            self.contact_force = 0.0
+            return
+        values = (float(height), float(stiffness), float(damping))
+        if not all(math.isfinite(v) for v in values) or values[1] <= 0.0 or values[2] < 0.0:
+            raise ModelError(f"a surface needs a finite height, a stiffness > 0 and a damping >= 0, got {values}",
+                             fix="e.g. set_surface(0.3, stiffness=2e4, damping=200)")
+        self._surface = values
+        self.contact_peak = 0.0
+
+    def _contact(self) -> list[float]:
+        """The joint torques of the external wrench and the surface this step, N·m."""
+        J = self.model.jacobian(self.q)
+        w = np.zeros(6) if self._wrench is None else self._wrench.copy()
+        self.contact_force = 0.0
+        if self._surface is not None:
+            height, k, d = self._surface
+            z = float(self.model.tool_pose(self.q)[2, 3])
+            if z < height:
+                vz = float(J[2] @ self.dq)
+                self.contact_force = max(0.0, k * (height - z) - d * vz)
+                self.contact_peak = max(self.contact_peak, self.contact_force)
+                w[2] += self.contact_force
+        return (np.asarray(self._external) + J.T @ w).tolist()
+
     def motor_state(self, i: int) -> tuple[float, float]:
         """Joint ``i``'s motor-side (position rad before the driver's zero, velocity rad/s)."""
         s = self._dir[i]
@@ -165,8 +212,9 @@ class Plant:
         extra = []
         motor = []
         tanh = math.tanh
+        external = self._external if self._wrench is None and self._surface is None else self._contact()
         for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim), qi, vi, ext in zip(
-                self._rows, self.q.tolist(), self.dq.tolist(), self._external, strict=True):
+                self._rows, self.q.tolist(), self.dq.tolist(), external, strict=True):
             tm, k, d = drv.output(t, (qi - off) * s, vi * s)
             if tm > cap:
                 tm, k, d = cap, 0.0, 0.0

@@ -452,6 +452,29 @@ class SimulatedRobot:
         with self._lock:
             self.plant.set_external_torque(tau)
 
+    def set_external_wrench(self, wrench: Sequence[float] | np.ndarray | None) -> None:
+        """Push the tool: a wrench ``[fx, fy, fz, tx, ty, tz]`` (N, N·m) at the tool frame's origin, in the
+        base frame's axes, applied as joint torques ``Jᵀ·wrench`` at every step (so it follows the arm),
+        until changed; ``None`` clears it."""
+        with self._lock:
+            self.plant.set_external_wrench(wrench)
+
+    def set_surface(self, height: float | None, stiffness: float = 2e4, damping: float = 200.0) -> None:
+        """A stiff horizontal surface at ``height`` (m, base z) under the tool frame's origin: below it,
+        it pushes up with ``stiffness · depth − damping · vz`` N (never pulls); ``None`` removes it."""
+        with self._lock:
+            self.plant.set_surface(height, stiffness, damping)
+
+    @property
+    def contact_force(self) -> float:
+        """The surface's push on the tool at the last step, N (0 off it)."""
+        return self.plant.contact_force
+
+    @property
+    def contact_peak(self) -> float:
+        """The surface's largest push on the tool since :meth:`set_surface`, N."""
+        return self.plant.contact_peak
+
     def clear_payload(self) -> None:
         """Remove the payload."""
         self.set_payload(0.0)

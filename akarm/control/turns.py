@@ -28,6 +28,7 @@ the check says so in the log (and such a joint, if it stays put while limp, is r
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -39,12 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from akarm.config import JointConfig
+from akarm.config import JointConfig, RobotConfig
 from akarm.errors import AkarmError, TurnCountLost
 from akarm.files import FileProblem, atomic_write, read_text
 
 __all__ = ["MAX_STATE_BYTES", "TOLERANCE", "GravityTurnCheck", "PositionMemory", "TurnJump", "Weighed", "Weighing",
-           "find_jump", "state_file", "tolerance", "turn_step"]
+           "arm_key", "find_jump", "state_file", "tolerance", "turn_step"]
 
 #: rad at the joint: how far a limp joint may have moved (sagged, been nudged) between a stop and the
 #: next enable and still count as "where it was"; never more than a quarter of a turn step.
@@ -128,8 +129,23 @@ def find_jump(joint: JointConfig, reading: float, remembered: float) -> TurnJump
     return TurnJump(joint.name, reading, remembered, k, step, suggested)
 
 
+def arm_key(config: RobotConfig, arm_id: str | None = None) -> str:
+    """The name one physical arm's positions are remembered under (:func:`state_file`): ``id-ARM_ID``
+    when ``arm_id`` is given (the user names the arm, as LeRobot's ``--robot.id``), else the robot file's
+    name and where its motors are: each bus's interface and channel, and a digest of every joint's bus,
+    channel and CAN ID (``arm6@socketcan-can0-1a2b3c4d``). Two arms of one robot file on two channels
+    are two arms: neither is judged by the other's positions."""
+    if arm_id is not None:
+        return f"id-{arm_id}"
+    where = "+".join(f"{b.interface}-{b.channel}" for _, b in sorted(config.buses.items()))
+    wiring = ";".join(f"{j.name}={config.buses[j.bus].interface}:{config.buses[j.bus].channel}:{j.can_id}"
+                      for j in config.joints)
+    return f"{config.name}@{where}-{hashlib.sha256(wiring.encode()).hexdigest()[:8]}"
+
+
 def state_file(robot: str, environ: Mapping[str, str] | None = None, *, simulator: bool = False) -> Path:
-    """Where robot ``robot``'s positions are remembered: ``$XDG_STATE_HOME/akarm/positions/ROBOT.json``
+    """Where the arm keyed ``robot`` (:func:`arm_key`) remembers its positions:
+    ``$XDG_STATE_HOME/akarm/positions/ROBOT.json``
     (``~/.local/state/akarm/positions/ROBOT.json`` without XDG_STATE_HOME); ``simulator``: ``ROBOT.sim.json``
     beside it (a simulated arm never writes, nor is judged against, the real arm's positions)."""
     env = os.environ if environ is None else environ

@@ -162,8 +162,7 @@ class Controller:
         for j in joints:  # a reply the motor cannot have reached since the last one is rejected
             j.set_gate(1.5 * j.motor.v_max, self.period)
         self.supervisor = Supervisor(joints, self._guards(), period=self.period,
-                                     implausible_limit=options.implausible_limit, lag=options.timing.lag,
-                                     driver_resets=options.timing.lag == 0)
+                                     implausible_limit=options.implausible_limit, lag=options.timing.lag)
         self.stall_limit = options.loop_stall_limit
         self._gains_changed()
 
@@ -220,10 +219,9 @@ class Controller:
         out = []
         lag = self.options.timing.lag  # s a reading may trail on this machine (akarm.timing): widens the limits
         for j, kp, timeout in zip(self.config.joints, self._kp.tolist(), self._timeouts, strict=True):
-            following = default_following_error(j, kp)
+            following = default_following_error(j, kp)  # (the supervisor adds what the command moved in the lag)
             slack = j.limits.velocity * lag  # how far a reading that trails by `lag` can be behind
-            out.append(Guard(timeout, j.max_temperature, following + slack,
-                             default_stuck_travel(j, kp, following) + slack))
+            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following) + slack))
         return out
 
     def _gains_changed(self) -> None:

@@ -217,11 +217,11 @@ class Controller:
 
     def _guards(self) -> list[Guard]:
         out = []
-        lag = self.options.timing.lag  # s a reading may trail on this machine (akarm.timing): widens the limits
         for j, kp, timeout in zip(self.config.joints, self._kp.tolist(), self._timeouts, strict=True):
-            following = default_following_error(j, kp)  # (the supervisor adds what the command moved in the lag)
-            slack = j.limits.velocity * lag  # how far a reading that trails by `lag` can be behind
-            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following) + slack))
+            # (under a lag, the supervisor adds how far the command moved within it: what a reading that
+            # trails by the lag may be behind)
+            following = default_following_error(j, kp)
+            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following)))
         return out
 
     def _gains_changed(self) -> None:

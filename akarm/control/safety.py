@@ -51,7 +51,7 @@ Checks, per joint, in order (the first that fires is the stop):
    than its command repeats its reading but stays near it; a motor at its limit is the saturation
    check's). Under a timing profile with a lag, the following-error limit grows by how far the command
    moved within the lag (a reading that trails by the lag is that far behind), nothing more: a joint
-   that fell while the arm holds still is caught as on any machine. →
+   that fell while the arm holds still is caught as on any machine; so does the stuck travel. →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -521,15 +521,16 @@ class Supervisor:
             else:
                 over[i] = 0
             sat = saturated is not None and saturated[i]
-            if sat and (e > self._stuck[i] or e < -self._stuck[i]):
+            stuck = self._stuck[i] if slack is None else self._stuck[i] + slack[i]
+            if sat and (e > stuck or e < -stuck):
                 if sat_since[i] == math.inf:
                     sat_since[i] = now
                 elif now - sat_since[i] >= SATURATION_TIME:
                     return TrackingError(
                         f"its motor has been at the end of its torque range for {(now - sat_since[i]) * 1e3:.0f} ms "
-                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {self._stuck[i] * 1e3:.0f} "
+                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {stuck * 1e3:.0f} "
                         "mrad): the motor cannot hold or move the arm; the arm was damped and disabled",
-                        error=e, limit=self._stuck[i], joint=j.name,
+                        error=e, limit=stuck, joint=j.name,
                         fix="a motor too small for the load (akarm check shows the gravity torque per joint), a "
                             "payload heavier than configured, or a joint pressing on an obstacle")
             else:
@@ -541,12 +542,12 @@ class Supervisor:
                 else:
                     # the command moved on, and is that far from the reading now: a joint that only turns
                     # round slower than its command (readings repeat within one step of the field) is not
-                    travel, lim = qd - des_at[i], self._stuck[i]
+                    travel, lim = qd - des_at[i], stuck
                     if (travel > lim or travel < -lim) and (e > lim or e < -lim):
                         return TrackingError(
                             f"its reading stays at {q:+.4f} rad while the command moved {travel * 1e3:+.0f} mrad "
-                            f"(limit {self._stuck[i] * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
-                            "was damped and disabled", error=travel, limit=self._stuck[i], joint=j.name,
+                            f"(limit {stuck * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
+                            "was damped and disabled", error=travel, limit=stuck, joint=j.name,
                             fix="check the joint moves freely and the encoder (power-cycle the driver); raise "
                                 "stuck_travel only if the joint is sound")
         return None

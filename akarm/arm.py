@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
@@ -41,7 +42,7 @@ from akarm.control.loop import StatsSummary
 from akarm.control.modes import Mode
 from akarm.control.motions import Motion, State
 from akarm.control.options import ControllerOptions
-from akarm.control.turns import state_file
+from akarm.control.turns import arm_key, state_file
 from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
@@ -203,16 +204,23 @@ class Arm:
             Reset whenever a motion starts; its torque is clamped to 10 % of the joint's torque
             limit. 0 turns it off.
         remember_positions: ``True`` (default): remember each joint's position when the arm stops,
-            in the robot's state file (:func:`akarm.control.turns.state_file`:
-            ``$XDG_STATE_HOME/akarm/positions/NAME.json``), and refuse an enable where a joint reads
+            in the arm's state file (:func:`akarm.control.turns.state_file`:
+            ``$XDG_STATE_HOME/akarm/positions/KEY.json``, ``KEY`` the physical arm's: ``arm_id``, else
+            the robot file's name with its buses, channels and CAN IDs, :func:`akarm.control.turns.arm_key`),
+            and refuse an enable where a joint reads
             whole rotor turns from it (:class:`~akarm.TurnCountLost`, a driver that lost its turn
             count in a power cycle; see :meth:`enable`'s ``accept_position``); on buses only a
-            simulator answers on (``akarm_local``, ``vcan*``), ``NAME.sim.json``: a simulated arm never
+            simulator answers on (``akarm_local``, ``vcan*``), ``KEY.sim.json``: a simulated arm never
             touches the real one's. On python-can's ``virtual`` buses alone, nothing: such a bus lives
             in one process, so its simulator started with this program, where another program's
             simulated arm stopped says nothing of it (a fresh simulator a rotor turn from there was
             refused as a lost turn count). A path: that state file. ``False``: nothing is remembered
-            or checked.
+            or compared (the torque check at enable, for joints gravity moves, still runs: see
+            :meth:`enable`).
+        arm_id: the physical arm's name (as LeRobot's ``--robot.id``; ``akarm ... --id``): its positions
+            are remembered under it, whatever its robot file, buses or channels. Default: keyed by the
+            robot file's name, buses, channels and CAN IDs, so that two arms of one robot file (a leader
+            and a follower, two identical arms on ``can0`` and ``can1``) never share one memory.
 
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
@@ -232,7 +240,7 @@ class Arm:
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN,
                  remember_positions: bool | str | PathLike[str] = True, self_collision: str | None = None,
-                 self_collision_margin: float = 0.0) -> None:
+                 self_collision_margin: float = 0.0, arm_id: str | None = None) -> None:
         for name, flag in (("realtime_priority", realtime_priority), ("friction_feedforward", friction_feedforward),
                            ("busy_wait", busy_wait)):
             if not isinstance(flag, bool | np.bool_):
@@ -241,13 +249,17 @@ class Arm:
                                       and callable(getattr(clock, "sleep_until", None)) and hasattr(clock, "stepped")):
             raise ArgumentError(f"clock must be a clock (now(), sleep_until(t), stepped), got {clock!r}",
                                 fix="leave it out for the wall clock, or pass a simulator's: clock=sim.clock")
+        if arm_id is not None and not (isinstance(arm_id, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}",
+                                                                                arm_id)):
+            raise ArgumentError(f"arm_id must be a name of letters, digits, '_', '.' and '-' (at most 64, not "
+                                f"starting with '.', '_' or '-'), got {arm_id!r}", fix="e.g. arm_id='left_follower'")
         self.timing = get_profile(timing)
         position_file: str | PathLike[str] | None
         if remember_positions is True and all(b.interface == "virtual" for b in config.buses.values()):
             position_file = None  # a simulator in this process, started with it: nothing of it to remember
         elif remember_positions is True:
             on_simulator = all(map(simulated, config.buses.values()))
-            position_file = state_file(config.name, simulator=on_simulator)
+            position_file = state_file(arm_key(config, arm_id), simulator=on_simulator)
         elif remember_positions is False:
             position_file = None
         elif isinstance(remember_positions, str | PathLike) and str(remember_positions):

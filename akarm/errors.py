@@ -443,15 +443,29 @@ class TurnCountLost(SafetyStop):
     akarm remembered when the arm last stopped: its driver lost its multi-turn count (a power cycle).
     Nothing was enabled.
 
+    Or, found by physics while the arm is held at enable (a joint gravity moves while limp, whose
+    position is not remembered): the torque holding the arm is what the model's gravity asks with that
+    joint ``k`` turns from its reading, not at its reading (:class:`akarm.control.turns.GravityTurnCheck`).
+
     Attributes:
-        reading: rad now. remembered: rad when the arm stopped. turns: ``k`` (reading minus remembered).
+        reading: rad now. remembered: rad when the arm stopped (NaN: found by the torque). turns: ``k``
+            (reading minus where the joint stands, in rotor turns).
+        measured: N·m holding the joint (NaN: found by the remembered position). expected: N·m the
+            model's gravity asks at the reading. explained: N·m it asks with the joint ``k`` turns back.
+        alternatives: other turns that explain the torque as well (the sign of a turn near the
+            gravity-neutral pose, hanging or upright, may not show).
     """
 
     def __init__(self, what: str, *, reading: float, remembered: float, turns: int, joint: str | None = None,
-                 fix: str = "") -> None:
+                 fix: str = "", measured: float = math.nan, expected: float = math.nan,
+                 explained: float = math.nan, alternatives: tuple[int, ...] = ()) -> None:
         self.reading = reading
         self.remembered = remembered
         self.turns = turns
+        self.measured = measured
+        self.expected = expected
+        self.explained = explained
+        self.alternatives = tuple(alternatives)
         super().__init__(what, joint=joint, fix=fix)
 
 

@@ -214,6 +214,8 @@ def lockstep_arm(robot: str | Path | RobotConfig, channel: str, *, q0: Any = Non
     config = robot.with_bus(interface="virtual", channel=channel)
     if config_edit is not None:
         config = config_edit(config)
+    if timing is None:  # (AKARM_TEST_TIMING: run lock-step tests under another timing profile)
+        timing = os.environ.get("AKARM_TEST_TIMING") or None
     if timing is not None:
         arm_options.setdefault("timing", timing)
     # a new simulated arm: positions remembered (akarm.control.turns) are this arm's, not the last test arm's

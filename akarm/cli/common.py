@@ -30,10 +30,10 @@ def add_robot_arguments(parser: argparse.ArgumentParser, robot_required: bool = 
     add_bus_kwargs(parser)
 
 
-def add_profile_argument(parser: argparse.ArgumentParser, loop: bool = True) -> None:
+def add_profile_argument(parser: argparse.ArgumentParser, loop: bool = True, arm_id: bool = True) -> None:
     """Add ``--profile NAME``: the timing profile (:mod:`akarm.timing`) of a verb that runs a loop or a
-    simulator; and, where the verb runs a control loop (``loop``), ``--stall-limit S``
-    (:func:`loop_options` gives both to the :class:`~akarm.Arm`)."""
+    simulator; and, where the verb runs a control loop (``loop``), ``--stall-limit S`` and (``arm_id``,
+    a verb that drives one arm) ``--id ID`` (:func:`loop_options` gives them to the :class:`~akarm.Arm`)."""
     from akarm.cli.options import duration
     from akarm.timing import PROFILES
 
@@ -44,11 +44,19 @@ def add_profile_argument(parser: argparse.ArgumentParser, loop: bool = True) -> 
                             help="s the control loop itself may fail to run (this process stopped or starved) and "
                                  "resume without a stop; longer stops the arm with LoopStall (default: the "
                                  "profile's, 0.2 s normally)")
+        if arm_id:
+            parser.add_argument("--id", dest="arm_id", metavar="ID",
+                                help="the physical arm's name (as LeRobot's --robot.id): where each joint stopped "
+                                     "is remembered under it (the turn check at enable); default: the robot file's "
+                                     "name with its buses, channels and CAN IDs")
 
 
 def loop_options(args: argparse.Namespace) -> dict[str, Any]:
     """The :class:`~akarm.Arm` options of :func:`add_profile_argument`'s arguments."""
-    return {"timing": args.profile, "stall_limit": args.stall_limit}
+    out = {"timing": args.profile, "stall_limit": args.stall_limit}
+    if getattr(args, "arm_id", None) is not None:
+        out["arm_id"] = args.arm_id
+    return out
 
 
 def load_from_args(args: argparse.Namespace, rate_hz: float | None = None) -> RobotConfig:

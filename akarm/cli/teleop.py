@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--follower-channel", metavar="C", help="the follower's channel (or NAME=CHANNEL,...), over -c")
     parser.add_argument("-b", "--bitrate", type=bitrate, help="bit rate of both arms' buses, bit/s (10000-1000000)")
     add_bus_kwargs(parser)
-    add_profile_argument(parser)
+    add_profile_argument(parser, arm_id=False)  # (two arms: each keyed by its own buses and channels)
 
 
 def _check(args: argparse.Namespace) -> None:

@@ -57,7 +57,7 @@ from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
-from akarm.control.turns import PositionMemory, stays_put
+from akarm.control.turns import WEIGH_TIMEOUT, GravityTurnCheck, PositionMemory, Weighed, Weighing, stays_put
 from akarm.control.walls import WallGuard
 from akarm.dynamics.model import RobotModel
 from akarm.errors import (
@@ -180,8 +180,7 @@ class Controller:
             self._gripper_timeout = _feedback_timeout(gj.config, options.watchdog)
             self._gripper_damping = min(max(gj.config.gains.kd, 0.5), gj.motor.kd_max)
         self.supervisor = Supervisor(motors, self._guards(), period=self.period,
-                                     implausible_limit=options.implausible_limit, lag=options.timing.lag,
-                                     driver_resets=options.timing.lag == 0)
+                                     implausible_limit=options.implausible_limit, lag=options.timing.lag)
         self.stall_limit = options.loop_stall_limit
         self._gains_changed()
 
@@ -234,6 +233,12 @@ class Controller:
         self._releases = 0  # the cycles the exit frames were sent on, this stop
         self._damp_time = options.stop_damping_time  # s of damping this stop (none for a refused enable)
         self._stop_stale = [False] * n  # its feedback went silent during the stop: remember _stop_q
+        # the turn check by physics (akarm.control.turns.GravityTurnCheck): the torque holding the arm at
+        # enable, weighed once the gains are in, before enable() returns and anything else is commanded
+        self.turn_check = GravityTurnCheck(config.joints, self.ff.gravity, self._mit, model.lower, model.upper)
+        self.turn_verdict: Weighed | None = None  # the last enable's (None: not weighed)
+        self._weigh_next = False  # the enable under way weighs the arm
+        self._weighing: Weighing | None = None  # weighing now
 
     def _make_reflex(self) -> CollisionReflex:
         options = self.options
@@ -244,12 +249,11 @@ class Controller:
 
     def _guards(self) -> list[Guard]:
         out = []
-        lag = self.options.timing.lag  # s a reading may trail on this machine (akarm.timing): widens the limits
         for j, kp, timeout in zip(self.config.joints, self._kp.tolist(), self._timeouts, strict=True):
+            # (under a lag, the supervisor adds how far the command moved within it: what a reading that
+            # trails by the lag may be behind)
             following = default_following_error(j, kp)
-            slack = j.limits.velocity * lag  # how far a reading that trails by `lag` can be behind
-            out.append(Guard(timeout, j.max_temperature, following + slack,
-                             default_stuck_travel(j, kp, following) + slack))
+            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following)))
         if self.gripper is not None:
             out.append(self.gripper.guard(self._gripper_timeout))
         return out
@@ -468,6 +472,8 @@ class Controller:
             self.tau_ff = [0.0] * self.n  # a stop during contact fades from here, not the last session's torque
             self._remembered = None if accept_position or self.positions is None else self.positions.load()
             self._positions_known = False
+            self._weigh_next = not accept_position and any(self._mit)
+            self.turn_verdict = None
             longest = self.enabler.begin(now, timeout)
             self.modes.go(Mode.ENABLING)
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
@@ -475,8 +481,13 @@ class Controller:
         if self.enable_error is not None:
             self.wait_disabled()  # the exit frames, on RELEASES cycles, delivered
             raise self.enable_error
+        weigh = self.options.timing.lag + WEIGH_TIMEOUT  # (the turn check's weighing, at most)
+        self.wait_for(lambda: self.modes.mode is not Mode.ACTIVE or (self.ramp.done and self._weighing is None),
+                      self.options.enable_ramp + weigh + 1.0, "the gains to ramp up and the arm to be weighed")
+        if self.enable_error is not None:  # the turn check by physics refused it: the arm is being lowered
+            self.wait_disabled()
+            raise self.enable_error
         self._forget_positions()
-        self.wait_for(lambda: self.ramp.done, self.options.enable_ramp + 1.0, "the gains to ramp up")
 
     def _clear_errors(self) -> None:
         # a method of its own: a type checker that saw these set to None in enable() would take them for
@@ -515,6 +526,7 @@ class Controller:
         self._stop_stale = [now - j.state.stamp > t for j, t in zip(self.joints, self._timeouts, strict=True)]
         self._stop_from = np.asarray(self.tau_ff, dtype=float).copy()
         self._releases = 0
+        self._weighing = None
         self.enabler.abandon()
         self.motions.cancel()
         self._drop_law()  # (impedance: the arm is damped now; its gains are back for the next enable)
@@ -523,6 +535,9 @@ class Controller:
     def _require_active(self) -> None:
         """(Under the lock) raise the fault, or a StateError, unless the arm is still active: a stop may
         have come between a caller's check and its taking the lock."""
+        if self._weighing is not None and self.modes.mode is Mode.ACTIVE:
+            raise StateError("the arm is being enabled (its holding torque is weighed for the turn check)",
+                             fix="wait for arm.enable() to return")
         if self.modes.mode is not Mode.ACTIVE:
             if self.fault is not None:
                 raise self.fault
@@ -909,8 +924,9 @@ class Controller:
         grip = self.gripper
         stop = self.supervisor.check(now, qd if grip is None else [*qd, grip.target], self._tracking, self._saturated)
         fb = self._feedback()
-        if stop is None:
-            stop = self._collision_check(now, True, fb)
+        weighing = self._weighing
+        if stop is None:  # (while the arm is weighed the reflex only watches: a lost turn is the turn check's)
+            stop = self._collision_check(now, weighing is None, fb)
         walls = self.walls
         if stop is None and walls is not None:
             stop = walls.check(now, fb[0], qd)
@@ -934,7 +950,7 @@ class Controller:
         js = self.joints
         q_meas = fb[0]
         ramp = self.ramp
-        holding = plan is None and ramp.scale >= 1.0
+        holding = plan is None and ramp.scale >= 1.0 and weighing is None
         vd = dq_d.tolist()
         ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd)
         self._t_last = t
@@ -958,7 +974,38 @@ class Controller:
         t5 = pc()
         stage[4] = t5 - t4
         self._record(now, qd, vd, ff, fb)
+        if weighing is not None and ramp.done and weighing.sample(now, fb[0], fb[1], fb[2]):
+            self._weighed(now, weighing)
         stage[5] = pc() - t5
+
+    def _weighed(self, now: float, weighing: Weighing) -> None:
+        """(Loop) The arm was weighed: refuse the enable if the torque says a turn count was lost."""
+        self._weighing = None
+        if not weighing.at_rest:
+            log.warning("turn check: the arm did not come to rest within %.1f s of holding: not weighed (a lost "
+                        "turn count on a joint gravity moves is not checked this time)", weighing.lag + WEIGH_TIMEOUT)
+            return
+        verdict = self.turn_verdict = self.turn_check.judge(weighing.q, weighing.tau)
+        error = verdict.error
+        if error is None:
+            remembered = self._remembered or {}
+            blind = [x for x in verdict.undecided if x not in remembered]
+            if blind:
+                log.warning("turn check: at this pose the torque holding %s does not tell a lost rotor turn (gravity "
+                            "asks the same a whole turn away) and no position of %s is remembered: the reading%s "
+                            "believed", ", ".join(blind), "it" if len(blind) == 1 else "them",
+                            " is" if len(blind) == 1 else "s are")
+            if verdict.unexplained:
+                log.warning("turn check: the torque holding the arm (%s N·m) is not what the model's gravity asks "
+                            "at the readings nor a whole turn away: a payload akarm does not know (arm.set_payload) "
+                            "or something pressing on the arm", ", ".join(f"{x:+.2f}" for x in weighing.tau))
+            return
+        error.at = now
+        self.enable_error = error
+        self._positions_known = False  # these readings are not remembered
+        tau = weighing.tau.tolist()  # the stop lowers the arm from the torque that held it, not the model's
+        self.tau_ff = [tau[i] if m else x for i, (m, x) in enumerate(zip(self._mit, self.tau_ff, strict=True))]
+        self._begin_stop()
 
     def _feedback(self) -> tuple[list[float], list[float], list[float], list[float]]:
         """The joints' latest feedback as lists: positions, velocities, torques and when each came (one
@@ -1046,6 +1093,9 @@ class Controller:
             self._enable_failed(step)
             return
         self._hold_here()  # at rest
+        if self._weigh_next:
+            self._weigh_next = False
+            self._weighing = Weighing(self.n, self.options.timing.lag)
         self.modes.go(Mode.ACTIVE)
 
     def _enable_failed(self, refusal: Refusal) -> None:
@@ -1099,8 +1149,11 @@ class Controller:
         from where it was remembered; else ``None``, and a later stop may remember these readings."""
         mem, remembered = self.positions, self._remembered
         error = None
+        q = [j.state.position for j in self.joints]
         if mem is not None and remembered:
-            error = mem.check([j.state.position for j in self.joints], remembered)
+            error = mem.check(q, remembered)
+        if error is None and self._weigh_next:  # (not when the positions were accepted by eye)
+            error = self.turn_check.out_of_range(q)
         if error is None:
             self._positions_known = True
         else:

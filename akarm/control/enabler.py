@@ -252,6 +252,9 @@ class Enabler:
             for j in self.joints:
                 for f in j.enter_frames():
                     self._send(j, f)
+                if not polled(self._buses[j.bus]):  # (a serial port carries one servo motor, no MIT)
+                    for f in j.mode_query_frames():
+                        self._send(j, f)
             en.entered = True
             en.first_sent = now
         for j in self.joints:
@@ -311,7 +314,9 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag
 
     - MIT: servo status frames on its ID (:class:`~akarm.errors.ModeMismatch`); more replies than
       frames (every frame gets one reply from one motor: :class:`~akarm.errors.DuplicateCanId`).
-    - Servo: more status frames than one motor sends at the configured rate (two motors), or, once
+    - Servo: MIT replies on its ID, answering the MIT query sent at contact
+      (:class:`~akarm.errors.ModeMismatch`); more status frames than one motor sends at the configured
+      rate (two motors), or, once
       two periods of the configured rate have passed, fewer than a third of them
       (:class:`~akarm.errors.StatusRateLow`, naming the measured rate). ``lag``: s a reading may
       trail on this machine (the timing profile's): frames that late may come in one burst.
@@ -332,6 +337,12 @@ def wiring_error(j: Joint, heard: int, sent: int, since_first: float | None, lag
                                   "nothing was enabled", can_id=c.can_id, joint=j.name,
                                   fix="give each motor its own CAN ID (akarm scan lists them), then enable again")
         return None
+    if j.mode_seen is not None:
+        return ModeMismatch(f"configured as a servo joint, but {where} answers as a MIT motor (a state reply to "
+                            "the MIT query sent at contact): its motor is in MIT mode; nothing was enabled",
+                            can_id=c.can_id, seen=j.mode_seen, joint=j.name,
+                            fix="switch the motor to servo mode (CubeMars' upper-computer tool), or configure the "
+                                "joint as `mode: mit`")
     rate = float(c.status_rate_hz)
     if since_first is None or rate <= 0 or polled:
         return None

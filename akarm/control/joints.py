@@ -121,7 +121,8 @@ class Joint(abc.ABC):
         self.cmd_kp = 0.0
         self.cmd_kd = 0.0
         self.cmd_torque = 0.0
-        self.mode_seen: str | None = None  # "servo": status frames on this MIT joint's ID (set by the Router)
+        # "servo": status frames on this MIT joint's ID; "mit": MIT replies on this servo joint's (the Router)
+        self.mode_seen: str | None = None
 
     # -- conversions --------------------------------------------------------------------------
     def joint_position(self, motor_position: float) -> float:
@@ -136,6 +137,12 @@ class Joint(abc.ABC):
     @abc.abstractmethod
     def enter_frames(self) -> list[can.Message]:
         """Frames that put the driver in motor mode (none where the driver has no such mode)."""
+
+    def mode_query_frames(self) -> list[can.Message]:
+        """Frames that make a motor in the other mode than this joint's answer on its ID, leaving it
+        limp (:attr:`mode_seen` says so once it does): a servo joint asks as a MIT motor is asked. None
+        by default."""
+        return []
 
     @abc.abstractmethod
     def neutral(self) -> can.Message | None:
@@ -434,6 +441,11 @@ class ServoJoint(Joint):
     def enter_frames(self) -> list[can.Message]:
         return []
 
+    def mode_query_frames(self) -> list[can.Message]:
+        """EXIT on its ID as a standard frame: a MIT motor answers it with a state reply and stays limp
+        (the query ``akarm scan`` sends); a motor in servo mode ignores standard frames."""
+        return [message(self.can_id, mit.EXIT, False)]
+
     def neutral(self) -> None:
         return None
 
@@ -519,11 +531,14 @@ class Router:
         self.by_status_id: dict[int, Joint] = {}
         self.by_command_id: dict[tuple[int, bool], Joint] = {}
         self.by_other_mode: dict[int, Joint] = {}  # servo status IDs of MIT V1/V2 joints: a motor in servo mode
+        self.by_mit_of_servo: dict[int, Joint] = {}  # driver IDs of servo joints: MIT replies, a motor in MIT mode
         for j in joints:
             how, key = j.feedback_route()
             (self.by_driver_id if how == "byte0" else self.by_status_id)[key] = j
             if how == "byte0":
                 self.by_other_mode[(servo.ServoPacket.STATUS << 8) | key] = j
+            elif j.mode == "servo":
+                self.by_mit_of_servo[j.can_id] = j
             for cid in j.command_ids():
                 self.by_command_id[cid] = j
         # what route_frames takes straight to a joint: a standard 6- or 8-byte frame on an ID no joint
@@ -580,6 +595,10 @@ class Router:
                     if mj is not None:
                         mj.take(arbitration_id, data, now)
                         return mj
+                    sj = self.by_mit_of_servo.get(data[0])
+                    if sj is not None:  # a MIT reply from a servo joint's ID: its motor is in MIT mode
+                        sj.mode_seen = "mit"
+                        return None
         except ProtocolError:
             self.corrupt += 1
             return None

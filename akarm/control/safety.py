@@ -34,9 +34,10 @@ Checks, per joint, in order (the first that fires is the stop):
    :class:`~akarm.DriverReset`. Where replies trail the commands (a busy machine's simulator, a
    timing profile's ``lag``), a reply is judged against every law it may answer: the commands still
    in flight (sent and not answered), at least the last ``ceil(lag / period) + 1``; it counts only if
-   it fits none of them. Under a timing profile with a lag (``slow``) the controller leaves this check
-   off, as it leaves the collision reflex watching only: in vcan-vm a simulator working through a
-   backlog reported no torque where every law in flight asked for some.
+   it fits none of them. Under a timing profile with a lag (``slow``) the replies without torque must
+   also go on for :data:`RESET_LAG_TIME` s (a simulator working through a backlog, in vcan-vm, reported
+   no torque where every law in flight asked for some, for moments): a driver that rebooted is a named
+   stop under every profile.
 6. **Temperature** over ``max_temperature``. → :class:`~akarm.OverTemperature`.
 7. **Following error** (only joints that track a position: MIT with kp > 0, servo): the commanded
    minus the measured position over the joint's limit for three cycles in a row (a MIT joint: at three
@@ -48,7 +49,9 @@ Checks, per joint, in order (the first that fires is the stop):
    that from the reading, and the motor is not saturated (a frozen encoder or a blocked joint: a
    moving joint's reading changes every step of its 16-bit field; a joint turning round more slowly
    than its command repeats its reading but stays near it; a motor at its limit is the saturation
-   check's). →
+   check's). Under a timing profile with a lag, the following-error limit grows by how far the command
+   moved within the lag (a reading that trails by the lag is that far behind), nothing more: a joint
+   that fell while the arm holds still is caught as on any machine; so does the stuck travel. →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -60,6 +63,7 @@ which feedback age catches.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -93,6 +97,10 @@ IMPLAUSIBLE_PER_WINDOW = 10
 SATURATION_TIME = 0.5
 #: Replies in a row reporting no torque where the law asks for some that stop the arm (a driver reset).
 RESET_REPLIES = 3
+#: s the replies without torque must go on (besides :data:`RESET_REPLIES` of them) under a timing profile
+#: whose readings lag (``slow``): longer than the oldest feedback measured there at 25 Hz (177 ms, see
+#: :mod:`akarm.timing`), short enough that a driver reset stops the arm within 1 s of its power loss.
+RESET_LAG_TIME = 0.3
 #: The share of a joint's torque limit the law must ask for before a reply without it counts.
 RESET_ASK = 0.1
 #: A reply "has no torque" when it reports less than this share of the motor's torque range (a driver
@@ -209,12 +217,21 @@ class Supervisor:
         self._t_max = [j.motor.t_max for j in self.joints]
         self._none = [RESET_NONE * j.motor.t_max for j in self.joints]
         self._no_torque = [0] * n
+        self._no_torque_since = [0.0] * n
+        self._asked = [0.0] * n  # N·m the law asked of the last reply without torque
+        # a lagging machine's replies may answer laws older than those kept for a while (a simulator
+        # working through a backlog): there the replies without torque must go on this long too
+        self._reset_time = min(lag, RESET_LAG_TIME) if lag > 0.0 else 0.0
         self._reset: DriverReset | None = None
         # the laws a reply may answer (it trails the commands on a slow or busy machine): per MIT joint
         # the last ones sent (position, velocity, kp, kd, torque), newest last, and the frames sent
         # when the newest was taken; a reply is judged against as many as are in flight, at least the
         # profile's lag in commands
         self._lag_laws = math.ceil(lag / period - 1e-9) + 1 if lag > 0.0 else 1
+        # the following-error limit under a lag grows by how far the command moved within the lag (a
+        # reading that trails by the lag is that far behind): the commands of the last lag s
+        self.lag = lag
+        self._q_des_past: deque[list[float]] = deque(maxlen=self._lag_laws if lag > 0.0 else 1)
         self._laws: list[list[tuple[float, float, float, float, float]]] = [[] for _ in range(n)]
         self._laws_sent = [-1] * n
         self._over = [0] * n
@@ -251,6 +268,7 @@ class Supervisor:
         self._over = [0] * n
         self._saturated_since = [math.inf] * n
         self._tracked = [False] * n
+        self._q_des_past.clear()
         self._received = [j.frames_received for j in self.joints]
         self._sent_then = [j.frames_sent for j in self.joints]
         self._start_window(now)
@@ -292,6 +310,8 @@ class Supervisor:
         stop = self._check_joints(now)
         if stop is None and q_des is not None and tracking is not None:
             stop = self._check_following(now, q_des, tracking, saturated)
+            if isinstance(stop, TrackingError):  # off its command, and no torque where the law asks: a reset
+                stop = self._reset_behind(stop) or stop
         if stop is None and self._reset is not None:
             stop = self._reset
         if stop is None and now >= self._window_end:
@@ -356,7 +376,11 @@ class Supervisor:
                     if mag >= self._ask[i] and not (got >= RESET_SHARE * mag or got > self._none[i]) and (
                             self._fits_no_older_law(i, s.position, s.velocity, got)):
                         no_torque[i] += 1
-                        if no_torque[i] >= RESET_REPLIES and reset is None:
+                        self._asked[i] = tau
+                        if no_torque[i] == 1:
+                            self._no_torque_since[i] = now
+                        if no_torque[i] >= RESET_REPLIES and reset is None and (
+                                now - self._no_torque_since[i] >= self._reset_time - 1e-9):
                             reset = self._reset_stop(j, tau, s.torque)
                     else:
                         no_torque[i] = 0
@@ -441,6 +465,15 @@ class Supervisor:
             return j.frames_sent - self._sent_then[k] <= 2
         return self._ran - self._ran_then[k] <= max(2.0 * self.period, self._timeouts[k] / 3.0)
 
+    def _reset_behind(self, stop: TrackingError) -> DriverReset | None:
+        """The :class:`DriverReset` behind a following error: its joint's last :data:`RESET_REPLIES` replies
+        or more reported no torque where the law asked for some (before :data:`RESET_LAG_TIME` passed: the
+        joint fell off its command meanwhile), or ``None``."""
+        for i, j in enumerate(self.joints):
+            if j.name == stop.joint and self._no_torque[i] >= RESET_REPLIES:
+                return self._reset_stop(j, self._asked[i], j.state.torque)
+        return None
+
     def _reset_stop(self, j: Joint, expected: float, reported: float) -> DriverReset:
         return DriverReset(
             f"its driver answers but reports {reported:+.2f} N·m where the law it was sent asks for {expected:+.2f} "
@@ -450,8 +483,19 @@ class Supervisor:
             fix="check the motor's power supply and connector (its voltage under load); enable the arm again once "
                 "it is sound (a driver that was reset may have lost its turn count: check the joint's position)")
 
+    def lag_slack(self, q_des: Sequence[float]) -> list[float] | None:
+        """(Under a lag) per joint, how far (rad) ``q_des`` lies from the commands of the last lag s, which
+        a reading that trails by the lag may still follow; ``None`` without a lag."""
+        if self.lag <= 0.0:
+            return None
+        past = self._q_des_past
+        qd = list(q_des)
+        past.append(qd)
+        return [max(abs(x - p[i]) for p in past) for i, x in enumerate(qd)]
+
     def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],  # noqa: C901
                          saturated: Sequence[bool] | None) -> SafetyStop | None:
+        slack = self.lag_slack(q_des)
         over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
         mit = self._mit
@@ -470,7 +514,7 @@ class Supervisor:
                 new = True
                 last_stamp[i], last_value[i], des_at[i] = s.stamp, q, qd
             e = qd - q
-            limit = self._following[i]
+            limit = self._following[i] if slack is None else self._following[i] + slack[i]
             if e > limit or e < -limit:
                 if not new:  # no reply to the last command: the watchdog's to judge
                     continue
@@ -486,15 +530,16 @@ class Supervisor:
             else:
                 over[i] = 0
             sat = saturated is not None and saturated[i]
-            if sat and (e > self._stuck[i] or e < -self._stuck[i]):
+            stuck = self._stuck[i] if slack is None else self._stuck[i] + slack[i]
+            if sat and (e > stuck or e < -stuck):
                 if sat_since[i] == math.inf:
                     sat_since[i] = now
                 elif now - sat_since[i] >= SATURATION_TIME:
                     return TrackingError(
                         f"its motor has been at the end of its torque range for {(now - sat_since[i]) * 1e3:.0f} ms "
-                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {self._stuck[i] * 1e3:.0f} "
+                        f"and the joint is {e * 1e3:+.0f} mrad from its command (limit {stuck * 1e3:.0f} "
                         "mrad): the motor cannot hold or move the arm; the arm was damped and disabled",
-                        error=e, limit=self._stuck[i], joint=j.name,
+                        error=e, limit=stuck, joint=j.name,
                         fix="a motor too small for the load (akarm check shows the gravity torque per joint), a "
                             "payload heavier than configured, or a joint pressing on an obstacle")
             else:
@@ -506,12 +551,12 @@ class Supervisor:
                 else:
                     # the command moved on, and is that far from the reading now: a joint that only turns
                     # round slower than its command (readings repeat within one step of the field) is not
-                    travel, lim = qd - des_at[i], self._stuck[i]
+                    travel, lim = qd - des_at[i], stuck
                     if (travel > lim or travel < -lim) and (e > lim or e < -lim):
                         return TrackingError(
                             f"its reading stays at {q:+.4f} rad while the command moved {travel * 1e3:+.0f} mrad "
-                            f"(limit {self._stuck[i] * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
-                            "was damped and disabled", error=travel, limit=self._stuck[i], joint=j.name,
+                            f"(limit {stuck * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
+                            "was damped and disabled", error=travel, limit=stuck, joint=j.name,
                             fix="check the joint moves freely and the encoder (power-cycle the driver); raise "
                                 "stuck_travel only if the joint is sound")
         return None

@@ -279,19 +279,48 @@ def test_a_joint_disabled_by_another_program_on_the_bus_stops_the_arm_at_once(ro
         damping_then_exit(wire, arm.config)
 
 
+#: s within which a driver out of motor mode stops the arm, per timing profile (issue 39: the slow
+#: profile is for slow machines, not slow physics: a reset is a named stop under every profile)
+RESET_BOUND = {"normal": 0.05, "slow": 1.0}
+
+
+@pytest.mark.parametrize("timing", ["normal", "slow"])
 @pytest.mark.parametrize("robot, joint", [("planar2", "shoulder"), ("arm6", "shoulder_lift"), ("arm6", "elbow")])
 def test_a_joint_disabled_unseen_while_holding_against_gravity_stops_within_50_ms(robot: str, joint: str,
-                                                                                 channel: str) -> None:
-    with rig(robot, channel) as (arm, sim, wire):
+                                                                                 channel: str, timing: str) -> None:
+    with rig(robot, channel, timing=timing) as (arm, sim, wire):
         arm.enable()
         arm.move_to(HOLD[robot])
         arm.sleep(0.3)
         t = arm.clock.now()
         sim.inject(joint, faults.RogueExit(on_bus=False))  # over its serial port: nothing on the bus
         # its replies go on, with no torque where the law asks for the joint's weight: out of motor mode
-        e = stopped(arm, sim, DriverReset, joint, lambda: arm.sleep(1.0))
-        assert e.at - t <= 0.05, e
+        e = stopped(arm, sim, DriverReset, joint, lambda: arm.sleep(2.0))
+        assert e.at - t <= RESET_BOUND[timing], e
         assert abs(e.reported) < 0.1 and abs(e.expected) > 0.1 * arm.config.joints[arm.names.index(joint)].limits.torque
+        damping_then_exit(wire, arm.config)
+
+
+@pytest.mark.parametrize("timing", ["normal", "slow"])
+def test_a_driver_that_lost_power_for_300_ms_stops_the_arm_under_every_profile(channel: str, timing: str) -> None:
+    """Issue 39: arm6 holding ``ready`` under the slow profile; the elbow's driver loses power for 300 ms
+    and comes back out of motor mode. It fell onto its hard stop, 1.08 rad from its command, and nothing
+    stopped the arm for 30 s. Normal: the 300 ms of silence is the watchdog's (20 ms); slow (a 1 s
+    watchdog): the driver answers again with no torque where the law asks for the elbow's weight."""
+    with rig("arm6", channel, timing=timing) as (arm, sim, wire):
+        arm.enable()
+        arm.move_to("ready")
+        arm.sleep(0.3)
+        t = arm.clock.now()
+        sim.inject("elbow", faults.Unplugged(power_lost=True))
+
+        def power_back() -> None:
+            arm.sleep(0.3)
+            sim.clear_faults("elbow")
+            arm.sleep(2.0)
+
+        e = stopped(arm, sim, DriverReset if timing == "slow" else FeedbackTimeout, "elbow", power_back)
+        assert e.at - t <= RESET_BOUND[timing], e
         damping_then_exit(wire, arm.config)
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from akarm.errors import FeedbackTimeout, SafetyStop, TurnCountLost
+from akarm.errors import ArgumentError, FeedbackTimeout, SafetyStop, TurnCountLost
 from akarm.protocol import mit
 from akarm.sim import SimulatedRobot, faults
 
@@ -177,21 +177,70 @@ def test_on_virtual_buses_another_programs_simulated_arm_is_not_remembered(chann
     another program's simulated arm stopped (NAME.sim.json) says nothing of it. That file had the
     examples refuse to enable a fresh simulator whose wrist_roll stood one rotor turn from it."""
     from akarm import Arm, load_robot
-    from akarm.control.turns import state_file
+    from akarm.control.turns import arm_key, state_file
 
-    stale = state_file("arm6", simulator=True)
+    config = load_robot(Path(__file__).parents[2] / "robots" / "arm6.yaml").with_bus(interface="virtual",
+                                                                                     channel=channel)
+    local = config.with_bus(interface="akarm_local", channel=channel)
+    stale = state_file(arm_key(local), simulator=True)  # (what that arm on akarm_local would remember)
     stale.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps({"robot_positions": 1, "positions": {"wrist_roll": -2 * math.pi / 6}})  # AK60-6: 1 turn
     stale.write_text(text)
-    config = load_robot(Path(__file__).parents[2] / "robots" / "arm6.yaml").with_bus(interface="virtual",
-                                                                                     channel=channel)
+    state_file(arm_key(config), simulator=True).write_text(text)  # (and on this virtual bus: never read)
     with SimulatedRobot(config, realtime=False, q0=[0.0] * 6) as sim, Arm(config, clock=sim.clock) as arm:
         arm.enable()  # (refused with TurnCountLost when the file was read)
         arm.disable()
     assert stale.read_text() == text  # neither read nor written
     # the same arm on a bus another process's simulator may answer on: remembered, and checked
-    local = config.with_bus(interface="akarm_local", channel=channel)
     with SimulatedRobot(local, realtime=False, q0=[0.0] * 6) as sim, Arm(local, clock=sim.clock) as arm, \
             pytest.raises(TurnCountLost) as lost:
         arm.enable()
     assert lost.value.joint == "wrist_roll"
+
+
+def test_two_arms_of_one_robot_file_on_two_channels_each_keep_their_own_positions(channel: str) -> None:
+    """Issue 39: arm B moved its pan two AK10-9 rotor turns (+1.396 rad) and stopped; arm A, the same robot
+    file on another channel, moved to 0 and stopped; A's next enable was refused as if it had lost two
+    turns: one state file per robot file. Now each arm remembers under its own buses and channels."""
+    from akarm import Arm, load_robot
+    from akarm.control.turns import arm_key, state_file
+
+    base = load_robot(Path(__file__).parents[2] / "robots" / "arm6.yaml")
+    a, b = (base.with_bus(interface="akarm_local", channel=f"{channel}-{x}") for x in "ab")
+    assert arm_key(a) != arm_key(b) and arm_key(a).startswith("arm6@akarm_local-")
+    with SimulatedRobot(a, realtime=False, q0=Q0) as sim_a, Arm(a, clock=sim_a.clock) as arm_a, \
+            SimulatedRobot(b, realtime=False, q0=Q0) as sim_b, Arm(b, clock=sim_b.clock) as arm_b:
+        arm_b.enable()
+        arm_b.move_to({"shoulder_pan": 0.3 + 4 * math.pi / 9})  # two rotor turns of an AK10-9 from A's
+        arm_b.disable()
+        arm_a.enable()
+        arm_a.move_to({"shoulder_pan": 0.3})
+        arm_a.disable()
+        arm_a.enable()  # (refused with TurnCountLost: -2 rotor turns, when both shared one file)
+        arm_b.disable()
+        arm_b.enable()
+        assert arm_a.enabled and arm_b.enabled
+    assert state_file(arm_key(a), simulator=True).exists() and state_file(arm_key(b), simulator=True).exists()
+
+
+def test_an_arm_named_by_its_id_keeps_its_positions_under_it_on_any_channel(channel: str) -> None:
+    """``arm_id`` (``--id``): the physical arm moved to another adapter is still judged by its own memory."""
+    from akarm import Arm, load_robot
+    from akarm.control.turns import state_file
+
+    base = load_robot(Path(__file__).parents[2] / "robots" / "arm6.yaml")
+    first = base.with_bus(interface="akarm_local", channel=f"{channel}-1")
+    with SimulatedRobot(first, realtime=False, q0=Q0) as sim, Arm(first, clock=sim.clock, arm_id="left") as arm:
+        arm.enable()
+        arm.disable()
+        q = sim.q.copy()
+    assert state_file("id-left", simulator=True).exists()
+    moved = base.with_bus(interface="akarm_local", channel=f"{channel}-2")  # the same arm, another adapter
+    with SimulatedRobot(moved, realtime=False, q0=q) as sim, Arm(moved, clock=sim.clock, arm_id="left") as arm:
+        sim.inject("wrist_roll", faults.PowerCycle(turns=1, seconds=0.05))
+        arm.sleep(0.1)
+        with pytest.raises(TurnCountLost) as lost:
+            arm.enable()
+        assert lost.value.joint == "wrist_roll" and lost.value.turns == 1
+    with pytest.raises(ArgumentError):
+        Arm(base, arm_id="../x")

@@ -104,3 +104,14 @@ def test_a_known_error_code_is_still_a_motor_fault(channel: str) -> None:
         sim.inject("elbow", faults.ErrorCode(2))
         with pytest.raises(MotorFault):
             arm.sleep(0.2)
+
+
+def test_a_mit_motor_where_servo_is_configured_is_named_with_the_mode_seen(channel: str) -> None:
+    """Issue 39: it failed the enable as a generic FeedbackTimeout (a MIT motor ignores servo frames and
+    sends no status frames), where ``akarm scan`` named it. The enable asks its ID as a MIT motor would
+    be asked (EXIT: a MIT motor answers and stays limp; a servo motor ignores it) and names it."""
+    with rig("servo3", channel, "pan", mode="mit") as (arm, sim):
+        with pytest.raises(ModeMismatch) as e:
+            arm.enable()
+        assert e.value.joint == "pan" and e.value.seen == "mit" and "answers as a MIT motor" in str(e.value)
+        assert efforts(sim) == [] and not any(d.enabled for d in sim.driver_states())

@@ -93,6 +93,20 @@ def test_the_stall_limit_reaches_the_arm_with_the_profile() -> None:
     assert loop_options(args) == {"timing": "normal", "stall_limit": None}  # None: the profile's
 
 
+def test_the_arm_id_names_the_physical_arm_on_verbs_that_drive_one() -> None:
+    """Issue 39: the remembered positions are the physical arm's (``--id``, as LeRobot's --robot.id);
+    teleop drives two arms, each keyed by its own buses and channels."""
+    from akarm.cli.common import loop_options
+
+    options = {verb: {o for a in build_parser()._subparsers._group_actions[0].choices[verb]._actions  # type: ignore
+                      for o in a.option_strings} for verb in VERBS}
+    for verb in ("move", "enable", "teach", "replay", "serve", "demo", "bench"):
+        assert "--id" in options[verb], verb
+    assert "--id" not in options["teleop"] and "--id" not in options["sim"]
+    args = build_parser().parse_args(["enable", "robots/arm6.yaml", "--id", "left_follower"])
+    assert loop_options(args) == {"timing": "normal", "stall_limit": None, "arm_id": "left_follower"}
+
+
 # ----------------------------------------------------------------------------- values: durations, coordinates, buses
 
 

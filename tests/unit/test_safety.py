@@ -290,7 +290,9 @@ def test_a_reset_is_still_found_on_a_lagging_machine_once_every_law_it_may_answe
     stops = lagging_cycles(sup, js, [big] * 30, [big] * 10 + [0.0] * 20)  # the driver resets at the 11th
     first = next(k for k, e in enumerate(stops) if e is not None)
     assert isinstance(stops[first], DriverReset) and stops[first].joint == "elbow"
-    assert first == 10 + 2  # every kept law asks for the torque: the third reply without it stops
+    # every kept law asks for the torque: the replies without it stop the arm once they went on for the
+    # lag (RESET_LAG_TIME at most), the third and later ones
+    assert first == 10 + lag
 
 
 def test_a_motor_error_code_and_a_temperature_stop(rig) -> None:
@@ -618,3 +620,31 @@ def test_a_lagging_profile_s_burst_of_late_replies_is_not_a_second_motor(planar2
         assert isinstance(e, ForeignTraffic) and e.kind == "replies" and e.joint == "elbow"
     else:
         assert isinstance(found[0], ForeignTraffic) and found[0].kind == "replies"
+
+
+def test_a_lagging_profile_widens_the_following_error_by_what_the_command_moved_in_the_lag(
+        planar2: RobotConfig) -> None:
+    """Issue 39: the slow profile widened the limit by the velocity limit times its lag (2.7 rad), so a
+    joint that fell while the arm held still was never caught. Now only by how far the command moved
+    within the lag: a reading that trails by the lag is that far behind, and no further."""
+    js = joints_of(planar2)
+    lag, period = 1.0, 0.04
+    guards = [Guard(1.0, 80.0, 0.2), Guard(1.0, 80.0, 0.2)]  # (the stuck-travel check: the controller's slack)
+    moving = Supervisor(js, guards, period=period, lag=lag)
+    fresh(js, 0.0)
+    moving.arm(0.0)
+    for k in range(1, 25):  # the command moves 0.02 rad a cycle; the reading trails by 25 cycles (the lag)
+        t = k * period
+        fresh(js, t, [0.0, 0.0])
+        assert moving.check(t, [0.0, 0.02 * k], [True, True]) is None, k
+    held = Supervisor(js, guards, period=period, lag=lag)
+    fresh(js, 0.0)
+    held.arm(0.0)
+    stops = []
+    for k in range(1, 6):  # held still at 0; the elbow fell 1.08 rad (onto its stop)
+        t = k * period
+        fresh(js, t, [0.0, 1.08])
+        stops.append(held.check(t, [0.0, 0.0], [True, True]))
+    assert stops[:FOLLOWING_CYCLES - 1] == [None] * (FOLLOWING_CYCLES - 1)
+    e = stops[FOLLOWING_CYCLES - 1]
+    assert isinstance(e, TrackingError) and e.joint == "elbow" and e.limit == pytest.approx(0.2)

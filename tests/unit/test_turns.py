@@ -137,3 +137,67 @@ def test_a_simulated_arm_keeps_its_positions_apart_from_the_real_one(tmp_path: P
     assert not simulated(BusConfig("real", "socketcan", "can0"))
     assert not all(map(simulated, [*sim, BusConfig("real", "socketcan", "can0")]))  # one real bus: the real file
     assert not simulated(BusConfig("arm", "pcan", "PCAN_USBBUS1"))
+
+
+# ------------------------------------------------------------------------- the turn check by physics (issue 39)
+def two_link_gravity(q):  # arm6-like: shoulder_lift carries 8 N·m at most, the elbow 3; the others nothing
+    import numpy as np
+
+    return np.array([0.0, 8.0 * math.cos(q[1]) + 3.0 * math.cos(q[1] + q[2]), 3.0 * math.cos(q[1] + q[2]),
+                     0.0, 0.0, 0.0])
+
+
+def test_the_torque_at_the_true_pose_refuses_a_reading_a_turn_off_and_names_the_joint(arm6: RobotConfig) -> None:
+    import numpy as np
+
+    from akarm.control.turns import GravityTurnCheck
+
+    check = GravityTurnCheck(arm6.joints, two_link_gravity, [True] * 6)
+    truth = np.array([0.0, 0.3, 0.4, 0.0, 0.0, 0.0])
+    tau = two_link_gravity(truth)
+    assert check.judge(truth, tau).error is None  # the readings explain it
+    step = turn_step(arm6.joint("elbow"))
+    reading = truth.copy()
+    reading[2] += step  # the elbow (AK80-9) reads one rotor turn (40°) more than it stands
+    verdict = check.judge(reading, tau)
+    e = verdict.error
+    assert e is not None and e.joint == "elbow" and e.turns == 1 and math.isnan(e.remembered)
+    assert e.measured == pytest.approx(tau[2]) and e.explained == pytest.approx(tau[2])
+    assert e.expected == pytest.approx(two_link_gravity(reading)[2])
+    # within the band (friction + 2 % of the limit) of the reading's gravity: explained, never refused
+    near = two_link_gravity(reading) + np.array([0.0, 0.5, 0.5, 0.0, 0.0, 0.0])
+    assert check.judge(reading, near).error is None
+
+
+def test_a_joint_whose_torque_a_turn_does_not_change_cannot_be_told(arm6: RobotConfig) -> None:
+    import numpy as np
+
+    from akarm.control.turns import GravityTurnCheck
+
+    check = GravityTurnCheck(arm6.joints, two_link_gravity, [True] * 6)
+    q = np.array([0.3, 0.3, 0.4, 0.2, 0.0, 0.1])
+    verdict = check.judge(q, two_link_gravity(q))
+    assert verdict.error is None and {"shoulder_pan", "forearm_roll", "wrist_roll"} <= set(verdict.undecided)
+
+
+def test_a_joint_on_its_hard_stop_may_hold_less_than_gravity_asks(arm6: RobotConfig) -> None:
+    import numpy as np
+
+    from akarm.control.turns import GravityTurnCheck
+
+    check = GravityTurnCheck(arm6.joints, two_link_gravity, [True] * 6)
+    q = np.array([0.0, 1.7, 1.4, 0.0, 0.0, 0.0])  # shoulder_lift on its upper stop (the robot file's 1.7)
+    tau = two_link_gravity(q)
+    tau[1] += 2.0  # the stop carries 2 N·m of it (it pushes down: the motor holds more)
+    assert check.judge(q, tau).error is None
+
+
+def test_a_reading_past_the_hard_stop_by_whole_turns_is_a_lost_turn(arm6: RobotConfig) -> None:
+    from akarm.control.turns import GravityTurnCheck
+
+    check = GravityTurnCheck(arm6.joints, two_link_gravity, [True] * 6, [j.limits.lower for j in arm6.joints],
+                             [j.limits.upper for j in arm6.joints])
+    step = turn_step(arm6.joint("shoulder_lift"))  # AK70-10: 36°
+    e = check.out_of_range([0.0, 1.7 + step, 0.0, 0.0, 0.0, 0.0])
+    assert e is not None and e.joint == "shoulder_lift" and e.turns == 1 and "past its hard stop" in str(e)
+    assert check.out_of_range([0.0, 1.75, 0.0, 0.0, 0.0, 0.0]) is None  # (pressed into its stop: in range)

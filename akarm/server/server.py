@@ -738,17 +738,18 @@ class ArmServerCore:
 
     def _op_stream(self, target: list[float | None] | Mapping[str, float | None], partial: bool = False,
                    gripper: float | None = None, timeout: float = DEFAULT_TIMEOUT,
-                   speed: float = 1.0) -> dict[str, Any]:
+                   speed: float = 1.0, lead: bool = True) -> dict[str, Any]:
         """Stream a target (a policy's action) into the loop: :class:`~akarm.server.streaming.TargetStream`'s
         rules (clamped to the range and counted; a target that is not a number (``null``), an unknown or a
         missing joint (unless ``partial``) refused, the arm brought to a hold; a client silent for
-        ``timeout`` s leaves the arm decelerating to a hold). ``gripper``: its width, m. Another command
+        ``timeout`` s leaves the arm decelerating to a hold; moving targets led by their braking distance
+        unless ``lead`` is false). ``gripper``: its width, m. Another command
         (move, hold, stop, a trajectory, teach, enable, disable) ends the stream."""
         with self._cmd:
             self._require_commandable()
             stream = self._stream
-            if stream is None or stream.timeout != timeout or stream.speed != speed:
-                stream = self._stream = TargetStream(self.arm, timeout=timeout, speed=speed, log=self.log)
+            if stream is None or (stream.timeout, stream.speed, stream.lead) != (timeout, speed, lead):
+                stream = self._stream = TargetStream(self.arm, timeout=timeout, speed=speed, log=self.log, lead=lead)
             try:
                 report = stream.send(target, partial=partial, gripper=gripper)
             except ArgumentError as e:

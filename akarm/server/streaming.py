@@ -12,6 +12,12 @@ retargeting (:meth:`akarm.Arm.stream_to`, each joint on its own), so that:
 - **a target that is not a number** (NaN, ``None``), an unknown joint, or a missing joint (unless
   ``partial``) is **refused**: nothing of it is used, the arm comes to rest where it is going
   (jerk-limited) and holds, and :class:`~akarm.ArgumentError` says which joint and why;
+- **targets that move are led**, as :mod:`akarm.teleop` leads its follower: a retarget comes to rest
+  at its target, so a moving stream would be trailed by a braking distance; the target taken is the
+  one sent plus the distance the arm needs to brake from the targets' own velocity (the last two
+  targets' difference over their interval, within the joint's velocity limit) at its limits
+  (:func:`akarm.teleop.stopping_distance`), within the range; a stream that stops moving is then
+  reached and held (``lead=False``: each target as sent);
 - **a client that stops sending** (a stalled or crashed policy) leaves the arm decelerating to a hold
   once :attr:`timeout` s have passed since its last target (:meth:`check`, which the server calls
   every few ms); the next target resumes from there, smoothly (retargeting from the braking state).
@@ -31,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from akarm.errors import ArgumentError, finite_number
+from akarm.teleop import stopping_distance
 
 if TYPE_CHECKING:
     from akarm.arm import Arm
@@ -80,10 +87,11 @@ class TargetStream:
         timeout: s without a target after which :meth:`check` brings the arm to a hold.
         speed: the fraction of the joint limits the retargeting may use, in (0, 1].
         log: where the one-line reports go (a joint clamped the first time, a hold for want of targets).
+        lead: lead moving targets by their braking distance (see the module's docstring).
     """
 
     def __init__(self, arm: Arm, *, timeout: float = DEFAULT_TIMEOUT, speed: float = 1.0,
-                 log: Callable[[str], None] | None = None) -> None:
+                 log: Callable[[str], None] | None = None, lead: bool = True) -> None:
         self.arm = arm
         self.timeout = check_timeout(timeout)
         self.speed = finite_number(speed, "a stream's speed", at_least=0.01, at_most=1.0,
@@ -96,6 +104,9 @@ class TargetStream:
         self.sent = 0  #: targets taken
         self._warned: set[str] = set()
         self._last: float | None = None  # clock time of the last target taken (None: holding, none pending)
+        self.lead = bool(lead)
+        self._previous: np.ndarray | None = None  # the last target taken, as sent (clamped), for its velocity
+        self._limits = arm.limits.scaled(self.speed)
         self._lock = threading.Lock()
 
     @property
@@ -181,16 +192,24 @@ class TargetStream:
                                  f"[{lim.lower[i]:+.3f}, {lim.upper[i]:+.3f}] rad: taken to its edge (counted; "
                                  "said once per joint)")
                 q = np.clip(q, lim.lower, lim.upper)
-            self.arm.stream_to(q, self.speed, synchronize=False)
+            now = self.arm.clock.now()
+            goal = q
+            if self.lead and self._previous is not None and self._last is not None and now - self._last > 0.0:
+                velocity = np.clip((q - self._previous) / (now - self._last), -self._limits.velocity,
+                                   self._limits.velocity)
+                goal = np.clip(q + stopping_distance(velocity, self._limits), lim.lower, lim.upper)
+            self._previous = q
+            self.arm.stream_to(goal, self.speed, synchronize=False)
             if width is not None:
                 self.arm.gripper.move_to(width, wait=False)  # type: ignore[attr-defined]
-            self._last = self.arm.clock.now()
+            self._last = now
             self.sent += 1
             return StreamReport(tuple(float(x) for x in q), clamped, self.clamped, self.timeouts, width)
 
     def _hold(self) -> None:
         """Bring the arm to rest (jerk-limited) where it is going, and hold; the stream waits for a target."""
         self._last = None
+        self._previous = None
         if self.arm.enabled and self.arm.moving:
             self.arm.stop(wait=False)
 

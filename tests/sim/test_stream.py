@@ -116,3 +116,30 @@ def test_the_timeout_is_checked():
     for bad in (0.0, -1.0, math.nan, 60.0, True, "1"):
         with pytest.raises(ArgumentError, match="timeout"):
             check_timeout(bad)
+
+
+def sway_error(channel, lead):
+    """Stream a 1.5 s sway (0.8 rad, 1.7 rad/s at its fastest) at 30 Hz, then its end for 0.5 s: the
+    largest distance from the commanded position to the sway, the end's error, the log."""
+    with lockstep_arm("planar2", channel, enable=True) as (arm, sim):
+        stream = TargetStream(arm, lead=lead)
+        t0 = sim.clock.now()
+        errors = []
+        for k in range(60):
+            t = min(k * FRAME, 1.5)
+            want = 0.4 * (1.0 - math.cos(math.pi * t / 1.5))
+            stream.send([want, -want])
+            run(arm, stream, FRAME)
+            errors.append(abs(arm.state().q_des[0] - want))
+        log = arm.telemetry(since=t0)
+        within_limits(arm, log)
+        return max(errors[5:45]), abs(log.q_des[-1][0] - 0.8), stream.timeouts
+
+
+def test_a_moving_stream_is_led_by_its_braking_distance(channel):
+    led, led_end, timeouts = sway_error(channel, True)
+    trailed, trailed_end, _ = sway_error(channel + "-b", False)
+    print(f"sway tracking: led {led:.4f} rad, trailed {trailed:.4f} rad; ends {led_end:.2e}, {trailed_end:.2e}")
+    assert timeouts == 0
+    assert led < 0.5 * trailed
+    assert led_end < 1e-6 and trailed_end < 1e-6  # a stream that stops moving is reached and held

@@ -17,7 +17,8 @@ class AkarmConfig(RobotConfig):
         robot_file: the robot's YAML file (akarm's robot file).
         interface, channel: the bus, as the akarm CLI's ``-i`` and ``-c`` (default: the robot file's).
         cameras: LeRobot cameras (``opencv``, ``intelrealsense``, ``akarm_sim``).
-        profile: akarm's timing profile for a server started here (``normal``; ``slow`` on a VM or CI).
+        profile, stall_limit: akarm serve's timing profile (``normal``; ``slow`` on a VM) and stall limit
+            (s), for a server started here.
         stream_timeout: s without an action after which the arm decelerates to a hold.
         speed: the fraction of the joints' velocity, acceleration and jerk limits actions may use.
         strict_actions: refuse an action that names only some joints (default: the others keep their target).
@@ -29,6 +30,7 @@ class AkarmConfig(RobotConfig):
     channel: str | None = None
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
     profile: str = "normal"
+    stall_limit: float | None = None
     stream_timeout: float = 0.25
     speed: float = 1.0
     strict_actions: bool = False

@@ -115,7 +115,8 @@ class Akarm(Robot):
         if self.arm is not None:
             raise RuntimeError(f"{self} is already connected")
         c = self.config
-        self.arm = ServedArm(c.robot_file, c.interface, c.channel, profile=c.profile, start=c.start_server)
+        self.arm = ServedArm(c.robot_file, c.interface, c.channel, profile=c.profile, stall_limit=c.stall_limit,
+                              start=c.start_server)
         try:
             self.arm.call("ready")  # refused while a safety stop is latched; enables a disabled arm
             for cam in self.cameras.values():

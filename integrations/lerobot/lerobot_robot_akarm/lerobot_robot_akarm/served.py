@@ -49,13 +49,15 @@ class ServedArm:
     Args:
         start: start ``akarm serve`` when none drives the robot's buses (else: StateError).
         profile: the server's timing profile (``normal``, ``slow``), when it is started here.
+        stall_limit: s the server's loop may fail to run before it stops the arm (default: the profile's).
         start_timeout: s to wait for a server started here to hold the arm.
     """
 
     def __init__(self, robot_file: str | os.PathLike[str], interface: str | None = None, channel: str | None = None,
-                 *, profile: str = "normal", start: bool = True, start_timeout: float = 60.0) -> None:
+                 *, profile: str = "normal", stall_limit: float | None = None, start: bool = True,
+                 start_timeout: float = 60.0) -> None:
         self.robot_file = Path(robot_file)
-        self.interface, self.channel, self.profile = interface, channel, profile
+        self.interface, self.channel, self.profile, self.stall_limit = interface, channel, profile, stall_limit
         config = load_robot(self.robot_file)
         if interface or channel:
             config = config.with_bus(interface=interface, channel=channel)
@@ -76,6 +78,8 @@ class ServedArm:
 
     def _start(self, timeout: float) -> dict[str, Any]:
         cmd = [sys.executable, "-m", "akarm", "serve", str(self.robot_file), "--no-ros", "--profile", self.profile]
+        if self.stall_limit is not None:
+            cmd += ["--stall-limit", str(self.stall_limit)]
         if self.interface:
             cmd += ["-i", self.interface]
         if self.channel:

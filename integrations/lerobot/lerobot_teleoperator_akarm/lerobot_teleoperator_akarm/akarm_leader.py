@@ -65,7 +65,8 @@ class AkarmLeader(Teleoperator):
 
     def connect(self, calibrate: bool = True) -> None:
         c = self.config
-        self.arm = ServedArm(c.robot_file, c.interface, c.channel, profile=c.profile, start=c.start_server)
+        self.arm = ServedArm(c.robot_file, c.interface, c.channel, profile=c.profile, stall_limit=c.stall_limit,
+                              start=c.start_server)
         try:
             self.arm.call("ready")
             self.arm.call("teach", damping=c.damping)

@@ -23,6 +23,7 @@ class AkarmLeaderConfig(TeleoperatorConfig):
     interface: str | None = None
     channel: str | None = None
     profile: str = "normal"
+    stall_limit: float | None = None
     start_server: bool = True
     damping: float = 0.1
     joint_names: list[str] = field(default_factory=list)

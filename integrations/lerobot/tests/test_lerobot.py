@@ -118,18 +118,23 @@ def test_record_two_episodes_with_a_camera_then_replay_one(robot, channel, tmp_p
         path = poll.path
         error = np.array([np.abs(path - a).max(axis=1).min() for a in actions])
         end_error = np.abs(path[-1] - actions[-1]).max()
-        print(f"replay: {len(actions)} actions; the follower passed each within {error.max():.4f} rad "
-              f"(median {np.median(error):.4f}); at the end {end_error:.4f} rad from the last")
-        assert error.max() < 0.05 and end_error < 0.05
+        settle = round(0.5 * FPS)  # the episode begins mid-motion; the follower, from rest, takes ~0.3 s to join it
+        print(f"replay: {len(actions)} actions; after the first 0.5 s the follower passed each within "
+              f"{error[settle:].max():.4f} rad (median {np.median(error[settle:]):.4f}); in the first 0.5 s within "
+              f"{error[:settle].max():.4f} rad; at the end {end_error:.4f} rad from the last")
+        assert error[settle:].max() < 0.05 and error[:settle].max() < 0.4 and end_error < 0.02
         assert follower.call("status")["stop_error"] == ""
 
 
 def test_a_safety_stop_ends_the_session_with_its_name_and_the_arm_disabled(robot, channel):
     lead, follow = channel + "-lead", channel + "-follow"
     with SimulatorProcess(robot, channel=lead), SimulatorProcess(robot, channel=follow, control=True) as sim, \
-            served(robot, lead), served(robot, follow) as follower:
-        def unplug() -> None:
-            time.sleep(8.0)
+            served(robot, lead) as leader, served(robot, follow) as follower:
+        def unplug() -> None:  # once the session runs: the leader in teach mode, 2 s more
+            end = time.monotonic() + 90
+            while leader.call("status")["mode"] != "teach" and time.monotonic() < end:
+                time.sleep(0.1)
+            time.sleep(2.0)
             sim.control.inject("elbow", "unplugged")
 
         import threading

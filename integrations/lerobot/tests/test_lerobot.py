@@ -221,3 +221,60 @@ def test_a_policy_past_the_limit_nan_or_silent(robot, channel, tmp_path):
             assert server.call("status")["stop_error"] == ""
         finally:
             arm.disconnect()
+
+
+ACT = ["--policy.type=act", "--policy.pretrained_backbone_weights=null", "--policy.device=cpu",
+       "--policy.push_to_hub=false", "--policy.chunk_size=10", "--policy.n_action_steps=10", "--policy.dim_model=64",
+       "--policy.n_heads=2", "--policy.dim_feedforward=128", "--policy.n_encoder_layers=1",
+       "--policy.n_decoder_layers=1", "--policy.use_vae=false"]
+
+
+def test_act_trained_on_recorded_episodes_runs_on_the_follower(robot, channel, tmp_path):
+    """The plumbing, not the skill: 2 episodes recorded, a small ACT (random initialisation, no download)
+    trained a few steps on CPU, then rolled out with lerobot-record --policy.path on the follower: no
+    safety stop, no command step above the limits, the arm's motion measured."""
+    root, lead, follow = tmp_path / "dataset", channel + "-lead", channel + "-follow"
+    with SimulatorProcess(robot, channel=lead, control=True) as lead_sim, \
+            SimulatorProcess(robot, channel=follow, pose="down"), served(robot, lead), \
+            served(robot, follow) as follower:
+        with Hand(lead_sim.control, sway([0.0, 0.0], [-1.0, 0.8], 4.0)):
+            out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
+                             "--robot.id=follower", camera(robot, follow), "--teleop.type=akarm_leader",
+                             *bus("teleop", robot, lead), "--teleop.id=leader", "--dataset.repo_id=local/akarm_act",
+                             f"--dataset.root={root}", "--dataset.num_episodes=2", "--dataset.episode_time_s=3",
+                             "--dataset.reset_time_s=1", f"--dataset.fps={FPS}", "--dataset.single_task=sway",
+                             "--dataset.push_to_hub=false", "--display_data=false", "--play_sounds=false")
+        assert out.returncode == 0
+
+        started = time.monotonic()
+        out = run_script("lerobot-train", "--dataset.repo_id=local/akarm_act", f"--dataset.root={root}",
+                         "--dataset.video_backend=pyav", *ACT, "--steps=20", "--batch_size=4", "--num_workers=0",
+                         "--wandb.enable=false", f"--output_dir={tmp_path / 'train'}", "--save_freq=20",
+                         "--log_freq=10", timeout=1800)
+        assert out.returncode == 0
+        model = tmp_path / "train" / "checkpoints" / "last" / "pretrained_model"
+        assert (model / "model.safetensors").is_file()
+        print(f"ACT: 20 steps trained in {time.monotonic() - started:.0f} s")
+
+        follower.call("wait", id=follower.call("move", target="down", speed=0.5)["id"])
+        since = follower.call("state", read=False)
+        with Poller(follower) as poll:
+            out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
+                             "--robot.id=follower", camera(robot, follow), f"--policy.path={model}",
+                             "--dataset.repo_id=local/eval_akarm_act", f"--dataset.root={tmp_path / 'eval'}",
+                             "--dataset.num_episodes=1", "--dataset.episode_time_s=4", "--dataset.reset_time_s=0",
+                             f"--dataset.fps={FPS}", "--dataset.single_task=sway", "--dataset.push_to_hub=false",
+                             "--display_data=false", "--play_sounds=false")
+        assert out.returncode == 0
+        path = poll.path
+        moved = np.abs(path - np.array(since["q"])).max(axis=0)
+        before, after = poll.status[0], poll.status[-1]
+        log = telemetry(follower, tmp_path / "rollout.npz")
+        steps = command_steps(log, 4.0, 20.0)
+        print(f"rollout: the follower moved up to {np.round(moved, 3)} rad per joint; largest command step "
+              f"{steps[0]:.3f} of the velocity limit's, {steps[1]:.3f} of the acceleration limit's; loop "
+              f"{after['loop_rate_hz']} Hz, {after['missed_slots'] - before['missed_slots']} missed slots, late p99 "
+              f"{after['late_p99_us']} us; stop: {after['stop_error'] or 'none'}")
+        assert after["stop_error"] == ""
+        assert steps[0] <= 1.001 and steps[1] <= 1.001
+        assert moved.max() > 0.05  # the policy's actions moved the arm

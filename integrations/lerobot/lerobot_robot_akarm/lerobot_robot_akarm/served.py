@@ -22,6 +22,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -75,6 +76,9 @@ class ServedArm:
             raise StateError(f"another controller holds this robot's bus ({info.get('bus')})", fix="stop it first")
         self.socket = str(info["socket"])
         self.client = SocketClient(self.socket, timeout=30.0)
+        # one request at a time on the connection: LeRobot's async robot_client observes and acts from
+        # two threads, and each answer must go to the call that asked
+        self._lock = threading.Lock()
 
     def _start(self, timeout: float) -> dict[str, Any]:
         cmd = [sys.executable, "-m", "akarm", "serve", str(self.robot_file), "--no-ros", "--profile", self.profile]
@@ -101,7 +105,8 @@ class ServedArm:
                          fix="see its output above")
 
     def call(self, op: str, **args: Any) -> Any:
-        return self.client.call(op, **args)
+        with self._lock:
+            return self.client.call(op, **args)
 
     def state(self) -> dict[str, Any]:
         """The server's ``state`` (``q``, ``dq``, ``tau``, ``stop``, ...); a latched stop is raised."""

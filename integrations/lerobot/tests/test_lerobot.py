@@ -278,3 +278,57 @@ def test_act_trained_on_recorded_episodes_runs_on_the_follower(robot, channel, t
         assert after["stop_error"] == ""
         assert steps[0] <= 1.001 and steps[1] <= 1.001
         assert moved.max() > 0.05  # the policy's actions moved the arm
+
+        # the same policy by async inference: policy_server and robot_client, each a process of its own
+        import signal
+        import socket
+        import subprocess
+        import sys
+
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        follower.call("wait", id=follower.call("move", target="down", speed=0.5)["id"])
+        since = follower.call("state", read=False)
+        server = subprocess.Popen([sys.executable, "-m", "lerobot.async_inference.policy_server", "--host=127.0.0.1",
+                                   f"--port={port}"], cwd=tmp_path)  # (not this folder: python -m puts the
+        # working directory first on the path, where the plugins' project folders would shadow the packages)
+        try:
+            with Poller(follower) as poll:
+                client = subprocess.Popen([sys.executable, "-m", "lerobot.async_inference.robot_client",
+                                           "--robot.type=akarm", *bus("robot", robot, follow), "--robot.id=follower",
+                                           camera(robot, follow), "--task=sway", f"--server_address=127.0.0.1:{port}",
+                                           "--policy_type=act", f"--pretrained_name_or_path={model}",
+                                           "--policy_device=cpu", "--client_device=cpu", "--actions_per_chunk=10",
+                                           "--chunk_size_threshold=0.5", f"--fps={FPS}"], cwd=tmp_path)
+                end = time.monotonic() + 240  # imports and the model's load, on a busy machine
+                while time.monotonic() < end and client.poll() is None:
+                    if poll.q and np.abs(np.array(poll.q[-1]) - since["q"]).max() > 0.05:
+                        break
+                    time.sleep(0.5)
+                time.sleep(10.0)  # 10 s of the policy driving the arm
+                running = client.poll() is None
+                client.send_signal(signal.SIGINT)
+                try:
+                    client.wait(30)
+                except subprocess.TimeoutExpired:
+                    client.kill()
+                    client.wait()
+        finally:
+            server.send_signal(signal.SIGINT)
+            try:
+                server.wait(30)
+            except subprocess.TimeoutExpired:
+                server.kill()
+                server.wait()
+        moved = np.abs(poll.path - np.array(since["q"])).max(axis=0)
+        after = poll.status[-1]
+        log = telemetry(follower, tmp_path / "async.npz")
+        steps = command_steps(log, 4.0, 20.0)
+        print(f"async inference: the follower moved up to {np.round(moved, 3)} rad per joint; largest command step "
+              f"{steps[0]:.3f} of the velocity limit's, {steps[1]:.3f} of the acceleration limit's; "
+              f"stop: {after['stop_error'] or 'none'}")
+        assert running, "robot_client ended before it was stopped"
+        assert after["stop_error"] == ""
+        assert steps[0] <= 1.001 and steps[1] <= 1.001
+        assert moved.max() > 0.05

@@ -125,7 +125,9 @@ class Akarm(Robot):
         except BaseException:
             self.disconnect()
             raise
-        log.info("%s connected (akarm serve pid %s)", self, self.arm.process.pid if self.arm.process else "?")
+        started = self.arm.process
+        log.info("%s connected to %s", self, f"akarm serve pid {started.pid}, started here" if started
+                 else f"the running akarm serve at {self.arm.socket}")
 
     def disconnect(self) -> None:
         arm, self.arm = self.arm, None

@@ -53,12 +53,15 @@ def channel(request: pytest.FixtureRequest) -> str:
 
 @contextmanager
 def served(robot: Path, channel: str) -> Iterator[Any]:
-    """``akarm serve`` (ROS off, stall limit 1 s) on ``channel``, held, and a control connection to it."""
+    """``akarm serve`` (ROS off) on ``channel``, held, and a control connection to it. Its stall limit is
+    3 s: on this shared 2-core machine (load average 12-15) a server's loop was starved 1.1-1.2 s while
+    LeRobot started or trained, and stopped the arm with LoopStall, as it should; the tests are about the
+    plugins (a real arm keeps the profile's 0.2 s)."""
     import akarm
     from akarm.buses.ownership import find_server
     from akarm.server.socket import SocketClient
 
-    cmd = [sys.executable, "-m", "akarm", "serve", str(robot), "--no-ros", "--stall-limit", "1.0",
+    cmd = [sys.executable, "-m", "akarm", "serve", str(robot), "--no-ros", "--stall-limit", "3.0",
            "-i", "akarm_local", "-c", channel]
     p = subprocess.Popen(cmd, start_new_session=True)
     config = akarm.load_robot(robot).with_bus(interface="akarm_local", channel=channel)

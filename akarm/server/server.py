@@ -52,6 +52,7 @@ from akarm.server import socket as _socket
 from akarm.server.ops import Operation
 from akarm.server.snapshot import Snapshot, take
 from akarm.server.socket import SocketServer
+from akarm.server.streaming import DEFAULT_TIMEOUT, TargetStream
 
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion
@@ -69,6 +70,7 @@ URGENT_OPERATIONS = frozenset({"disable", "stop", "hold", "status", "state", "sn
 _STOP_WAIT = 0.5  # s stop() waits for a running command before it disables the arm without it
 _STOP_GRACE = 10.0  # s it then waits for that command to end (to disable again after it), at most
 _OP = re.compile(r"^[a-z][a-z_]{0,39}$")
+_STREAM_POLL = 0.005  # s between the looks of the stream's watchdog (a silent client is seen this late at most)
 
 
 def copy_error(e: _E) -> _E:
@@ -214,6 +216,7 @@ class ArmServerCore:
         # (an old motion's stop waited for after its acknowledgement; a copy a request reported)
         self._known: weakref.WeakSet[BaseException] = weakref.WeakSet()
         self._refusals_logged = (0.0, 0)  # when a refusal was last logged, and how many since
+        self._stream: TargetStream | None = None  # a client's stream of targets (the ``stream`` operation)
 
     # ------------------------------------------------------------------------------------------
     # lifecycle
@@ -237,6 +240,7 @@ class ArmServerCore:
             self._socket = SocketServer(self.socket_path, self.dispatch, closed=self._client_left, log=self.log,
                                         urgent=URGENT_OPERATIONS)
             threading.Thread(target=self._watch_stops, name="akarm-serve-faults", daemon=True).start()
+            threading.Thread(target=self._watch_stream, name="akarm-serve-stream", daemon=True).start()
             for frontend in self._frontends:
                 frontend.start()
         except BaseException:
@@ -282,6 +286,17 @@ class ArmServerCore:
         """Latch (and say) a safety stop soon after it happens, whether or not a client is asking."""
         while not self._stop.wait(0.05):
             self._update_latch()
+
+    def _watch_stream(self) -> None:
+        """Bring the arm to a hold when a client streaming targets goes silent (:meth:`TargetStream.check`)."""
+        while not self._stop.wait(_STREAM_POLL):
+            stream = self._stream
+            if stream is None or stream.last is None:
+                continue
+            with self.try_command() as free:
+                if free and stream is self._stream:
+                    with contextlib.suppress(AkarmError), self._fresh_errors():
+                        stream.check()
 
     def __enter__(self: _Server) -> _Server:
         return self.start()
@@ -425,17 +440,20 @@ class ArmServerCore:
                 if acknowledged is not None:
                     self.log(f"akarm serve: the safety stop of {_clock_text(acknowledged.time)} "
                              f"({acknowledged.name}) is acknowledged; enabling")
+                self._stream = None
                 self.arm.enable(accept_position=accept_position)
 
     def disable(self) -> None:
         """Damp, then disable the arm (it is limp). A latched stop stays latched."""
         with self._cmd, self._fresh_errors():
+            self._stream = None
             self._end_teach()
             self.arm.disable()
 
     def hold(self) -> None:
         """Come to rest and hold (ending teach mode); refused while a stop is latched (it names the stop)."""
         with self._cmd, self._fresh_errors():
+            self._stream = None
             if self._teaching:
                 self._end_teach()
                 return
@@ -495,6 +513,7 @@ class ArmServerCore:
         try:
             with self._cmd, self._fresh_errors():
                 self._require_commandable()
+                self._stream = None
                 if len(times) == 0:
                     self.arm.stop(wait=False)
                     return None
@@ -633,6 +652,7 @@ class ArmServerCore:
 
     def _op_stop(self) -> None:
         with self._cmd:
+            self._stream = None
             if self.arm.enabled and self.arm.moving:
                 self.arm.stop(wait=False)
         for m, _ in list(self._motions.values()):
@@ -675,6 +695,7 @@ class ArmServerCore:
     def _op_move(self, target: str | list[float] | Mapping[str, float], speed: float = 1.0) -> dict[str, Any]:
         with self._cmd:
             self._require_commandable()
+            self._stream = None
             return self._motion_doc(self.arm.move_to(target, speed=speed, wait=False), self._stop_seq)
 
     def _gripper(self) -> Gripper:
@@ -742,6 +763,7 @@ class ArmServerCore:
     def _op_teach(self, damping: float = 0.1, client: int | None = None) -> None:
         with self._cmd:
             self._require_commandable()
+            self._stream = None
             self.arm.teach(damping)
             self._teaching = True
             self._teacher = client
@@ -780,9 +802,31 @@ class ArmServerCore:
         rec = self.arm.check_replay(path, speed)
         with self._cmd:
             self._require_commandable()
+            self._stream = None
             doc = self._motion_doc(self.arm.replay(rec, speed=speed, wait=False), self._stop_seq)
         doc["kind"] = f"{len(rec.frames)} keyframes" if isinstance(rec, Keyframes) else f"a {rec.duration:.2f} s path"
         return doc
+
+    def _op_stream(self, target: list[float | None] | Mapping[str, float | None], partial: bool = False,
+                   gripper: float | None = None, timeout: float = DEFAULT_TIMEOUT,
+                   speed: float = 1.0, lead: bool = True) -> dict[str, Any]:
+        """Stream a target (a policy's action) into the loop: :class:`~akarm.server.streaming.TargetStream`'s
+        rules (clamped to the range and counted; a target that is not a number (``null``), an unknown or a
+        missing joint (unless ``partial``) refused, the arm brought to a hold; a client silent for
+        ``timeout`` s leaves the arm decelerating to a hold; moving targets led by their braking distance
+        unless ``lead`` is false). ``gripper``: its width, m. Another command
+        (move, hold, stop, a trajectory, teach, enable, disable) ends the stream."""
+        with self._cmd:
+            self._require_commandable()
+            stream = self._stream
+            if stream is None or (stream.timeout, stream.speed, stream.lead) != (timeout, speed, lead):
+                stream = self._stream = TargetStream(self.arm, timeout=timeout, speed=speed, log=self.log, lead=lead)
+            try:
+                report = stream.send(target, partial=partial, gripper=gripper)
+            except ArgumentError as e:
+                self.note_refusal(e)
+                raise
+        return {**report.as_dict(), "refused_total": stream.refused, "sent_total": stream.sent}
 
     def _op_check_replay(self, path: str, speed: float = 1.0) -> None:
         self.arm.check_replay(path, speed)

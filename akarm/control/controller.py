@@ -44,7 +44,7 @@ import numpy as np
 from akarm.clock import Clock
 from akarm.config import JointConfig, RobotConfig
 from akarm.control.busset import BusSet
-from akarm.control.collision import CollisionReflex, reflex_for
+from akarm.control.collision import CollisionReflex, reflex_for, uncertainty_for
 from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Refusal
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
@@ -217,7 +217,8 @@ class Controller:
             following = default_following_error(j, kp)
             slack = j.limits.velocity * lag  # how far a reading that trails by `lag` can be behind
             out.append(Guard(timeout, j.max_temperature, following + slack,
-                             default_stuck_travel(j, kp, following) + slack))
+                             default_stuck_travel(j, kp, following) + slack,
+                             uncertainty_for(j).torque / kp if j.mode == "mit" and kp > 0 else 0.0))
         return out
 
     def _gains_changed(self) -> None:
@@ -786,7 +787,7 @@ class Controller:
         qd = q_d.tolist()
         t2 = pc()
         stage[1] = t2 - t1
-        stop = self.supervisor.check(now, qd, self._tracking, self._saturated)
+        stop = self.supervisor.check(now, qd, self._tracking, self._saturated, self.tau_ff)
         fb = self._feedback()
         if stop is None:
             stop = self._collision_check(now, True, fb)
@@ -845,7 +846,8 @@ class Controller:
         else:
             kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
         q, dq, tau, stamps = fb
-        err = reflex.step(now, q, dq, tau, check, kp, kd, stamps, self.des[1] if check else None)
+        err = reflex.step(now, q, dq, tau, check, kp, kd, stamps, self.des[1] if check else None,
+                          self.tau_ff if check else None)
         if err is None or err.reaction == "disable":
             return err
         self.motions.replace(Plan([self.planner.stop(self.des, self._t_plan)]), err)

@@ -420,7 +420,9 @@ class CollisionReflex:
         estimate: the latest external torque estimate per joint, N·m (zeros before the first step).
         last: the last :class:`~akarm.CollisionError`, or ``None``.
         armed: whether the next step may stop the arm.
-        peak: the largest ``|estimate|`` per joint while checking since :meth:`clear_peak`, N·m.
+        peak: per joint, the largest judged part of the estimate (its sudden part) while checking since
+            :meth:`clear_peak`, as a share of its threshold widened for the model's uncertainty then,
+            times the threshold: N·m, under the threshold unless the reflex fired.
     """
 
     def __init__(self, names: Sequence[str], observer: MomentumObserver,
@@ -601,9 +603,10 @@ class CollisionReflex:
         calm = True
         for i, x in enumerate(self._sudden):
             m = x if x >= 0.0 else -x
-            if m > peak[i]:
-                peak[i] = m
             th = thresholds[i] + margin[i]
+            seen = m * thresholds[i] / th  # (as a share of the widened threshold, in N·m of the file's)
+            if seen > peak[i]:
+                peak[i] = seen
             if m > th and (over < 0 or m / th > abs(self._sudden[over]) / (thresholds[over] + margin[over])):
                 over = i
             if not m < 0.5 * th:

@@ -130,6 +130,7 @@ class MomentumObserver:
         n = len(coulomb)
         self.n = n
         self.set_friction(coulomb, viscous, offset)
+        self._scale = [1.0] * n  # N·m each joint gets per N·m its motor reports (set_torque_scale)
         self.deadband = np.zeros(n) if deadband is None else np.asarray(deadband, dtype=float)
         self._deadband = self.deadband.tolist()
         self._half_deadband = (0.5 * self.deadband).tolist()
@@ -152,6 +153,11 @@ class MomentumObserver:
         self.viscous = np.array(viscous, dtype=float)
         self.offset = np.array(offset, dtype=float)
         self._friction = list(zip(self.coulomb.tolist(), self.viscous.tolist(), self.offset.tolist(), strict=True))
+
+    def set_torque_scale(self, scale: Sequence[float]) -> None:
+        """N·m each joint gets per N·m its motor reports (a real unit's, identified): the motors' torque
+        counts times it (restart the estimate after)."""
+        self._scale = [float(x) for x in scale]
 
     def at_limit(self, tau: Sequence[float]) -> bool:
         """Whether a reported torque (N·m per joint) is at its motor's limit (:attr:`saturation`)."""
@@ -258,7 +264,7 @@ class MomentumObserver:
         if kp is not None:
             kpl, kdl = _floats(kp), ([0.0] * n if kd is None else _floats(kd))
         smooth_one, saturation = self._smooth_one, self._saturation
-        integral, p0, r_prev, k = self._integral, self._p0, self._r, self.gain
+        integral, p0, r_prev, k, scale = self._integral, self._p0, self._r, self.gain, self._scale
         smooth = [0.0] * n
         r = [0.0] * n
         for i in range(n):
@@ -268,6 +274,7 @@ class MomentumObserver:
             if kp is not None and abs(t) < saturation[i]:  # (a saturated motor holds its limit: no decay)
                 vp = v_prev[i]
                 t = t - 0.5 * (kpl[i] * vp * dt + kdl[i] * (v[i] - vp))
+            t *= scale[i]
             g = integral[i] + (t - 0.5 * (sm + smooth_prev[i]) + r_prev[i]) * dt
             integral[i] = g
             r[i] = k * (p[i] - p0[i] - g)
@@ -646,6 +653,7 @@ def reflex_for(config: RobotConfig, model: RobotModel, gain: float = DEFAULT_GAI
     observer = MomentumObserver(model, [f.coulomb for f in fr], [f.viscous for f in fr], [f.offset for f in fr],
                                 min(gain, 0.25 * config.rate_hz), [velocity_resolution(j) for j in config.joints],
                                 [j.motor.t_max for j in config.joints])
+    observer.set_torque_scale([f.torque_scale for f in fr])
     # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
     fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
              for j in config.joints]

@@ -156,6 +156,8 @@ class Controller:
         on = 1.0 if options.friction_compensated else 0.0
         self.ff = FeedForward(model, options.feedforward, [f.coulomb * on for f in fr], [f.viscous * on for f in fr],
                               self.torque_limit, options.hold_integral, self._mit)
+        self.ff.set_friction([f.coulomb * on for f in fr], [f.viscous * on for f in fr], [f.torque_scale for f in fr],
+                             [f.load * on for f in fr])
         # the damping used to settle at enable and to stop: the joint's kd, at least 0.5 N·m·s/rad
         self._damping = [min(max(float(kd), 0.5), j.motor.kd_max) for kd, j in zip(self._kd, joints, strict=True)]
         self._timeouts = [_feedback_timeout(j.config, options.watchdog) for j in joints]
@@ -606,17 +608,23 @@ class Controller:
             self.ff.reset_integral()
             self.reflex.restart()
 
-    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float], offset: Sequence[float]) -> None:
+    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float], offset: Sequence[float],
+                     torque_scale: Sequence[float] | None = None, load: Sequence[float] | None = None) -> None:
         """Each joint's friction (N·m, N·m·s/rad, N·m): the collision observer takes all three; the
-        feed-forward, where friction is compensated, Coulomb and viscous."""
+        feed-forward, where friction is compensated, Coulomb and viscous (and ``load``, N·m per N·m). A
+        ``torque_scale`` (N·m the joint gets per N·m reported) goes to both."""
         values = [np.asarray(x, dtype=float).reshape(-1) for x in (coulomb, viscous, offset)]
         if any(v.shape != (self.n,) or not np.all(np.isfinite(v)) for v in values):
             raise ArgumentError(f"friction needs {self.n} finite values each of Coulomb, viscous and offset",
                                 fix="one per joint, config order")
         with self.lock:
             self.reflex.observer.set_friction(*values)
+            if torque_scale is not None:
+                self.reflex.observer.set_torque_scale(torque_scale)
             if self.options.friction_compensated:
-                self.ff.set_friction(values[0].tolist(), values[1].tolist())
+                self.ff.set_friction(values[0].tolist(), values[1].tolist(), torque_scale, load)
+            elif torque_scale is not None:
+                self.ff.set_friction([0.0] * self.n, [0.0] * self.n, torque_scale)
             self.reflex.restart()
 
     # -- the collision reflex ----------------------------------------------------------------------

@@ -174,7 +174,7 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
         settled &= (log.t < ts) | (log.t > ts + 5.0 / gain)
     kp = np.where(mit, kp0, 0.0)[None, :] * factor[:, None]
     kd = np.where(mit, kd0, 0.0)[None, :] * factor[:, None]
-    fits, pay, _ = fit(model, log, kp=kp, kd=kd, payload=payload, offsets=offsets, use=use)
+    fits, pay, _ = fit(model, log, kp=kp, kd=kd, payload=payload, offsets=offsets, use=use, torque_scale=True)
     if pay is not None:
         model.set_payload(pay.mass, pay.com)
     deadband = [velocity_resolution(j) for j in arm.config.joints]
@@ -196,8 +196,9 @@ def apply_identification(arm: Arm, result: Identification) -> None:
     if result.payload is not None:
         arm.set_payload(result.payload.mass, result.payload.com)
     if result.joints:  # a fit's noise can leave a joint without friction a little below 0: none
-        arm.set_friction([max(0.0, j.coulomb) for j in result.joints], [max(0.0, j.viscous) for j in result.joints],
-                         [j.offset for j in result.joints])
+        fr = [j.friction() for j in result.joints]
+        arm.set_friction([f.coulomb for f in fr], [f.viscous for f in fr], [j.offset for j in result.joints],
+                         torque_scale=[f.torque_scale for f in fr], load=[f.load for f in fr])
 
 
 def estimate_payload(arm: Arm, poses: Sequence[Target] | None = None, *, speed: float = 0.5, settle: float = 3.0,

@@ -144,12 +144,13 @@ class Identification:
     speed: float = 1.0
 
     def table(self) -> str:
-        """A table per joint: friction, offset, RMS residual, suggested threshold."""
+        """A table per joint: friction, offset, RMS residual, suggested threshold, torque scale, load share."""
         rows = [f"{'joint':<16}{'coulomb Nm':>11}{'viscous Nms':>12}{'offset Nm':>10}{'RMS Nm':>8}"
-                f"{'threshold Nm':>13}"]
+                f"{'threshold Nm':>13}{'torque x':>9}{'load':>6}"]
         for j in self.joints:
             th = f"{j.threshold:13.2f}" if j.threshold is not None else f"{'-':>13}"
-            rows.append(f"{j.name:<16}{j.coulomb:11.3f}{j.viscous:12.4f}{j.offset:10.3f}{j.rms:8.3f}{th}")
+            rows.append(f"{j.name:<16}{j.coulomb:11.3f}{j.viscous:12.4f}{j.offset:10.3f}{j.rms:8.3f}{th}"
+                        f"{j.torque_scale:9.3f}{j.load:6.3f}")
         if self.payload is not None:
             p = self.payload
             rows.append(f"payload: {p.mass:.3f} kg, centre of mass ({p.com[0]:+.4f}, {p.com[1]:+.4f}, "
@@ -397,15 +398,27 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
                 A[r * n + i, col:col + 2] = (-t, abs(t) * th)
     joint_of_row = np.tile(np.arange(n), len(idx))
     weights = np.ones(len(Y))
-    for _ in range(2):  # weighted by each joint's residual: a noisy joint does not drown the others
+    fixed: set[int] = set()  # joints whose torque scale the motion does not determine: 1, as catalogued
+    for step in range(3):  # weighted by each joint's residual: a noisy joint does not drown the others
         x, *_ = np.linalg.lstsq(A * weights[:, None], Y * weights, rcond=None)
         res = Y - A @ x
         rms = np.array([math.sqrt(float(np.mean(res[joint_of_row == i] ** 2))) for i in range(n)])
         weights = 1.0 / np.maximum(rms, 1e-4)[joint_of_row]
+        if torque_scale and step < 2:  # (the last solve has them all)
+            # Where a joint's torque is mostly its own friction (a roll joint: little inertia, no gravity),
+            # s·τ = friction has a second solution, everything near 0: a scale outside what a real unit
+            # has (0.3-2) is that one. It keeps the catalogue's (1), and its friction is fitted so.
+            for i in range(n):
+                col = n_pay + per_joint * i + names.index("scale")
+                if i not in fixed and not 0.3 <= x[col] <= 2.0:
+                    fixed.add(i)
+                    rows = joint_of_row == i
+                    Y[rows] -= A[rows, col]  # (the column is -τ: s = 1 moves it into the target)
+                    A[rows, col] = 0.0
     fits = []
     for i, name in enumerate(model.joint_names):
         v = dict(zip(names, x[n_pay + per_joint * i:n_pay + per_joint * (i + 1)], strict=True))
-        scale = float(v.get("scale", 1.0))
+        scale = 1.0 if i in fixed else float(v.get("scale", 1.0))
         if torque_scale:  # (the rows solved s·λ, and the residual is in N·m of the model: per N·m reported, /s)
             rms[i] /= max(scale, 1e-3)
         fits.append(JointFit(name, float(v["coulomb"]), float(v["viscous"]), float(v.get("offset", 0.0)),

@@ -407,7 +407,8 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
         if torque_scale and step < 2:  # (the last solve has them all)
             # Where a joint's torque is mostly its own friction (a roll joint: little inertia, no gravity),
             # s·τ = friction has a second solution, everything near 0: a scale outside what a real unit
-            # has (0.3-2) is that one. It keeps the catalogue's (1), and its friction is fitted so.
+            # has (0.3-2) is that one. It keeps the catalogue's (1) and no load share (|τ| is its friction
+            # then: the two columns cannot be told apart), and its friction is fitted so.
             for i in range(n):
                 col = n_pay + per_joint * i + names.index("scale")
                 if i not in fixed and not 0.3 <= x[col] <= 2.0:
@@ -415,6 +416,7 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
                     rows = joint_of_row == i
                     Y[rows] -= A[rows, col]  # (the column is -τ: s = 1 moves it into the target)
                     A[rows, col] = 0.0
+                    A[rows, col + 1] = 0.0  # (and |τ|·tanh is its Coulomb friction again: no load share)
     fits = []
     for i, name in enumerate(model.joint_names):
         v = dict(zip(names, x[n_pay + per_joint * i:n_pay + per_joint * (i + 1)], strict=True))

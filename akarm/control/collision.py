@@ -376,7 +376,7 @@ class ModelResidual:
             if q is self._r and self.frozen:
                 continue
             q.clear()
-            q.append(x)
+            q.append(x[:])  # (a copy: the lags change in place)
         self._prediction = list(self._r[0])
         self.margin = [0.0] * self.n
 

@@ -319,6 +319,11 @@ def _savgol(x: np.ndarray, dt: float, window: float, order: int = 3) -> tuple[np
 
 
 # C901 13 > 12, left as it was: one least-squares fit, a branch per optional term (offsets, payload, window)
+#: the torque scales a real unit has (Variation's 0.49-1.3, with a margin): outside, a fit found the
+#: degenerate solution of a friction-dominated joint (0.01-0.08 on roll joints, 0.30 on a wrist)
+_SCALE_RANGE = (0.45, 1.6)
+
+
 def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, kd: np.ndarray | None = None,  # noqa: C901
         payload: bool = True, offsets: bool = True, use: np.ndarray | None = None, window: float = 0.1,
         decimate: int = 1, torque_scale: bool = False) -> tuple[list[JointFit], PayloadFit | None, np.ndarray]:
@@ -407,11 +412,11 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
         if torque_scale and step < 2:  # (the last solve has them all)
             # Where a joint's torque is mostly its own friction (a roll joint: little inertia, no gravity),
             # s·τ = friction has a second solution, everything near 0: a scale outside what a real unit
-            # has (0.3-2) is that one. It keeps the catalogue's (1) and no load share (|τ| is its friction
+            # has (_SCALE_RANGE) is that one. It keeps the catalogue's (1) and no load share (|τ| is its friction
             # then: the two columns cannot be told apart), and its friction is fitted so.
             for i in range(n):
                 col = n_pay + per_joint * i + names.index("scale")
-                if i not in fixed and not 0.3 <= x[col] <= 2.0:
+                if i not in fixed and not _SCALE_RANGE[0] <= x[col] <= _SCALE_RANGE[1]:
                     fixed.add(i)
                     rows = joint_of_row == i
                     Y[rows] -= A[rows, col]  # (the column is -τ: s = 1 moves it into the target)

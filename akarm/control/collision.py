@@ -70,8 +70,8 @@ _POSITION_STEP = 1e-3  # rad: twice the MIT position field's step (0.38 mrad), t
 #: the pose and the motion, smoothly; a contact is a step. A step shows 95 % of itself after 60 ms (the observer's
 #: 20 ms lag), so the reflex has the window to decide; a push that builds up more slowly is not a collision to it.
 WINDOW = 0.06
-#: s the reflex learns the model's error after a fresh start (enable, a new payload or friction): it follows
-#: the estimate closely, without the delay, and judges nothing meanwhile.
+#: s the reflex judges nothing after a fresh start (enable, a new payload or friction), while the estimate rises
+#: from 0 to the model's error (a step to it, as the window would see it).
 LEARN_TIME = 0.3
 #: How much of a change of the motors' reported torque (not only the model's) the thresholds grow with: a torque
 #: scale error is a share of what the motors deliver, the PD's part too; a contact's own PD reaction, which comes

@@ -1094,12 +1094,16 @@ class Arm:
         return None if p is None else (p[0], p[1].copy())
 
     def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float],
-                     offset: Sequence[float] | None = None) -> None:
+                     offset: Sequence[float] | None = None, *, torque_scale: Sequence[float] | None = None,
+                     load: Sequence[float] | None = None) -> None:
         """Tell the arm each joint's friction (config order): Coulomb N·m, viscous N·m·s/rad and a
         constant torque offset N·m (default 0), e.g. what :func:`akarm.identify.identify` found.
 
         The collision reflex's estimate uses all three (and starts over); the feed-forward, where it
-        compensates friction (``friction_feedforward``), takes Coulomb and viscous.
+        compensates friction (``friction_feedforward``), takes Coulomb and viscous, and ``load`` (Coulomb
+        friction's load-dependent part, N·m per N·m of the motor's torque). ``torque_scale``: the N·m each
+        joint gets per N·m its motor reports (a real unit's, as ``akarm identify`` fits it): the
+        feed-forward asks for the model's torque over it, the estimate counts the motors' torque times it.
 
         Raises:
             ArgumentError: not one finite value per joint, a Coulomb or viscous friction below 0 (as the
@@ -1108,7 +1112,10 @@ class Arm:
         c = self._per_joint(coulomb, "coulomb friction", unit="N·m", at_least=0.0)
         b = self._per_joint(viscous, "viscous friction", unit="N·m·s/rad", at_least=0.0)
         o = np.zeros(self.n) if offset is None else self._per_joint(offset, "friction offset", unit="N·m")
-        self._ctl.set_friction(c.tolist(), b.tolist(), o.tolist())
+        s = None if torque_scale is None else self._per_joint(torque_scale, "torque scale", at_least=0.2)
+        m = None if load is None else self._per_joint(load, "friction's load share", at_least=0.0)
+        self._ctl.set_friction(c.tolist(), b.tolist(), o.tolist(), None if s is None else s.tolist(),
+                               None if m is None else m.tolist())
 
     @property
     def gains(self) -> tuple[np.ndarray, np.ndarray]:

@@ -40,6 +40,7 @@ from akarm.errors import AkarmError, RecordingError
 if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
+    from akarm.errors import SafetyStop
     from akarm.telemetry.log import TelemetryLog
     from akarm.view.process import ViewProcess
 
@@ -76,6 +77,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE.csv", help="also save the session's telemetry (.csv, .npz or .mcap)")
     parser.add_argument("--fast", action="store_true",
                         help="run in lock step with the simulator (a few seconds; timing statistics are simulated)")
+    parser.add_argument("--vary", type=int, metavar="SEED",
+                        help="run the session on a simulated real unit, not the robot file's model: torque "
+                             "constants, friction, backlash, masses and reply jitter drawn from SEED "
+                             "(akarm.sim.Variation); the demo reports the safety stops (none expected)")
     add_profile_argument(parser)
     from akarm.cli.view import add_view_options
 
@@ -128,6 +133,28 @@ def session_steps(arm: Arm) -> list[tuple[str, str, Callable[[], object]]]:
     return steps
 
 
+def _run_steps(arm: Arm, varied: bool) -> tuple[list[tuple[float, str]], SafetyStop | None, int]:
+    """Run :func:`session_steps`, printing a line per step: the steps' (clock time, label), the safety stop
+    that ended the session early on a varied unit (else it propagates), and the number of the last step."""
+    from akarm.errors import SafetyStop
+
+    events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
+    k = 0
+    for k, (label, short, action) in enumerate(session_steps(arm), start=1):
+        t0 = arm.clock.now()
+        events.append((t0, short))
+        try:
+            action()
+        except SafetyStop as e:  # a varied unit: say what stopped it, and end the session there
+            if not varied:
+                raise
+            print(f"  {k:>2}. {label}: SAFETY STOP {type(e).__name__}: {e}", flush=True)
+            return events, e, k
+        t1 = arm.clock.now()
+        print(_step_line(k, label, t1 - t0, arm.telemetry(since=t0)), flush=True)
+    return events, None, k
+
+
 def _reflex_line(arm: Arm) -> str:
     """The collision reflex over the session: armed on which joints, and how close the estimate came."""
     import numpy as np
@@ -137,9 +164,12 @@ def _reflex_line(arm: Arm) -> str:
     watched = [k for k, n in enumerate(arm.names) if th[n] is not None]
     if not watched:
         return "collision reflex: no thresholds in the robot file (akarm identify suggests some)"
-    ratio = np.nanmax(np.abs(log.tau_ext[:, watched]), axis=0) / np.array([th[arm.names[k]] for k in watched])
+    del log
+    peak = arm.collision_peak  # what the reflex judges: the estimate's sudden part (the model's error set aside)
+    ratio = np.array([peak[k] for k in watched]) / np.array([th[arm.names[k]] for k in watched])
     k = watched[int(np.argmax(ratio))]
-    return (f"collision reflex: armed on {len(watched)} joints, 0 stops; the external torque estimate came to "
+    stops = 0 if arm.last_collision is None else 1
+    return (f"collision reflex: armed on {len(watched)} joints, {stops} stops; its judged estimate came to "
             f"{ratio.max() * 100:.0f} % of a threshold at most ({arm.names[k]})")
 
 
@@ -175,7 +205,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"akarm demo: simulated {config.name} ({len(config.joints)} MIT joints, {config.rate_hz:g} Hz loop) "
           f"on a virtual CAN bus, {mode}", flush=True)
     wall0 = time.perf_counter()
-    with SimulatedRobot(config, realtime=not args.fast, timing=args.profile) as sim:
+    from akarm.sim import Variation
+
+    variation = None if args.vary is None else Variation(seed=args.vary)
+    with SimulatedRobot(config, realtime=not args.fast, timing=args.profile, variation=variation) as sim:
+        if sim.truth is not None:
+            print(f"  a varied unit (seed {args.vary}), not the datasheet: per joint the torque it gets per N·m "
+                  "reported, and Coulomb friction over the catalogue's:", flush=True)
+            print("    " + ", ".join(f"{j.name} x{j.torque_scale:.2f} / x{j.coulomb / f.coulomb:.1f}"
+                                     for j, f in zip(sim.truth.joints, (jc.friction_model() for jc in config.joints),
+                                                     strict=True) if f.coulomb), flush=True)
         if args.fast:
             # a simulated arm, new each run: no positions to remember (akarm.control.turns) for a real arm6
             arm = Arm(config, clock=sim.clock, telemetry_seconds=120.0, remember_positions=False,
@@ -196,13 +235,7 @@ def run(args: argparse.Namespace) -> int:
                 stack.callback(view.stop)
                 show_view(view)
             t_session = arm.clock.now()
-            events: list[tuple[float, str]] = []  # (clock time, label) of each step, for the plot
-            for k, (label, short, action) in enumerate(session_steps(arm), start=1):
-                t0 = arm.clock.now()
-                events.append((t0, short))
-                action()
-                t1 = arm.clock.now()
-                print(_step_line(k, label, t1 - t0, arm.telemetry(since=t0)), flush=True)
+            events, stopped, k = _run_steps(arm, varied=variation is not None)
             log = arm.telemetry(since=t_session)
             stats = arm.stats()
             reflex = _reflex_line(arm)
@@ -214,6 +247,9 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - wall0
 
     print()
+    if variation is not None:
+        print(f"safety stops on the varied unit (seed {args.vary}): "
+              + ("none" if stopped is None else f"1, {type(stopped).__name__} on {stopped.joint}"))
     print(reflex)
     print(_tracking_table(log))
     print()
@@ -237,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
           "'From simulator to hardware'.")
     if view is not None:
         return _play_back(args, config, log, view.port)
-    return 0
+    return 0 if stopped is None else 1
 
 
 def _live_view(args: argparse.Namespace, config: RobotConfig, arm: Arm) -> ViewProcess | None:

@@ -40,6 +40,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="largest excursion of each joint from where it starts, 0 < RAD <= π (default 0.5)")
     parser.add_argument("--no-payload", action="store_true", help="do not identify a payload (use the file's)")
     parser.add_argument("--no-offsets", action="store_true", help="do not fit a torque offset per joint")
+    parser.add_argument("--torque-scale", action="store_true",
+                        help="also fit each joint's torque scale (N·m it gets per N·m reported: a real unit's) and "
+                             "friction's load share; with nothing at the tool and --no-payload (the excitation "
+                             "cannot tell a payload from a stronger motor)")
     parser.add_argument("--payload-only", action="store_true",
                         help="only the payload, at rest in a few poses (no excitation)")
     parser.add_argument("--save", action="store_true",
@@ -74,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"identifying {config.name}: a {args.seconds:g} s excitation around where it is; every joint "
                       "moves", flush=True)
                 result = identify(arm, args.seconds, args.speed, amplitude=args.amplitude,
-                                  payload=not args.no_payload, offsets=not args.no_offsets)
+                                  payload=not args.no_payload, offsets=not args.no_offsets,
+                                  torque_scale=args.torque_scale)
                 print(f"excited at speed {result.speed:g} for {result.duration:.1f} s ({result.samples} samples)")
                 print()
                 print(result.table())

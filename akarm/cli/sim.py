@@ -76,6 +76,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run the simulator's threads at real-time priority (SCHED_FIFO; root or ulimit -r), "
                              "with a 0.2 ms interpreter switch interval: on a loaded machine a simulator at normal "
                              "priority may read its bus tens of ms late, and the controller's watchdog stops the arm")
+    parser.add_argument("--vary", type=int, metavar="SEED",
+                        help="simulate a real unit, not the robot file's model: torque constants, friction, "
+                             "backlash, masses and reply jitter drawn from SEED (akarm.sim.Variation)")
     from akarm.cli.view import add_view_options
 
     add_view_options(parser)
@@ -133,7 +136,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
     import time
 
     from akarm.errors import AkarmError
-    from akarm.sim import SimulatedRobot, faults
+    from akarm.sim import SimulatedRobot, Variation, faults
     from akarm.sim.channel import ChannelServer
 
     config = load_from_args(args)
@@ -151,7 +154,8 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
         raise AkarmError(f"--seconds {args.seconds} must not be negative")
     sim = SimulatedRobot(config, realtime=True, dt=1.0 / args.plant_rate if args.plant_rate else None, q0=q0,
                          zero_silence=args.zero_silence, servo_release=args.servo_release, timing=args.profile,
-                         log_frames=bool(args.control), serial=serial, baudrate=args.baudrate)
+                         log_frames=bool(args.control), serial=serial, baudrate=args.baudrate,
+                         variation=None if args.vary is None else Variation(seed=args.vary))
     view = None
     if args.view:  # made first: a missing view extra is said before the simulator starts
         from akarm.cli.view import make_view_process
@@ -184,6 +188,12 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901
                 sim.place_object(args.object, args.object_stiffness)
                 print(f"  object {args.object * 1e3:g} mm wide between the gripper's jaws ({args.object_stiffness:g} "
                       "N/m)", flush=True)
+            if sim.truth is not None:
+                print(f"  a varied unit (seed {args.vary}): per joint torque scale, Coulomb N·m (+N·m/A), "
+                      "viscous, backlash mrad", flush=True)
+                for j in sim.truth.joints:
+                    print(f"    {j.name}: x{j.torque_scale:.2f}, {j.coulomb:.2f} (+{j.coulomb_load:.3f}), "
+                          f"{j.viscous:.3f}, {j.backlash * 1e3:.1f}", flush=True)
             for joint, fault in injected:
                 sim.inject(joint, fault)
                 print(f"  fault on {joint}: {fault}", flush=True)

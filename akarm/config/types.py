@@ -112,6 +112,12 @@ class Friction:
     coulomb: float = 0.0
     viscous: float = 0.0
     offset: float = 0.0
+    #: N·m of Coulomb friction more per N·m the motor delivers (friction's load-dependent part; a real
+    #: AK80-9: 0.049 N·m per A of Iq, 6 % of its load)
+    load: float = 0.0
+    #: N·m the joint gets per N·m the motor reports (a real unit's torque constant and gearbox; 1: the
+    #: catalogue's); the feed-forward asks for the model's torque over it, the observer counts it in
+    torque_scale: float = 1.0
 
 
 @dataclass(frozen=True)

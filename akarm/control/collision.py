@@ -15,7 +15,19 @@ a payload that is set or identified is not a collision. ``K`` (1/s) sets the tim
 the default 50/s a step of external torque shows 63 % of itself after 20 ms; a larger ``K`` reacts
 sooner and passes on more of the velocity quantisation (``K·M·Δq̇``).
 
-**Reflex.** A joint whose ``|r|`` passes its threshold (YAML ``collision: {threshold: N·m}``;
+**Model error is not a collision.** A real arm is not its model: an unknown tool or payload, URDF
+masses 20 % off, a torque constant 30 % off, twice the catalogue's friction put a slow, pose-dependent
+error of several N·m into ``r``. :class:`ModelResidual` separates it from a contact: the reflex judges
+how much ``r`` rose over the last :data:`WINDOW` (60 ms), not its level, and each threshold grows by
+what the model's uncertainty (:class:`Uncertainty`: wide for a joint the robot file has no identified
+values for, narrow after ``akarm identify --save``) lets the error change in that time: a share of the
+change of the model's and the motors' torque (an acceleration, a move's start and end) and of the
+friction model's (a start from rest). A contact is a step: it shows whole within the window. A push
+that builds up over more than the window is not judged; after a fresh start (enable, a new payload
+or friction) nothing is judged for :data:`LEARN_TIME` while the estimate settles. After a stop the
+window's start is held: the reflex re-arms once the contact has ended.
+
+**Reflex.** A joint whose judged part of ``r`` passes its threshold (YAML ``collision: {threshold: N·m}``;
 ``akarm identify`` suggests one from the residual's noise) stops the arm with a
 :class:`~akarm.CollisionError` naming the joint and the torque: damped and disabled (the default),
 or, with ``reaction="hold"``, brought to rest jerk-limited and held. Joints without a threshold
@@ -26,8 +38,10 @@ under half its threshold (the hand let go, the contact ended).
 
 from __future__ import annotations
 
+import collections
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -38,8 +52,8 @@ from akarm.errors import ArgumentError, CollisionError
 from akarm.protocol import mit
 from akarm.protocol.units import erpm_to_rad_s
 
-__all__ = ["DEFAULT_GAIN", "CollisionReflex", "MomentumObserver", "Reaction", "friction_torque", "reflex_for",
-           "velocity_resolution"]
+__all__ = ["DEFAULT_GAIN", "LEARN_TIME", "WINDOW", "CollisionReflex", "ModelResidual", "MomentumObserver",
+           "Reaction", "Uncertainty", "friction_torque", "reflex_for", "uncertainty_for", "velocity_resolution"]
 
 Reaction = Literal["disable", "hold"]
 #: 1/s: the observer's default bandwidth (time constant 20 ms).
@@ -51,6 +65,18 @@ _LAG_SMOOTHING = 0.02  # s: low-pass of the measured velocity's difference to th
 #: than integrate across the gap (a stall of the loop or of the drivers, a mode without it)
 RESET_GAP = 3.5
 _POSITION_STEP = 1e-3  # rad: twice the MIT position field's step (0.38 mrad), the travel a timing check trusts
+#: s: how long a contact stays "sudden". The reflex judges how much the estimate rose over this window, not its
+#: level: a model error (a payload it was not told, masses, a real unit's torque constant, friction) changes with
+#: the pose and the motion, smoothly; a contact is a step. A step shows 95 % of itself after 60 ms (the observer's
+#: 20 ms lag), so the reflex has the window to decide; a push that builds up more slowly is not a collision to it.
+WINDOW = 0.06
+#: s the reflex judges nothing after a fresh start (enable, a new payload or friction), while the estimate rises
+#: from 0 to the model's error (a step to it, as the window would see it).
+LEARN_TIME = 0.3
+#: How much of a change of the motors' reported torque (not only the model's) the thresholds grow with: a torque
+#: scale error is a share of what the motors deliver, the PD's part too; a contact's own PD reaction, which comes
+#: after the contact, should not hide it (half).
+REPORTED_SHARE = 0.5
 
 
 def friction_torque(v: np.ndarray, coulomb: np.ndarray, viscous: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -104,6 +130,7 @@ class MomentumObserver:
         n = len(coulomb)
         self.n = n
         self.set_friction(coulomb, viscous, offset)
+        self._scale = [1.0] * n  # N·m each joint gets per N·m its motor reports (set_torque_scale)
         self.deadband = np.zeros(n) if deadband is None else np.asarray(deadband, dtype=float)
         self._deadband = self.deadband.tolist()
         self._half_deadband = (0.5 * self.deadband).tolist()
@@ -116,6 +143,8 @@ class MomentumObserver:
         self._p0 = [0.0] * n
         self._integral = [0.0] * n
         self._last: tuple[list[float], list[float], list[float]] = ([0.0] * n, [0.0] * n, [0.0] * n)
+        #: the model's ``g - Cᵀq̇`` per joint at the last step, N·m (the gravity torque, at low speed)
+        self.beta = [0.0] * n
         self.started = False
 
     def set_friction(self, coulomb: ArrayLike, viscous: ArrayLike, offset: ArrayLike) -> None:
@@ -124,6 +153,11 @@ class MomentumObserver:
         self.viscous = np.array(viscous, dtype=float)
         self.offset = np.array(offset, dtype=float)
         self._friction = list(zip(self.coulomb.tolist(), self.viscous.tolist(), self.offset.tolist(), strict=True))
+
+    def set_torque_scale(self, scale: Sequence[float]) -> None:
+        """N·m each joint gets per N·m its motor reports (a real unit's, identified): the motors' torque
+        counts times it (restart the estimate after)."""
+        self._scale = [float(x) for x in scale]
 
     def at_limit(self, tau: Sequence[float]) -> bool:
         """Whether a reported torque (N·m per joint) is at its motor's limit (:attr:`saturation`)."""
@@ -174,17 +208,22 @@ class MomentumObserver:
             co = 0.0
         return co * math.tanh(v_f / FRICTION_SMOOTHING) + b * v_f + o + be
 
-    def reset(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, v_des: ArrayLike | None = None) -> None:
-        """Start over at (q, q̇, τ): the estimate is 0 and rises towards the external torque from here."""
+    def reset(self, q: ArrayLike, dq: ArrayLike, tau: ArrayLike, v_des: ArrayLike | None = None,
+              estimate: Sequence[float] | None = None) -> None:
+        """Start over at (q, q̇, τ): the estimate is ``estimate`` (N·m per joint; default 0) and moves
+        towards the external torque from there."""
         self._lag = None
         d = _floats(dq)
         vd = None if v_des is None else _floats(v_des)
         v = self.velocity(d, vd)
         p, beta = self.model.momentum(q, v)
-        self._p0 = p
+        r0 = [0.0] * self.n if estimate is None else [float(x) for x in estimate]
+        k = self.gain
+        self._p0 = [pi - ri / k for pi, ri in zip(p, r0, strict=True)]  # r = K·(p - p0) at the start
         self._integral = [0.0] * self.n
         self._last = (_floats(tau), v, self._smooth(beta, d, vd))
-        self._r = [0.0] * self.n
+        self._r = r0
+        self.beta = beta
         self.started = True
 
     @property
@@ -225,7 +264,7 @@ class MomentumObserver:
         if kp is not None:
             kpl, kdl = _floats(kp), ([0.0] * n if kd is None else _floats(kd))
         smooth_one, saturation = self._smooth_one, self._saturation
-        integral, p0, r_prev, k = self._integral, self._p0, self._r, self.gain
+        integral, p0, r_prev, k, scale = self._integral, self._p0, self._r, self.gain, self._scale
         smooth = [0.0] * n
         r = [0.0] * n
         for i in range(n):
@@ -235,16 +274,140 @@ class MomentumObserver:
             if kp is not None and abs(t) < saturation[i]:  # (a saturated motor holds its limit: no decay)
                 vp = v_prev[i]
                 t = t - 0.5 * (kpl[i] * vp * dt + kdl[i] * (v[i] - vp))
+            t *= scale[i]
             g = integral[i] + (t - 0.5 * (sm + smooth_prev[i]) + r_prev[i]) * dt
             integral[i] = g
             r[i] = k * (p[i] - p0[i] - g)
         self._last = (_floats(tau), v, smooth)
         self._r = r
+        self.beta = beta
 
     @property
     def estimate_list(self) -> list[float]:
         """:attr:`estimate` as a list of floats (read-only: a copy)."""
         return self._r[:]
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """How wrong the model of one joint may be, as shares: ``torque`` of the motor's torque (its torque
+    constant, the gearbox, the link masses, an unknown payload), ``friction`` of its Coulomb and viscous
+    friction. Unidentified: 0.6 and 1.0 (real units: torque constants ±30 %, true/reported 0.7-1.0,
+    URDF masses ±20 %; friction 0.5-2× the catalogue's); identified (``akarm identify``): 0.15 and 0.3."""
+
+    torque: float = 0.6
+    friction: float = 1.0
+
+
+#: Uncertainty of a joint the robot file gives identified values for.
+IDENTIFIED = Uncertainty(0.15, 0.3)
+
+
+def uncertainty_for(joint: JointConfig) -> Uncertainty:
+    """How wrong ``joint``'s model may be: :data:`IDENTIFIED` where the robot file gives its identified
+    friction (``akarm identify --save``), else the default :class:`Uncertainty`."""
+    return IDENTIFIED if joint.friction is not None else Uncertainty()
+
+
+class ModelResidual:
+    """Separates the slow, pose-dependent part of the external torque estimate (the model's error: a
+    payload it was not told, link masses, the torque constant, friction) from the sudden part (a
+    contact), and says how far the sudden part may still be the model's error.
+
+    The slow part is the estimate :data:`WINDOW` ago; the reflex judges the rise since. A model error
+    changes in that time only as much as what it is proportional to: ``δ·τ`` for a torque scale or
+    masses off by ``δ`` (the model's torque: the feed-forward, through the observer's lag), ``δ_c`` times
+    the friction model's Coulomb term (a start from rest, a reversal). The thresholds grow by
+    ``Uncertainty.torque`` times the change of the model's torque over the window, and by
+    ``Uncertainty.friction`` times the change of its friction.
+    """
+
+    def __init__(self, n: int, coulomb: Sequence[float], viscous: Sequence[float], deadband: Sequence[float],
+                 uncertainty: Sequence[Uncertainty], gain: float, period: float) -> None:
+        self.n = n
+        self.set_model(coulomb, viscous, uncertainty)
+        self._deadband = [float(x) for x in deadband]
+        self.gain = gain
+        size = max(2, round(WINDOW / period) + 1)
+        self._r: collections.deque[list[float]] = collections.deque(maxlen=size)
+        self._t: collections.deque[list[float]] = collections.deque(maxlen=size)
+        self._f: collections.deque[list[float]] = collections.deque(maxlen=size)
+        self._m: collections.deque[list[float]] = collections.deque(maxlen=size)
+        self._rep_lag = [0.0] * n
+        self._tau_lag = [0.0] * n
+        self._fr_lag = [0.0] * n
+        self._prediction = [0.0] * n
+        self.learning_until = -math.inf
+        self.fresh = True
+        #: the estimate's slow part is held where it was (after a collision: the contact must end, the
+        #: estimate come back to it, before the reflex watches again)
+        self.frozen = False
+        self.margin = [0.0] * n
+
+    def set_model(self, coulomb: Sequence[float], viscous: Sequence[float],
+                  uncertainty: Sequence[Uncertainty]) -> None:
+        self._c = [float(x) for x in coulomb]
+        self._b = [float(x) for x in viscous]
+        self.uncertainty = tuple(uncertainty)
+        self._ut = [u.torque for u in self.uncertainty]
+        self._uf = [u.friction for u in self.uncertainty]
+
+    @property
+    def slow(self) -> list[float]:
+        """The slow part of the estimate per joint, N·m (the model's error as it was a window ago)."""
+        return self._prediction[:]
+
+    def _friction(self, v: Sequence[float]) -> list[float]:
+        return [(0.0 if -db <= x <= db else c * math.tanh(x / FRICTION_SMOOTHING)) + b * x
+                for c, b, db, x in zip(self._c, self._b, self._deadband, v, strict=True)]
+
+    def start(self, now: float, estimate: Sequence[float], tau: Sequence[float] | np.ndarray, v: Sequence[float],
+              reported: Sequence[float] | None = None) -> None:
+        """The observer starts over at ``estimate``: after a fresh start (:attr:`fresh`) learn for
+        :data:`LEARN_TIME` (judge nothing while the estimate rises to the model's error)."""
+        if self.fresh:
+            self.learning_until = now + LEARN_TIME
+            self.fresh = False
+        self._tau_lag = [float(x) for x in tau]
+        self._fr_lag = self._friction(v)
+        self._rep_lag = [float(x) for x in (tau if reported is None else reported)]
+        for q, x in ((self._r, [float(e) for e in estimate]), (self._t, self._tau_lag), (self._f, self._fr_lag),
+                     (self._m, self._rep_lag)):
+            if q is self._r and self.frozen:
+                continue
+            q.clear()
+            q.append(x[:])  # (a copy: the lags change in place)
+        self._prediction = list(self._r[0])
+        self.margin = [0.0] * self.n
+
+    def update(self, now: float, estimate: Sequence[float], tau: Sequence[float] | np.ndarray, v: Sequence[float],
+               dt: float, reported: Sequence[float] | None = None) -> list[float]:
+        """One step; returns the sudden part of ``estimate`` (N·m per joint); :attr:`margin` is then
+        what the thresholds grow by (N·m per joint). ``tau``: the model's torque; ``reported``: the
+        motors' (a scale error is a share of it: the PD's share too)."""
+        a = min(1.0, self.gain * dt)  # what the estimate sees of a torque: through the observer's lag
+        tl, fl, ml = self._tau_lag, self._fr_lag, self._rep_lag
+        rep = tau if reported is None else reported
+        for i, (t, f, m) in enumerate(zip(tau, self._friction(v), rep, strict=True)):
+            tl[i] += a * (t - tl[i])
+            fl[i] += a * (f - fl[i])
+            ml[i] += a * (m - ml[i])
+        r = [float(e) for e in estimate]
+        if not self.frozen:
+            self._r.append(r)
+        self._t.append(tl[:])
+        self._f.append(fl[:])
+        self._m.append(ml[:])
+        if now < self.learning_until:  # the window starts over until the estimate has settled
+            self.frozen = False
+            for q in (self._r, self._t, self._f, self._m):
+                while len(q) > 1:
+                    q.popleft()
+        r0, t0, f0, m0 = self._r[0], self._t[0], self._f[0], self._m[0]
+        self._prediction = r0
+        self.margin = [ut * max(abs(x - y), REPORTED_SHARE * abs(m - n)) + uf * abs(f - g)
+                       for ut, uf, x, y, f, g, m, n in zip(self._ut, self._uf, tl, t0, fl, f0, ml, m0, strict=True)]
+        return [x - y for x, y in zip(r, r0, strict=True)]
 
 
 class CollisionReflex:
@@ -264,12 +427,15 @@ class CollisionReflex:
         estimate: the latest external torque estimate per joint, N·m (zeros before the first step).
         last: the last :class:`~akarm.CollisionError`, or ``None``.
         armed: whether the next step may stop the arm.
-        peak: the largest ``|estimate|`` per joint while checking since :meth:`clear_peak`, N·m.
+        peak: per joint, the largest judged part of the estimate (its sudden part) while checking since
+            :meth:`clear_peak`, as a share of its threshold widened for the model's uncertainty then,
+            times the threshold: N·m, under the threshold unless the reflex fired.
     """
 
     def __init__(self, names: Sequence[str], observer: MomentumObserver,
                  thresholds: Sequence[float | None], reaction: Reaction = "disable",
-                 fresh: Sequence[float] | None = None, period: float = 0.002) -> None:
+                 fresh: Sequence[float] | None = None, period: float = 0.002,
+                 uncertainty: Sequence[Uncertainty] | None = None) -> None:
         self.names = tuple(names)
         self.reset_gap = RESET_GAP * period
         self.late = 1.5 * period
@@ -280,6 +446,12 @@ class CollisionReflex:
         self.fresh = tuple(math.inf for _ in self.names) if fresh is None else tuple(float(x) for x in fresh)
         self._fresh_min = min(self.fresh, default=math.inf)
         self.observer = observer
+        #: the model's error, learnt and removed: what is judged is the estimate's sudden part
+        self.residual = ModelResidual(len(self.names), observer.coulomb.tolist(), observer.viscous.tolist(),
+                                      observer.deadband.tolist(),
+                                      [Uncertainty()] * len(self.names) if uncertainty is None else uncertainty,
+                                      observer.gain, period)
+        self._sudden = [0.0] * len(self.names)
         self.set_thresholds(thresholds)
         self.set_reaction(reaction)
         self.last: CollisionError | None = None
@@ -345,18 +517,35 @@ class CollisionReflex:
 
     def restart(self) -> None:
         """Start the estimate over at the next step (the model changed: a payload, friction): the
-        momentum it tracks would otherwise jump by the change of inertia times the velocity."""
+        momentum it tracks would otherwise jump by the change of inertia times the velocity. The
+        model's error is learnt again (:data:`LEARN_TIME`)."""
         self.observer.started = False
+        self.residual.fresh = True
+        self.residual.set_model(self.observer.coulomb.tolist(), self.observer.viscous.tolist(),
+                                self.residual.uncertainty)
+
+    @property
+    def sudden(self) -> np.ndarray:
+        """The estimate less its slow part (the model's error): what the thresholds judge, N·m per joint."""
+        return np.array(self._sudden)
+
+    @property
+    def margin(self) -> np.ndarray:
+        """N·m per joint the thresholds grow by now for the model's uncertainty (:class:`ModelResidual`)."""
+        return np.array(self.residual.margin)
 
     def clear_peak(self) -> None:
         self._peak = [0.0] * len(self.names)
 
     def step(self, now: float, q: Sequence[float], dq: Sequence[float], tau: Sequence[float], check: bool,
              kp: Sequence[float] | None = None, kd: Sequence[float] | None = None,
-             stamps: Sequence[float] | None = None, v_des: ArrayLike | None = None) -> CollisionError | None:
+             stamps: Sequence[float] | None = None, v_des: ArrayLike | None = None,
+             model_torque: Sequence[float] | np.ndarray | None = None) -> CollisionError | None:
         """Update the estimate with the feedback of this cycle (and the MIT gains in force: see
         :meth:`MomentumObserver.update`; ``stamps``: when each joint's feedback arrived, s;
-        ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking); with
+        ``v_des``: the velocity this cycle commands, rad/s, ``None`` when not tracking;
+        ``model_torque``: the torque the model asked of the motors for the feedback's cycle, N·m (the
+        feed-forward; default the reported torque), whose changes the thresholds grow with); with
         ``check``, the error if a joint's estimate is over its threshold. Without ``check`` (teach
         mode) the reflex disarms."""
         qa, va, ta = _floats(q), _floats(dq), _floats(tau)
@@ -387,12 +576,21 @@ class CollisionReflex:
         obs = self.observer
         dt = sample - self._sample_last
         self._sample_last = sample
+        res = self.residual
         if not obs.started or not 0 < dt <= self.reset_gap or not self._on_time(qa, va, dt):
-            obs.reset(qa, va, ta, v_then)
+            # (from the estimate before: the model's error is a function of the pose, not of the gap)
+            obs.reset(qa, va, ta, v_then, None if res.fresh else obs.estimate_list)
+            res.start(now, obs.estimate_list, ta if model_torque is None else model_torque,
+                      va if v_then is None else v_then, ta)
+            self._sudden = [0.0] * len(qa)
         else:
             obs.advance(qa, va, ta, dt, kp, kd, v_then)
+            # (friction's regressors on the commanded speed where the arm tracks one: the measured one
+            # flips across the deadband at rest, by whole steps of the feedback)
+            self._sudden = res.update(now, obs.estimate_list, ta if model_torque is None else model_torque,
+                                      va if v_then is None else v_then, dt, ta)
         self._q_last, self._v_last = qa, va
-        if not check:
+        if not check or now < res.learning_until:
             self.armed = False
             return None
         return self._judge(now, ta)
@@ -405,37 +603,43 @@ class CollisionReflex:
             self._quiet_until = now + 2.0 / obs.gain
         if now < self._quiet_until:
             return None
-        # one pass: the peaks, whether any joint is over its threshold, whether all are under half of it
-        peak, thresholds = self._peak, self._thresholds
-        over = False
+        # one pass: the peaks, whether any joint is over its threshold (grown by the model's uncertainty
+        # now), whether all are under half of it
+        peak, thresholds, margin = self._peak, self._thresholds, self.residual.margin
+        over = -1
         calm = True
-        for i, x in enumerate(obs.estimate_list):
+        for i, x in enumerate(self._sudden):
             m = x if x >= 0.0 else -x
-            if m > peak[i]:
-                peak[i] = m
-            th = thresholds[i]
-            if m > th:
-                over = True
+            th = thresholds[i] + margin[i]
+            seen = m * thresholds[i] / th  # (as a share of the widened threshold, in N·m of the file's)
+            if seen > peak[i]:
+                peak[i] = seen
+            if m > th and (over < 0 or m / th > abs(self._sudden[over]) / (thresholds[over] + margin[over])):
+                over = i
             if not m < 0.5 * th:
                 calm = False
         if not self.armed:
             self.armed = calm
+            if calm:
+                self.residual.frozen = False
             return None
-        if not over:
+        if over < 0:
             return None
-        r = obs.estimate
-        mag = np.abs(r)
-        k = int(np.argmax(np.where(mag > self.thresholds, mag / self.thresholds, 0.0)))
+        k = over
+        torque = self._sudden[k]
+        grown = f" + {margin[k]:.2f} N·m for the model's uncertainty" if margin[k] >= 0.005 else ""
         err = CollisionError(
-            f"collision: an external torque of {r[k]:+.2f} N·m (threshold {self.thresholds[k]:.2f} N·m); "
+            f"collision: a sudden external torque of {torque:+.2f} N·m (threshold {thresholds[k]:.2f} N·m{grown}; "
+            f"the model's slow error {self.residual.slow[k]:+.2f} N·m set aside); "
             + ("the arm was damped and disabled" if self.reaction == "disable" else
                "the arm was brought to rest and holds there"),
-            torque=float(r[k]), threshold=float(self.thresholds[k]), reaction=self.reaction, joint=self.names[k],
+            torque=float(torque), threshold=float(thresholds[k]), reaction=self.reaction, joint=self.names[k],
             fix="clear the obstacle (move the arm away from it); if nothing was hit, check the payload "
                 "(arm.set_payload), run `akarm identify`, or raise the joint's collision threshold")
         err.at = now
         self.last = err
         self.armed = False
+        self.residual.frozen = True  # re-armed once the contact has ended: the estimate back to where it was
         return err
 
 
@@ -449,8 +653,10 @@ def reflex_for(config: RobotConfig, model: RobotModel, gain: float = DEFAULT_GAI
     observer = MomentumObserver(model, [f.coulomb for f in fr], [f.viscous for f in fr], [f.offset for f in fr],
                                 min(gain, 0.25 * config.rate_hz), [velocity_resolution(j) for j in config.joints],
                                 [j.motor.t_max for j in config.joints])
+    observer.set_torque_scale([f.torque_scale for f in fr])
     # a joint's feedback is new when it came this cycle (MIT: a reply per command), or within 1.5 status periods
     fresh = [0.5 / config.rate_hz if j.mode == "mit" else max(0.5 / config.rate_hz, 1.5 / j.status_rate_hz)
              for j in config.joints]
     thresholds = [None if watch_only else j.collision_threshold for j in config.joints]
-    return CollisionReflex(config.joint_names, observer, thresholds, reaction, fresh, 1.0 / config.rate_hz)
+    return CollisionReflex(config.joint_names, observer, thresholds, reaction, fresh, 1.0 / config.rate_hz,
+                           [uncertainty_for(j) for j in config.joints])

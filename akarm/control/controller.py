@@ -44,7 +44,7 @@ import numpy as np
 from akarm.clock import Clock
 from akarm.config import JointConfig, RobotConfig
 from akarm.control.busset import BusSet
-from akarm.control.collision import CollisionReflex, reflex_for
+from akarm.control.collision import CollisionReflex, reflex_for, uncertainty_for
 from akarm.control.enabler import FOREIGN_RECENT, LISTEN, Enabler, GainRamp, Refusal
 from akarm.control.exits import Exits, UnsafeExitWarning
 from akarm.control.feedforward import FeedForward
@@ -169,6 +169,8 @@ class Controller:
         on = 1.0 if options.friction_compensated else 0.0
         self.ff = FeedForward(model, options.feedforward, [f.coulomb * on for f in fr], [f.viscous * on for f in fr],
                               self.torque_limit, options.hold_integral, self._mit)
+        self.ff.set_friction([f.coulomb * on for f in fr], [f.viscous * on for f in fr], [f.torque_scale for f in fr],
+                             [f.load * on for f in fr])
         # the damping used to settle at enable and to stop: the joint's kd, at least 0.5 N·m·s/rad
         self._damping = [min(max(float(kd), 0.5), j.motor.kd_max) for kd, j in zip(self._kd, joints, strict=True)]
         self._timeouts = [_feedback_timeout(j.config, options.watchdog) for j in joints]
@@ -253,7 +255,8 @@ class Controller:
             # (under a lag, the supervisor adds how far the command moved within it: what a reading that
             # trails by the lag may be behind)
             following = default_following_error(j, kp)
-            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following)))
+            out.append(Guard(timeout, j.max_temperature, following, default_stuck_travel(j, kp, following),
+                             uncertainty_for(j).torque / kp if j.mode == "mit" and kp > 0 else 0.0))
         if self.gripper is not None:
             out.append(self.gripper.guard(self._gripper_timeout))
         return out
@@ -661,17 +664,23 @@ class Controller:
             self.ff.reset_integral()
             self.reflex.restart()
 
-    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float], offset: Sequence[float]) -> None:
+    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float], offset: Sequence[float],
+                     torque_scale: Sequence[float] | None = None, load: Sequence[float] | None = None) -> None:
         """Each joint's friction (N·m, N·m·s/rad, N·m): the collision observer takes all three; the
-        feed-forward, where friction is compensated, Coulomb and viscous."""
+        feed-forward, where friction is compensated, Coulomb and viscous (and ``load``, N·m per N·m). A
+        ``torque_scale`` (N·m the joint gets per N·m reported) goes to both."""
         values = [np.asarray(x, dtype=float).reshape(-1) for x in (coulomb, viscous, offset)]
         if any(v.shape != (self.n,) or not np.all(np.isfinite(v)) for v in values):
             raise ArgumentError(f"friction needs {self.n} finite values each of Coulomb, viscous and offset",
                                 fix="one per joint, config order")
         with self.lock:
             self.reflex.observer.set_friction(*values)
+            if torque_scale is not None:
+                self.reflex.observer.set_torque_scale(torque_scale)
             if self.options.friction_compensated:
-                self.ff.set_friction(values[0].tolist(), values[1].tolist())
+                self.ff.set_friction(values[0].tolist(), values[1].tolist(), torque_scale, load)
+            elif torque_scale is not None:
+                self.ff.set_friction([0.0] * self.n, [0.0] * self.n, torque_scale)
             self.reflex.restart()
 
     # -- the collision reflex ----------------------------------------------------------------------
@@ -922,7 +931,9 @@ class Controller:
         t2 = pc()
         stage[1] = t2 - t1
         grip = self.gripper
-        stop = self.supervisor.check(now, qd if grip is None else [*qd, grip.target], self._tracking, self._saturated)
+        ff_now = self.tau_ff if grip is None else [*self.tau_ff, 0.0]  # (the gripper's law has no feed-forward)
+        stop = self.supervisor.check(now, qd if grip is None else [*qd, grip.target], self._tracking, self._saturated,
+                                     ff_now)
         fb = self._feedback()
         weighing = self._weighing
         if stop is None:  # (while the arm is weighed the reflex only watches: a lost turn is the turn check's)
@@ -1030,7 +1041,8 @@ class Controller:
         else:
             kp, kd = [0.0] * self.n, [d if m else 0.0 for d, m in zip(self._teach_damping, self._mit, strict=True)]
         q, dq, tau, stamps = fb
-        err = reflex.step(now, q, dq, tau, check, kp, kd, stamps, self.des[1] if check else None)
+        err = reflex.step(now, q, dq, tau, check, kp, kd, stamps, self.des[1] if check else None,
+                          self.tau_ff if check else None)
         if err is None or err.reaction == "disable":
             return err
         self.motions.replace(Plan([self.planner.stop(self.des, self._t_plan)]), err)

@@ -46,6 +46,8 @@ class FeedForward:
         self.n = len(torque_limit)
         self._c = [float(x) for x in coulomb]
         self._b = [float(x) for x in viscous]
+        self._inv_scale = [1.0] * len(torque_limit)  # 1 / (N·m the joint gets per N·m asked): set_friction
+        self._load = [0.0] * len(torque_limit)
         self._lim = [float(x) for x in torque_limit]
         self._lim_array = np.array(self._lim)
         self._imax = [0.1 * x for x in self._lim]
@@ -55,10 +57,17 @@ class FeedForward:
         self.extra = [0.0] * self.n  # user torque, N·m
         self.set_gains([0.0] * self.n)
 
-    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float]) -> None:
-        """New friction to compensate per joint (N·m, N·m·s/rad), e.g. identified ones."""
+    def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float],
+                     torque_scale: Sequence[float] | None = None, load: Sequence[float] | None = None) -> None:
+        """New friction to compensate per joint (N·m, N·m·s/rad), e.g. identified ones; ``torque_scale``:
+        N·m each joint gets per N·m asked (a real unit's: the model's torque and friction are asked over
+        it); ``load``: Coulomb friction's load-dependent part, N·m per N·m of the model's torque."""
         self._c = [float(x) for x in coulomb]
         self._b = [float(x) for x in viscous]
+        if torque_scale is not None:
+            self._inv_scale = [1.0 / float(x) for x in torque_scale]
+        if load is not None:
+            self._load = [float(x) for x in load]
 
     def set_gains(self, kp: Sequence[float]) -> None:
         """The joints' current kp (N·m/rad): sets the hold integral's gains and which joints are limp."""
@@ -103,11 +112,14 @@ class FeedForward:
         if qd is None or vd is None:
             qd, vd = q_d.tolist(), dq_d.tolist()
         c, b, ex, lim, ki, imax, integ = self._c, self._b, self.extra, self._lim, self._ki, self._imax, self._integral
+        inv, load = self._inv_scale, self._load
         tanh = math.tanh
         out = [0.0] * n
         for i in range(n):
             v = vd[i]
-            t = model_tau[i] + c[i] * tanh(v * _INV_FRICTION_SMOOTHING) + b[i] * v + ex[i]
+            mt = model_tau[i]
+            th = tanh(v * _INV_FRICTION_SMOOTHING)
+            t = (mt + (c[i] + load[i] * abs(mt)) * th + b[i] * v) * inv[i] + ex[i]
             if holding:
                 if ki[i] > 0.0:
                     ti = ki[i] * (integ[i] + (qd[i] - q_meas[i]) * dt)

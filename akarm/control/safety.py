@@ -66,6 +66,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from akarm.config import JointConfig
 from akarm.control.joints import Joint
@@ -80,6 +81,9 @@ from akarm.errors import (
     TrackingError,
 )
 from akarm.protocol.servo import ServoErrorCode, describe_error
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["Guard", "Supervisor", "default_following_error", "default_stuck_travel"]
 
@@ -156,12 +160,16 @@ class Guard:
     Attributes:
         feedback_timeout: s. max_temperature: °C.
         following_error: rad (``inf``: not checked). stuck_travel: rad (``inf``: not checked).
+        torque_slack: rad per N·m of feed-forward the following-error limit grows by: what the PD must
+            make up where the model's torque is off by its uncertainty (a real unit's torque constant,
+            masses: ``uncertainty / kp``; 0: the model is taken as exact).
     """
 
     feedback_timeout: float
     max_temperature: float
     following_error: float = math.inf
     stuck_travel: float = math.inf
+    torque_slack: float = 0.0
 
 
 class Supervisor:
@@ -254,6 +262,7 @@ class Supervisor:
         self._laws_kept = [max(self._lag_laws, u + 1) for u in self._unanswered]
         self._max_temp = [x.max_temperature for x in g]
         self._following = [x.following_error for x in g]
+        self._torque_slack = [x.torque_slack for x in g]
         self._stuck = [x.stuck_travel for x in g]
 
     def set_guards(self, guards: Sequence[Guard]) -> None:
@@ -296,7 +305,8 @@ class Supervisor:
 
     # ------------------------------------------------------------------------------------------
     def check(self, now: float, q_des: Sequence[float] | None = None, tracking: Sequence[bool] | None = None,
-              saturated: Sequence[bool] | None = None) -> SafetyStop | None:
+              saturated: Sequence[bool] | None = None,
+              feedforward: Sequence[float] | np.ndarray | None = None) -> SafetyStop | None:
         """The stop the arm needs now, or ``None``.
 
         Args:
@@ -306,10 +316,12 @@ class Supervisor:
             tracking: per joint, whether it is held at ``q_des`` (MIT with kp > 0, servo).
             saturated: per joint, whether its last command asked for the motor's whole torque range
                 (stiffness, damping and feed-forward together); ``None``: unknown.
+            feedforward: the feed-forward torque of the last command per joint, N·m: the following-error
+                limit grows by :attr:`Guard.torque_slack` times it; ``None``: not at all.
         """
         stop = self._check_joints(now)
         if stop is None and q_des is not None and tracking is not None:
-            stop = self._check_following(now, q_des, tracking, saturated)
+            stop = self._check_following(now, q_des, tracking, saturated, feedforward)
             if isinstance(stop, TrackingError):  # off its command, and no torque where the law asks: a reset
                 stop = self._reset_behind(stop) or stop
         if stop is None and self._reset is not None:
@@ -494,7 +506,8 @@ class Supervisor:
         return [max(abs(x - p[i]) for p in past) for i, x in enumerate(qd)]
 
     def _check_following(self, now: float, q_des: Sequence[float], tracking: Sequence[bool],  # noqa: C901
-                         saturated: Sequence[bool] | None) -> SafetyStop | None:
+                         saturated: Sequence[bool] | None,
+                         feedforward: Sequence[float] | np.ndarray | None = None) -> SafetyStop | None:
         slack = self.lag_slack(q_des)
         over, tracked, sat_since = self._over, self._tracked, self._saturated_since
         last_stamp, last_value, des_at = self._last_stamp, self._last_value, self._des_at_value
@@ -515,6 +528,8 @@ class Supervisor:
                 last_stamp[i], last_value[i], des_at[i] = s.stamp, q, qd
             e = qd - q
             limit = self._following[i] if slack is None else self._following[i] + slack[i]
+            if feedforward is not None:  # the model's torque may be off by its uncertainty: the PD makes it up
+                limit += self._torque_slack[i] * abs(feedforward[i])
             if e > limit or e < -limit:
                 if not new:  # no reply to the last command: the watchdog's to judge
                     continue

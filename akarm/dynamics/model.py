@@ -16,6 +16,7 @@ A ``RobotModel`` owns one ``pinocchio.Data``: use one instance per thread.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, TypeAlias
 
@@ -364,6 +365,26 @@ class RobotModel:
         jid = self._payload_joint
         block = Y[:, 10 * (jid - 1):10 * jid]
         return block.copy() if self._v_identity else block[self._vi]
+
+    def scale_links(self, factors: dict[str, tuple[float, float]]) -> None:
+        """Make the bodies that joints move heavier or lighter (a real arm is not its URDF): per joint
+        name, ``(mass factor, centre-of-mass factor)``: the body's mass and rotational inertia times
+        the first, its centre of mass's offset from the joint times the second. For simulators
+        (:class:`akarm.sim.Variation`); a payload set before is kept."""
+        pm = self.pin_model
+        for name, (fm, fc) in factors.items():
+            if not (fm > 0 and fc > 0 and math.isfinite(fm) and math.isfinite(fc)):
+                raise ModelError(f"link factors of joint {name!r} must be positive numbers, got {(fm, fc)!r}")
+            jid = pm.getJointId(name)
+            if jid >= pm.njoints:
+                raise ModelError(f"no joint {name!r} in the URDF")
+            base = self._inertias0[jid]
+            self._inertias0[jid] = pin.Inertia(base.mass * fm, base.lever * fc, base.inertia * fm)
+        if self.payload is not None:
+            self.set_payload(*self.payload)
+        else:
+            for jid, inertia in enumerate(self._inertias0):
+                pm.inertias[jid] = pin.Inertia(inertia)
 
     def clear_payload(self) -> None:
         """Remove the payload (the config's too): the tool's parent body gets back its URDF inertia, exactly."""

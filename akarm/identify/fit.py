@@ -103,12 +103,17 @@ class JointFit:
     rms: float
     threshold: float | None = None
     amplitude: float = math.nan
+    #: N·m the joint gets per N·m the motor reports (1: not fitted)
+    torque_scale: float = 1.0
+    #: Coulomb friction's load-dependent part, N·m per N·m of the motor's torque
+    load: float = 0.0
 
     def friction(self, offset: bool = True) -> Friction:
         """The identified friction (with its offset, or without: 0), as a robot file takes it: a Coulomb
         or viscous term the fit's noise made slightly negative is 0 (the file, and ``set_friction``,
         refuse a negative one: ``akarm identify --save`` failed at its very end)."""
-        return Friction(max(0.0, self.coulomb), max(0.0, self.viscous), self.offset if offset else 0.0)
+        return Friction(max(0.0, self.coulomb), max(0.0, self.viscous), self.offset if offset else 0.0,
+                        min(1.0, max(0.0, self.load)), min(2.0, max(0.2, self.torque_scale)))
 
 
 @dataclass(frozen=True)
@@ -139,12 +144,13 @@ class Identification:
     speed: float = 1.0
 
     def table(self) -> str:
-        """A table per joint: friction, offset, RMS residual, suggested threshold."""
+        """A table per joint: friction, offset, RMS residual, suggested threshold, torque scale, load share."""
         rows = [f"{'joint':<16}{'coulomb Nm':>11}{'viscous Nms':>12}{'offset Nm':>10}{'RMS Nm':>8}"
-                f"{'threshold Nm':>13}"]
+                f"{'threshold Nm':>13}{'torque x':>9}{'load':>6}"]
         for j in self.joints:
             th = f"{j.threshold:13.2f}" if j.threshold is not None else f"{'-':>13}"
-            rows.append(f"{j.name:<16}{j.coulomb:11.3f}{j.viscous:12.4f}{j.offset:10.3f}{j.rms:8.3f}{th}")
+            rows.append(f"{j.name:<16}{j.coulomb:11.3f}{j.viscous:12.4f}{j.offset:10.3f}{j.rms:8.3f}{th}"
+                        f"{j.torque_scale:9.3f}{j.load:6.3f}")
         if self.payload is not None:
             p = self.payload
             rows.append(f"payload: {p.mass:.3f} kg, centre of mass ({p.com[0]:+.4f}, {p.com[1]:+.4f}, "
@@ -313,9 +319,14 @@ def _savgol(x: np.ndarray, dt: float, window: float, order: int = 3) -> tuple[np
 
 
 # C901 13 > 12, left as it was: one least-squares fit, a branch per optional term (offsets, payload, window)
+#: the torque scales a real unit has (Variation's 0.49-1.3, with a margin): outside, a fit found the
+#: degenerate solution of a friction-dominated joint (0.01-0.08 on roll joints, 0.30 on a wrist)
+_SCALE_RANGE = (0.45, 1.6)
+
+
 def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, kd: np.ndarray | None = None,  # noqa: C901
         payload: bool = True, offsets: bool = True, use: np.ndarray | None = None, window: float = 0.1,
-        decimate: int = 1) -> tuple[list[JointFit], PayloadFit | None, np.ndarray]:
+        decimate: int = 1, torque_scale: bool = False) -> tuple[list[JointFit], PayloadFit | None, np.ndarray]:
     """Friction (and offsets, and the payload) from an excitation's telemetry (module's docstring).
 
     ``kp``, ``kd``: the MIT gains in force for each sample's torque (samples × joints, or one row for
@@ -325,6 +336,12 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
     driver and the joint. When the gains vary (:func:`identify` alternates full and half gains), the
     lags are fitted too (two columns per joint); else half a period is taken. ``use``: which samples
     to fit (e.g. not those just after a change of gains).
+
+    ``torque_scale``: fit per joint also the torque the joint gets per N·m reported (``s``) and Coulomb
+    friction's load-dependent part (``μ``, per N·m of the motor's torque): the model is then
+    ``s·(τ - lags) = ID + Y·π + (c + μ·|τ|)·tanh(q̇/0.02) + b·q̇ + offset``, linear in ``s``, ``s·λ``,
+    ``π``, ``c``, ``μ``, ``b`` and the offset (the target is ``ID``; a real unit's torque constant and
+    gearbox make ``s`` 0.5-1.3).
 
     With ``payload``, ``model`` must carry none (else its payload is taken as known). Returns the
     per-joint fits (threshold unset), the payload (``None`` unless ``payload``), and the lags (joints × 2, s).
@@ -355,40 +372,66 @@ def fit(model: RobotModel, log: TelemetryLog, *, kp: np.ndarray | None = None, k
     if not varying:
         tau = tau - 0.5 * period * (kp_t * dq + kd_t * ddq)
     n_pay = 10 if payload else 0
-    names = ["coulomb", "viscous"] + (["offset"] if offsets else []) + (["lag_p", "lag_d"] if varying else [])
+    names = (["coulomb", "viscous"] + (["offset"] if offsets else []) + (["lag_p", "lag_d"] if varying else [])
+             + (["scale", "load"] if torque_scale else []))
     per_joint = len(names)
     cols = n_pay + per_joint * n
     Y = np.empty(len(idx) * n)
     A = np.zeros((len(idx) * n, cols))
     for r, k in enumerate(idx):
         rows = slice(r * n, (r + 1) * n)
-        Y[rows] = tau[k] - model.inverse_dynamics(q[k], dq[k], ddq[k])
+        if torque_scale:  # ID = s·τ - s·λ·(kp·q̇, kd·q̈) - Y·π - friction: the signs of every column turn
+            Y[rows] = -model.inverse_dynamics(q[k], dq[k], ddq[k])
+        else:
+            Y[rows] = tau[k] - model.inverse_dynamics(q[k], dq[k], ddq[k])
         if payload:
             A[rows, :10] = model.payload_regressor(q[k], dq[k], ddq[k])
         for i in range(n):
             base = n_pay + per_joint * i
             v = dq[k, i]
-            A[r * n + i, base:base + 2] = (math.tanh(v / _SMOOTHING), v)
+            th = math.tanh(v / _SMOOTHING)
+            A[r * n + i, base:base + 2] = (th, v)
             col = base + 2
             if offsets:
                 A[r * n + i, col] = 1.0
                 col += 1
             if varying:
                 A[r * n + i, col:col + 2] = (kp_t[k, i] * v, kd_t[k, i] * ddq[k, i])
+                col += 2
+            if torque_scale:
+                t = tau[k, i]
+                A[r * n + i, col:col + 2] = (-t, abs(t) * th)
     joint_of_row = np.tile(np.arange(n), len(idx))
     weights = np.ones(len(Y))
-    for _ in range(2):  # weighted by each joint's residual: a noisy joint does not drown the others
+    fixed: set[int] = set()  # joints whose torque scale the motion does not determine: 1, as catalogued
+    for step in range(3):  # weighted by each joint's residual: a noisy joint does not drown the others
         x, *_ = np.linalg.lstsq(A * weights[:, None], Y * weights, rcond=None)
         res = Y - A @ x
         rms = np.array([math.sqrt(float(np.mean(res[joint_of_row == i] ** 2))) for i in range(n)])
         weights = 1.0 / np.maximum(rms, 1e-4)[joint_of_row]
+        if torque_scale and step < 2:  # (the last solve has them all)
+            # Where a joint's torque is mostly its own friction (a roll joint: little inertia, no gravity),
+            # s·τ = friction has a second solution, everything near 0: a scale outside what a real unit
+            # has (_SCALE_RANGE) is that one. It keeps the catalogue's (1) and no load share (|τ| is its friction
+            # then: the two columns cannot be told apart), and its friction is fitted so.
+            for i in range(n):
+                col = n_pay + per_joint * i + names.index("scale")
+                if i not in fixed and not _SCALE_RANGE[0] <= x[col] <= _SCALE_RANGE[1]:
+                    fixed.add(i)
+                    rows = joint_of_row == i
+                    Y[rows] -= A[rows, col]  # (the column is -τ: s = 1 moves it into the target)
+                    A[rows, col] = 0.0
+                    A[rows, col + 1] = 0.0  # (and |τ|·tanh is its Coulomb friction again: no load share)
     fits = []
     for i, name in enumerate(model.joint_names):
         v = dict(zip(names, x[n_pay + per_joint * i:n_pay + per_joint * (i + 1)], strict=True))
+        scale = 1.0 if i in fixed else float(v.get("scale", 1.0))
+        if torque_scale:  # (the rows solved s·λ, and the residual is in N·m of the model: per N·m reported, /s)
+            rms[i] /= max(scale, 1e-3)
         fits.append(JointFit(name, float(v["coulomb"]), float(v["viscous"]), float(v.get("offset", 0.0)),
-                             float(rms[i])))
+                             float(rms[i]), torque_scale=scale, load=float(v.get("load", 0.0))))
         if varying:
-            lag[i] = (v["lag_p"], v["lag_d"])
+            lag[i] = (v["lag_p"] / scale, v["lag_d"] / scale) if torque_scale else (v["lag_p"], v["lag_d"])
     pay = _payload_from(model, x[:4], rms) if payload else None
     return fits, pay, lag
 
@@ -461,6 +504,7 @@ def suggest_thresholds(model: RobotModel, log: TelemetryLog, fits: Sequence[Join
     step), rounded up to 0.05 N·m."""
     obs = MomentumObserver(model, [f.coulomb for f in fits], [f.viscous for f in fits], [f.offset for f in fits],
                            gain, deadband, [j.motor.t_max for j in model.config.joints])
+    obs.set_torque_scale([f.torque_scale for f in fits])
     peak = np.zeros(model.n)
     kp_t = np.broadcast_to(np.zeros(model.n) if kp is None else np.asarray(kp, dtype=float), log.q.shape)
     kd_t = np.broadcast_to(np.zeros(model.n) if kd is None else np.asarray(kd, dtype=float), log.q.shape)

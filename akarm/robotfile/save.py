@@ -42,9 +42,12 @@ def flow_payload(p: Payload) -> str:
 
 
 def flow_friction(f: Friction) -> str:
-    """``friction:``'s value as YAML flow text (no ``offset`` when it is 0)."""
+    """``friction:``'s value as YAML flow text (no ``offset``, ``load`` or ``torque_scale`` at their defaults)."""
     text = f"{{coulomb: {f.coulomb:.4f}, viscous: {f.viscous:.5f}"
-    return text + (f", offset: {f.offset:.4f}}}" if f.offset != 0.0 else "}")
+    text += f", offset: {f.offset:.4f}" if f.offset != 0.0 else ""
+    text += f", load: {f.load:.4f}" if f.load != 0.0 else ""
+    text += f", torque_scale: {f.torque_scale:.4f}" if f.torque_scale != 1.0 else ""
+    return text + "}"
 
 
 def flow_collision(threshold: float) -> str:

@@ -613,6 +613,10 @@ FRICTION = Section("friction", term="friction {key}", doc="Identified joint fric
     Key("viscous", Number(minimum=0.0, unit="N·m·s/rad"), "viscous friction", default=0.0, fix=_FRICTION_FIX),
     Key("offset", Number(unit="N·m"), "a constant torque the model misses (a cable, a sensor bias)", default=0.0,
         fix=_FRICTION_FIX),
+    Key("load", Number(minimum=0.0, maximum=1.0), "Coulomb friction's load-dependent part, N·m per N·m the motor "
+        "delivers", default=0.0, fix="a share of the motor's torque, 0..1 (a real AK80-9: about 0.06)"),
+    Key("torque_scale", Number(minimum=0.2, maximum=2.0), "N·m the joint gets per N·m the motor reports (a real "
+        "unit's torque constant)", default=1.0, fix="a factor, 0.2..2 (`akarm identify` fits it; 1: the catalogue's)"),
 ))
 
 COLLISION = Section("collision", term="collision {key}", doc="The collision reflex (`akarm.control.collision`).",

@@ -117,12 +117,12 @@ class TargetStream:
     def _gripper(self, width: object) -> float | None:
         if width is None:
             return None
-        gripper = getattr(self.arm, "gripper", None)
+        gripper = self.arm.gripper
         if gripper is None:
             raise ArgumentError("this arm has no gripper, but the target has a gripper width",
                                 fix="leave 'gripper' out, or add a gripper to the robot file")
-        w = self._finite(width, str(getattr(gripper, "name", "gripper")), "m")
-        return min(max(w, 0.0), float(gripper.stroke))
+        w = self._finite(width, gripper.name, "m")
+        return min(max(w, 0.0), gripper.stroke)
 
     @staticmethod
     def _finite(value: object, joint: str, unit: str = "rad") -> float:
@@ -200,8 +200,9 @@ class TargetStream:
                 goal = np.clip(q + stopping_distance(velocity, self._limits), lim.lower, lim.upper)
             self._previous = q
             self.arm.stream_to(goal, self.speed, synchronize=False)
-            if width is not None:
-                self.arm.gripper.move_to(width, wait=False)  # type: ignore[attr-defined]
+            grip = self.arm.gripper
+            if width is not None and grip is not None:  # (a width without a gripper was refused above)
+                grip.move_to(width, wait=False)
             self._last = now
             self.sent += 1
             return StreamReport(tuple(float(x) for x in q), clamped, self.clamped, self.timeouts, width)

@@ -16,6 +16,7 @@ its own process, for a controller or ``candump`` to talk to as to hardware.
 Modules: :mod:`~akarm.sim.robot` (the robot and its time), :mod:`~akarm.sim.drivers` (firmware
 state machines and loops), :mod:`~akarm.sim.plant` (dynamics, friction, hard stops, heating),
 :mod:`~akarm.sim.faults` (faults to inject), :mod:`~akarm.sim.params` (constants per actuator),
+:mod:`~akarm.sim.variation` (a real unit, not the datasheet),
 :mod:`~akarm.sim.records` (what it reports: driver states, frames), :mod:`~akarm.sim.channel` (its
 control channel), :mod:`~akarm.sim.process` (a simulator in a process of its own).
 The plant and the robot (numpy, Pinocchio) load on first use, so ``akarm.sim.faults`` stays light.
@@ -32,6 +33,7 @@ if TYPE_CHECKING:
     from akarm.sim.drivers import MitDriver, ServoDriver, SimulatedDriver, TrapezoidProfile
     from akarm.sim.plant import Plant
     from akarm.sim.robot import SimulatedRobot
+    from akarm.sim.variation import Truth, Variation
 
 __all__ = [
     "MitDriver",
@@ -41,6 +43,8 @@ __all__ = [
     "SimulatedDriver",
     "SimulatedRobot",
     "TrapezoidProfile",
+    "Truth",
+    "Variation",
     "default_params",
     "faults",
 ]
@@ -52,6 +56,8 @@ _LAZY = {
     "TrapezoidProfile": "drivers",
     "Plant": "plant",
     "SimulatedRobot": "robot",
+    "Truth": "variation",
+    "Variation": "variation",
 }
 
 

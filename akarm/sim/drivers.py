@@ -93,6 +93,8 @@ class SimulatedDriver:
         self._drop = 0.0
         self._rng = random.Random(0)
         self._delay = 0.0
+        self._jitter = params.reply_jitter
+        self._jitter_rng = random.Random(f"{joint.name}:{params.reply_jitter!r}")
         self._unplugged = False
         self._miss = 0  # frames addressed to it still to be missed (MissedFrames)
         self._powered = True
@@ -227,7 +229,10 @@ class SimulatedDriver:
         if self._drop and self._rng.random() < self._drop:
             return
         self.frames_sent += 1
-        self._host.transmit(self.bus, arbitration_id, data, is_extended, t + self._delay)
+        delay = self._delay
+        if self._jitter:  # a real unit's replies do not all take the same time
+            delay += self._jitter_rng.random() * self._jitter
+        self._host.transmit(self.bus, arbitration_id, data, is_extended, t + delay)
         if self._twin is not None:  # the second motor on this ID answers too (its own frame, its position)
             aid, twin, ext = self._forged_frame(self._twin)
             self._host.transmit(self.bus, aid, twin, ext, t + self._delay)

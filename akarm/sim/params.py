@@ -31,6 +31,11 @@ class MotorSimParams:
         thermal_resistance: winding to ambient, K/W.
         ambient: ambient temperature, °C (also the temperature at start).
         limit_stiffness: N·m/rad of the hard stop past the URDF limits.
+        torque_scale: the torque the joint gets per N·m the motor reports (a real unit's torque
+            constant and gearbox: :class:`~akarm.sim.variation.Variation`); 1: the catalogue's.
+        coulomb_load: N·m of Coulomb friction more per A of Iq (the load-dependent part).
+        backlash: rad of play between the motor's encoder and the link.
+        reply_jitter: s, the most each reply is delayed at random (uniformly, 0 to this).
     """
 
     viscous: float
@@ -42,6 +47,10 @@ class MotorSimParams:
     thermal_resistance: float
     ambient: float
     limit_stiffness: float
+    torque_scale: float = 1.0
+    coulomb_load: float = 0.0
+    backlash: float = 0.0
+    reply_jitter: float = 0.0
 
 
 def default_params(motor: MotorModel) -> MotorSimParams:

@@ -94,6 +94,11 @@ class Plant:
         self._cool = [1.0 / p.thermal_resistance for p in params]
         self._amb = [p.ambient for p in params]
         self._klim = [p.limit_stiffness for p in params]
+        # a real unit (akarm.sim.variation): torque per N·m reported, friction per A, half the play
+        self._scale = [p.torque_scale for p in params]
+        self._coul_load = [p.coulomb_load for p in params]
+        self._half_play = [0.5 * p.backlash for p in params]
+        self._play_eps = [0.05 * float(j.motor.t_max) for j in config.joints]
         hard = [pm.joints[pm.getJointId(j.name)].nq == 1 for j in config.joints]
         self._lo = [float(lo) if h else -math.inf for lo, h in zip(self.model.lower, hard, strict=True)]
         self._hi = [float(hi) if h else math.inf for hi, h in zip(self.model.upper, hard, strict=True)]
@@ -133,7 +138,8 @@ class Plant:
             return
         self._rows = list(zip(self._drivers, self._dir, self._off, self._tmax, self._heat, self._res, self._amb,
                               self._cool, self._inv_eps, self._visc, self._coul, self._lo, self._hi, self._klim,
-                              self._clim, strict=True))
+                              self._clim, self._scale, self._coul_load, self._half_play, self._play_eps,
+                              strict=True))
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Attach a payload to the tool frame (kg, m in the tool frame); 0 kg removes it."""
@@ -200,11 +206,17 @@ class Plant:
         return (np.asarray(self._external) + J.T @ w).tolist()
 
     def motor_state(self, i: int) -> tuple[float, float]:
-        """Joint ``i``'s motor-side (position rad before the driver's zero, velocity rad/s)."""
+        """Joint ``i``'s motor-side (position rad before the driver's zero, velocity rad/s). With
+        backlash the motor's encoder leads the link by half the play in the direction of its torque."""
         s = self._dir[i]
-        return (float(self.q[i]) - self._off[i]) * s, float(self.dq[i]) * s
+        q = float(self.q[i])
+        play = self._half_play[i]
+        if play:
+            q += play * math.tanh(float(self.tau[i]) / self._play_eps[i])
+        return (q - self._off[i]) * s, float(self.dq[i]) * s
 
-    def step(self, t: float) -> None:
+    # C901 14 > 12: one scalar pass per joint (motor, heat, friction, hard stops), the hot path
+    def step(self, t: float) -> None:  # noqa: C901
         """Advance the arm by one step ``dt`` from time ``t`` (s), with the drivers' torques at ``t``."""
         dt = self.dt
         dt2 = dt * dt
@@ -213,9 +225,11 @@ class Plant:
         motor = []
         tanh = math.tanh
         external = self._external if self._wrench is None and self._surface is None else self._contact()
-        for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim), qi, vi, ext in zip(
-                self._rows, self.q.tolist(), self.dq.tolist(), external, strict=True):
-            tm, k, d = drv.output(t, (qi - off) * s, vi * s)
+        rows = zip(self._rows, self.tau.tolist(), self.q.tolist(), self.dq.tolist(), external, strict=True)
+        for (drv, s, off, cap, heat, res, amb, cool, inv_eps, visc, coul, lo, hi, klim, clim, scale, cload, play,
+             peps), tprev, qi, vi, ext in rows:
+            qm = qi + play * tanh(tprev / peps) if play else qi  # backlash: the encoder leads by half the play
+            tm, k, d = drv.output(t, (qm - off) * s, vi * s)
             if tm > cap:
                 tm, k, d = cap, 0.0, 0.0
             elif tm < -cap:
@@ -225,7 +239,13 @@ class Plant:
             cur = tm / drv.kt_out
             temp = drv.temperature
             drv.temperature = temp + heat * (cur * cur * res - (temp - amb) * cool)
+            if cload:  # friction's load-dependent part (per A of the motor's current)
+                coul = coul + cload * (cur if cur >= 0.0 else -cur)
             tj = s * tm
+            if scale != 1.0:  # the unit's torque constant and gearbox: the joint gets scale × what is reported
+                tj *= scale
+                k *= scale
+                d *= scale
             motor.append(tj)
             # smooth Coulomb + viscous friction
             # (damping: the secant coulomb·tanh(v/ε)/v, not the tangent, so a step never flips v's sign)

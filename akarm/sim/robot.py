@@ -59,6 +59,7 @@ from akarm.sim.params import MotorSimParams, default_params
 from akarm.sim.plant import Plant
 from akarm.sim.records import DriverState, Frame
 from akarm.sim.uart import UartServoDriver
+from akarm.sim.variation import Truth, Variation
 from akarm.timing import TimingProfile, get_profile
 
 if TYPE_CHECKING:
@@ -145,6 +146,8 @@ class SimulatedRobot:
         clock: lock step only: a :class:`~akarm.clock.SteppedClock` to run on, shared with other
             simulators (two arms in one process: one clock drives both, and both arms' loops); the
             simulator starts at its time. Default: a clock of its own, from 0.
+        variation: a real unit instead of the robot file's model (:class:`~akarm.sim.variation.Variation`:
+            torque constants, friction, backlash, masses, reply jitter); default: the nominal model.
 
     Attributes:
         config: the configuration in force (with the bus override).
@@ -154,6 +157,7 @@ class SimulatedRobot:
             :class:`~akarm.clock.RealClock` (real time).
         send_errors: frames the bus refused to send (a full socketcan queue, ...).
         timing: the :class:`~akarm.timing.TimingProfile` in force.
+        variation: the :class:`~akarm.sim.variation.Variation` given, or ``None``; :attr:`truth` what it drew.
         serial_ports: per joint on a serial port, the path a controller opens (a pseudo-terminal's
             other end), or the device's path the simulator itself opened.
     """
@@ -179,6 +183,7 @@ class SimulatedRobot:
         serial: Mapping[str, str] | None = None,
         baudrate: int = DEFAULT_BAUDRATE,
         clock: SteppedClock | None = None,
+        variation: Variation | None = None,
     ) -> None:
         if interface is not None or channel is not None:
             config = config.with_bus(interface=interface, channel=channel)
@@ -201,8 +206,14 @@ class SimulatedRobot:
                                              f"simulation params for unknown joint(s) {', '.join(unknown)}",
                                              "joints are: " + ", ".join(config.joint_names))])
         plist = [params.get(j.name) or default_params(j.motor) for j in config.joints]
+        self.variation = variation
+        if variation is not None:
+            plist = variation.apply(config, plist)
         self.plant = Plant(config, plist, dt)
         self.model = self.plant.model
+        if variation is not None and any(x.mass != 1.0 or x.com != 1.0 for x in variation.truth().links):
+            self.model.scale_links({x.name: (x.mass, x.com) for x in variation.truth().links})
+            self.plant.update_inertia()
         self.dt = self.plant.dt
         if clock is not None and realtime:
             raise StateError("a simulator in real time runs on the wall clock, not on a given clock",
@@ -430,6 +441,12 @@ class SimulatedRobot:
         with self._lock:
             self.plant.q[:] = qa
             self.plant.dq[:] = va
+
+    @property
+    def truth(self) -> Truth | None:
+        """What this simulated unit really is (:meth:`Variation.truth <akarm.sim.variation.Variation.truth>`),
+        or ``None`` for the nominal model."""
+        return None if self.variation is None else self.variation.truth()
 
     def set_payload(self, mass: float, com: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Attach a payload at the tool frame now: ``mass`` kg at ``com`` (m, tool frame); 0 kg removes it."""

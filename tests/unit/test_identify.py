@@ -144,3 +144,19 @@ def test_a_fit_whose_noise_made_a_friction_negative_saves_it_as_zero(tmp_path: P
     shoulder, elbow = akarm.load_robot(robot).joints
     assert (shoulder.friction.coulomb, shoulder.friction.viscous) == pytest.approx((0.0, 0.021))
     assert (elbow.friction.coulomb, elbow.friction.viscous, elbow.friction.offset) == pytest.approx((0.12, 0.0, -0.012))
+
+
+def test_a_fitted_torque_scale_and_load_share_are_saved_and_read_back(tmp_path: Path) -> None:
+    """Issue 41: the robot file's `friction:` keeps a joint's torque scale and Coulomb friction's load
+    share; left at their defaults (1, 0) they are not written."""
+    robot = tmp_path / "planar2.yaml"
+    robot.write_text(BLOCK_STYLE)
+    (tmp_path / "planar2.urdf").write_text((ROBOTS / "planar2.urdf").read_text())
+    result = Identification((JointFit("shoulder", 0.3, 0.02, 0.0, 0.02, torque_scale=0.78, load=0.05),
+                             JointFit("elbow", 0.12, 0.01, 0.0, 0.01)), None, 1000, 8.0)
+    result.save(robot)
+    shoulder, elbow = akarm.load_robot(robot).joints
+    assert (shoulder.friction.torque_scale, shoulder.friction.load) == pytest.approx((0.78, 0.05))
+    assert (elbow.friction.torque_scale, elbow.friction.load) == (1.0, 0.0)
+    text = robot.read_text()
+    assert "torque_scale: 0.7800" in text and text.count("torque_scale") == 1

@@ -28,9 +28,9 @@ import ruckig
 
 from akarm.dynamics.ik import as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError, DeviationError
+from akarm.errors import ArgumentError, DeviationError, StateError
 
-__all__ = ["CARTESIAN_INERTIA", "POSTURE", "STIFFNESS_RAMP", "TARGET_LIMITS", "TORQUE_STEP", "Impedance",
+__all__ = ["CARTESIAN_INERTIA", "MOVED", "POSTURE", "STIFFNESS_RAMP", "TARGET_LIMITS", "TORQUE_STEP", "Impedance",
            "ImpedanceLaw", "stiffness_values"]
 
 #: s over which a new stiffness is reached (linearly)
@@ -43,6 +43,9 @@ CARTESIAN_INERTIA = ((0.2, 20.0), (0.002, 0.5))
 TARGET_LIMITS = (0.1, 0.5, 5.0)
 #: N·m/rad and N·m·s/rad: the null-space posture's stiffness and damping
 POSTURE = (2.0, 0.2)
+#: rad: a joint further than this from where ``arm.impedance()`` found it when its block begins: the handle
+#: is stale (its target would spring the arm back there), and is refused
+MOVED = 0.01
 _W_ROT = 0.1
 
 
@@ -225,6 +228,9 @@ class ImpedanceLaw:
 
 
 class _Controller(Protocol):
+    @property
+    def law(self) -> ImpedanceLaw | None: ...
+
     def begin_torque_law(self, law: ImpedanceLaw, kd: Sequence[float]) -> None: ...
 
     def end_torque_law(self) -> None: ...
@@ -239,7 +245,8 @@ class _Controller(Protocol):
 class Impedance:
     """The handle of ``arm.impedance(...)``: ``with arm.impedance(stiffness=[...]) as imp:`` makes the arm
     soft about its pose (or its joint positions) until the block ends, when it holds where it is, stiff
-    again (the gains ramping up from zero).
+    again (the gains ramping up from zero). A handle serves one block: before it, after it, or after a stop
+    ended it, its commands are refused (:class:`~akarm.StateError`), as is a second block.
 
     Args (from :meth:`akarm.Arm.impedance`): the controller, the law, each joint's damping (kd) meanwhile,
     a model for the caller's thread, and how joint positions are read.
@@ -248,13 +255,31 @@ class Impedance:
     def __init__(self, ctl: _Controller, law: ImpedanceLaw, kd: Sequence[float], model: RobotModel,
                  measured: Callable[[], np.ndarray]) -> None:
         self._ctl, self.law, self._kd, self._model, self._measured = ctl, law, list(kd), model, measured
+        self._used = False
 
     def __enter__(self) -> Impedance:
+        if self._used:
+            raise StateError("this impedance handle served its block once already",
+                             fix="make a new one where the arm is: `with arm.impedance(...) as imp:`")
+        self._used = True
+        moved = np.abs(self._measured() - self.law.q0)
+        worst = int(np.argmax(moved))
+        if moved[worst] > MOVED:  # its target is where the arm was: it would spring back there
+            raise StateError(f"the arm moved {moved[worst]:.3f} rad since arm.impedance() made this handle",
+                             joint=self.law.names[worst],
+                             fix="make the handle where the arm is: `with arm.impedance(...) as imp:`")
         self._ctl.begin_torque_law(self.law, self._kd)
         return self
 
     def __exit__(self, *exc: object) -> None:
         self._ctl.end_torque_law()
+
+    def _require_in_block(self) -> None:
+        """The arm's safety stop, if it stopped; else a StateError unless this handle's block is in force."""
+        self._ctl.require_enabled()
+        if self._ctl.law is not self.law:
+            raise StateError("this impedance handle commands nothing outside its `with` block (not begun, ended, "
+                             "or ended by a stop)", fix="command it inside `with arm.impedance(...) as imp:`")
 
     def set_target(self, target: object) -> None:
         """Move the target, jerk-limited from where it is: a pose (as :meth:`akarm.Arm.move_to_pose` takes
@@ -271,13 +296,15 @@ class Impedance:
             value = q
         else:
             value, _ = as_pose(target, law.target)
-        self._ctl.require_enabled()
+        self._require_in_block()
         law.set_target(np.array(value, dtype=float), self._ctl.plan_now())
 
     def set_stiffness(self, stiffness: Sequence[float]) -> None:
         """New stiffness (6 values N/m, N·m/rad; or one per joint N·m/rad under joint impedance), reached
         smoothly over :data:`STIFFNESS_RAMP` s."""
-        self.law.set_stiffness(stiffness_values(stiffness, self.law.k.size, "stiffness"))
+        k = stiffness_values(stiffness, self.law.k.size, "stiffness")
+        self._require_in_block()
+        self.law.set_stiffness(k)
 
     @property
     def error(self) -> np.ndarray:

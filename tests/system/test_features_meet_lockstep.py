@@ -1,0 +1,44 @@
+"""Where today's features meet (the safety review): the gripper, walls, servoing, impedance and guarded
+moves together, safety stops and disable() while one of them runs, handles used outside their block.
+
+Lock step on arm6g (arm6 with a gripper) from ``ready``; positions are the simulator's own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import akarm
+from akarm.errors import StateError
+
+from ..conftest import ROBOTS, lockstep_arm
+
+ARM6G = akarm.load_robot(ROBOTS / "arm6g.yaml")
+READY = np.array(ARM6G.pose("ready"))
+SOFT = [500, 500, 500, 30, 30, 30]
+
+
+def test_an_impedance_handle_commands_only_inside_its_one_block(channel: str) -> None:
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, sim):
+        imp = arm.impedance(stiffness=SOFT)
+        here = arm.tool_pose()
+        with pytest.raises(StateError, match="block"):
+            imp.set_target(here)  # not yet entered
+        with imp:
+            arm.sleep(0.1)
+        for command in (lambda: imp.set_target(here), lambda: imp.set_stiffness(SOFT)):
+            with pytest.raises(StateError, match="block"):
+                command()  # the block ended: refused, not silently dropped
+        with pytest.raises(StateError, match="once"), imp:
+            pass
+        assert arm.enabled and arm.fault is None
+        # a handle made before the arm moved would spring it back to where it was: refused
+        stale = arm.impedance(stiffness=SOFT)
+        goal = READY + 0.05
+        arm.move_to(goal)
+        with pytest.raises(StateError, match="moved"), stale:
+            pass
+        arm.sleep(0.5)
+        assert arm.enabled and arm.fault is None
+        assert np.abs(sim.q - goal).max() < 0.005, np.abs(sim.q - goal).max()

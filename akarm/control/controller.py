@@ -763,6 +763,10 @@ class Controller:
     def enter_teach(self, damping: float) -> None:
         with self.lock:
             self._require_active()
+            if self.law is not None:  # (its torque would go on as teach mode's extra, its old target after)
+                raise StateError("the arm is under impedance control: it is not hand-guided too",
+                                 fix="leave the `with arm.impedance(...)` block first (a low stiffness is "
+                                     "hand-guiding with a spring)")
             self._teach_damping = np.minimum(damping, self._kd).tolist()
             self.motions.cancel()
             self.modes.go(Mode.TEACH)

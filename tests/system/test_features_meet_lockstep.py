@@ -42,3 +42,18 @@ def test_an_impedance_handle_commands_only_inside_its_one_block(channel: str) ->
         arm.sleep(0.5)
         assert arm.enabled and arm.fault is None
         assert np.abs(sim.q - goal).max() < 0.005, np.abs(sim.q - goal).max()
+
+
+def test_teach_mode_is_refused_under_impedance(channel: str) -> None:
+    # (it was taken: the impedance torque of the last cycle went on as teach mode's extra torque, pushing the
+    # arm away, and the law came back at end_teach with its old target: a DeviationError, or a spring back)
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, sim):
+        with arm.impedance(stiffness=SOFT) as imp:
+            arm.sleep(0.1)
+            with pytest.raises(StateError, match="impedance"):
+                arm.teach()
+            held = sim.q.copy()
+            arm.sleep(0.5)
+            assert np.abs(sim.q - held).max() < 0.002
+            imp.set_target(arm.tool_pose())  # still in force
+        assert arm.enabled and arm.fault is None

@@ -826,6 +826,7 @@ class Arm:
         Raises:
             ArgumentError: a gain that is not a finite number ≥ 0 within its motor's range, a list
                 that is not one per joint (names the joint).
+            StateError: under impedance control (:meth:`impedance`: its gains are the law's).
         """
         self._ctl.set_gains(self._gain(kp, "kp", "N·m/rad"), self._gain(kd, "kd", "N·m·s/rad"))
 

@@ -57,3 +57,15 @@ def test_teach_mode_is_refused_under_impedance(channel: str) -> None:
             assert np.abs(sim.q - held).max() < 0.002
             imp.set_target(arm.tool_pose())  # still in force
         assert arm.enabled and arm.fault is None
+
+
+def test_gains_are_not_changed_under_impedance(channel: str) -> None:
+    # (they were: a kp under impedance pulled the arm toward where the block began, against the law, and the
+    # gains saved at its start silently undid the change at its end)
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, _sim):
+        before = arm.gains
+        with arm.impedance(stiffness=SOFT):
+            with pytest.raises(StateError, match="impedance"):
+                arm.set_gains(kp=5.0)
+            assert not np.any(arm.gains[0])  # kp = 0 on every joint, as impedance control needs
+        assert all(np.array_equal(a, b) for a, b in zip(arm.gains, before, strict=True))

@@ -747,7 +747,7 @@ class Arm:
             with self._ctl.lock:
                 return np.array([j.state.position for j in self.joints])
 
-        return Impedance(self._ctl, law, kds, self.ik.model, measured)
+        return Impedance(self._ctl, law, kds, self.ik.model, measured, self.limits, self.config.workspace)
 
     def move_until_contact(self, direction: Sequence[float], speed: float = 0.02, force: float = 5.0, *,
                            max_distance: float = 0.2, back_off: float = 0.0) -> Contact:

@@ -18,6 +18,7 @@ by the feed-forward, :mod:`akarm.control.feedforward`):
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Sequence
 from typing import Protocol
@@ -26,9 +27,12 @@ import numpy as np
 import pinocchio as pin
 import ruckig
 
+from akarm.config.workspace import Workspace
 from akarm.dynamics.ik import as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError, DeviationError, StateError
+from akarm.errors import ArgumentError, DeviationError, LimitError, StateError, num
+from akarm.motion.trajectory import JointLimits
+from akarm.motion.walls import WALL_TOLERANCE
 
 __all__ = ["CARTESIAN_INERTIA", "MOVED", "POSTURE", "STIFFNESS_RAMP", "TARGET_LIMITS", "TORQUE_STEP", "Impedance",
            "ImpedanceLaw", "stiffness_values"]
@@ -134,6 +138,11 @@ class ImpedanceLaw:
                 dr = np.asarray(pin.log3(end[:3, :3] @ start[:3, :3].T))
                 length = max(float(np.linalg.norm(end[:3, 3] - start[:3, 3])), _W_ROT * float(np.linalg.norm(dr)))
             self._move = _Move(now, start, end, length)
+
+    def target_at(self, now: float) -> np.ndarray:
+        """(Any thread) Where the target is at plan time ``now`` (a 4×4 pose, or joint positions)."""
+        with self._lock:
+            return np.array(self._target_now(now)[0], dtype=float)
 
     def set_stiffness(self, k: np.ndarray) -> None:
         with self._lock:
@@ -249,12 +258,15 @@ class Impedance:
     ended it, its commands are refused (:class:`~akarm.StateError`), as is a second block.
 
     Args (from :meth:`akarm.Arm.impedance`): the controller, the law, each joint's damping (kd) meanwhile,
-    a model for the caller's thread, and how joint positions are read.
+    a model for the caller's thread, and how joint positions are read; the joint limits and the robot
+    file's walls a target must keep to (a target past them is a :class:`~akarm.LimitError`, nothing moves).
     """
 
     def __init__(self, ctl: _Controller, law: ImpedanceLaw, kd: Sequence[float], model: RobotModel,
-                 measured: Callable[[], np.ndarray]) -> None:
+                 measured: Callable[[], np.ndarray], limits: JointLimits | None = None,
+                 walls: Workspace | None = None) -> None:
         self._ctl, self.law, self._kd, self._model, self._measured = ctl, law, list(kd), model, measured
+        self._limits, self._walls = limits, walls
         self._used = False
 
     def __enter__(self) -> Impedance:
@@ -283,7 +295,12 @@ class Impedance:
 
     def set_target(self, target: object) -> None:
         """Move the target, jerk-limited from where it is: a pose (as :meth:`akarm.Arm.move_to_pose` takes
-        it) under Cartesian impedance, one position per joint (rad) under joint impedance."""
+        it) under Cartesian impedance, one position per joint (rad) under joint impedance.
+
+        Raises:
+            ArgumentError: not a pose, or not one finite angle per joint. LimitError: a joint target past
+                a joint's limits, a line to the target that leaves the workspace (nothing moves).
+            StateError: outside the handle's block (or the arm's safety stop, if it stopped)."""
         law = self.law
         if law.joint:
             try:
@@ -296,8 +313,33 @@ class Impedance:
             value = q
         else:
             value, _ = as_pose(target, law.target)
+        self._within_limits(np.array(value, dtype=float))
         self._require_in_block()
         law.set_target(np.array(value, dtype=float), self._ctl.plan_now())
+
+    def _within_limits(self, value: np.ndarray) -> None:
+        """A joint target within each joint's range; a Cartesian target's line (from the target now) inside
+        the walls, further out than it starts nowhere: else a LimitError."""
+        law, lim = self.law, self._limits
+        if law.joint and lim is not None:
+            for i, (q, lo, hi) in enumerate(zip(value.tolist(), lim.lower.tolist(), lim.upper.tolist(), strict=True)):
+                if not lo <= q <= hi:
+                    raise LimitError(f"the impedance target is at {num(q, sign=True)} rad, outside "
+                                     f"[{num(lo, sign=True)}, {num(hi, sign=True)}] rad; nothing moved",
+                                     joint=law.names[i], fix="give a target within the joint's limits")
+        walls = self._walls
+        if law.joint or walls is None:
+            return
+        a, b = law.target_at(self._ctl.plan_now())[:3, 3], value[:3, 3]
+        start = walls.outside(a)
+        for s in np.linspace(0.0, 1.0, max(2, math.ceil(float(np.linalg.norm(b - a)) / 0.005) + 1)).tolist():
+            p = a + s * (b - a)
+            out = walls.outside(p)
+            if out > start + WALL_TOLERANCE:
+                raise LimitError(f"the impedance target's line takes the tool {out * 1e3:.1f} mm outside the "
+                                 f"workspace ({walls.describe()}) at [{p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}] m; "
+                                 "nothing moved", fix="choose a target inside the workspace, or widen `workspace:` "
+                                                      "in the robot file")
 
     def set_stiffness(self, stiffness: Sequence[float]) -> None:
         """New stiffness (6 values N/m, N·m/rad; or one per joint N·m/rad under joint impedance), reached

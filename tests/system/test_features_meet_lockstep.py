@@ -6,16 +6,21 @@ Lock step on arm6g (arm6 with a gripper) from ``ready``; positions are the simul
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import akarm
-from akarm.errors import StateError
+from akarm.config.workspace import Workspace
+from akarm.dynamics.model import RobotModel
+from akarm.errors import LimitError, StateError
 
 from ..conftest import ROBOTS, lockstep_arm
 
 ARM6G = akarm.load_robot(ROBOTS / "arm6g.yaml")
 READY = np.array(ARM6G.pose("ready"))
+FK = RobotModel(ARM6G)
 SOFT = [500, 500, 500, 30, 30, 30]
 
 
@@ -69,3 +74,30 @@ def test_gains_are_not_changed_under_impedance(channel: str) -> None:
                 arm.set_gains(kp=5.0)
             assert not np.any(arm.gains[0])  # kp = 0 on every joint, as impedance control needs
         assert all(np.array_equal(a, b) for a, b in zip(arm.gains, before, strict=True))
+
+
+def test_an_impedance_target_past_a_joint_limit_or_a_wall_is_refused(channel: str) -> None:
+    upper = np.array([j.limits.upper for j in ARM6G.joints])
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, sim):
+        with arm.impedance(joint_stiffness=[20.0] * 6) as imp:
+            arm.sleep(0.1)
+            past = READY.copy()
+            past[5] = upper[5] + 0.3
+            with pytest.raises(LimitError, match="limit") as info:
+                imp.set_target(past)
+            assert info.value.joint == ARM6G.joints[5].name
+            arm.sleep(1.0)
+            assert np.abs(sim.q - READY).max() < 0.01  # nothing moved
+        assert arm.enabled and arm.fault is None
+    p = FK.tool_pose(READY)[:3, 3]
+    walled = dataclasses.replace(ARM6G, workspace=Workspace.box([-1.0, -1.0, -0.2], [1.0, 1.0, p[2] + 0.02]))
+    with lockstep_arm(walled, channel + "-w", q0=READY, enable=True) as (arm, sim):
+        with arm.impedance(stiffness=SOFT) as imp:
+            arm.sleep(0.1)
+            up = arm.tool_pose()
+            up[2, 3] += 0.06  # 40 mm through the ceiling
+            with pytest.raises(LimitError, match="outside the workspace"):
+                imp.set_target(up)
+            arm.sleep(1.0)
+            assert abs(FK.tool_pose(sim.q)[2, 3] - p[2]) < 0.003  # nothing moved
+        assert arm.enabled and arm.fault is None

@@ -14,7 +14,8 @@ import pytest
 import akarm
 from akarm.config.workspace import Workspace
 from akarm.dynamics.model import RobotModel
-from akarm.errors import LimitError, StateError
+from akarm.errors import LimitError, MotorFault, StateError
+from akarm.sim import faults
 
 from ..conftest import ROBOTS, lockstep_arm
 
@@ -101,3 +102,32 @@ def test_an_impedance_target_past_a_joint_limit_or_a_wall_is_refused(channel: st
             arm.sleep(1.0)
             assert abs(FK.tool_pose(sim.q)[2, 3] - p[2]) < 0.003  # nothing moved
         assert arm.enabled and arm.fault is None
+
+
+def test_a_gripper_fault_ends_impedance_and_servoing_and_their_handles_refuse(channel: str) -> None:
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, sim):
+        gains = arm.gains
+        sim.place_object(0.03)
+        assert arm.gripper is not None and arm.gripper.close(force=20.0).grasped
+        with pytest.raises(MotorFault), arm.impedance(stiffness=SOFT) as imp:
+            arm.sleep(0.3)
+            assert 16.0 <= sim.object_force() <= 24.0  # kp = 0 on the arm's joints only: the grasp holds
+            sim.joint("gripper").inject(faults.ErrorCode(2))
+            arm.sleep(0.2)
+        assert not arm.enabled
+        for command in (lambda: imp.set_target(arm.tool_pose()), lambda: imp.set_stiffness(SOFT),
+                        lambda: arm.gripper.open()):
+            with pytest.raises(MotorFault):
+                command()  # the stop, named, until an enable acknowledges it
+        assert all(np.array_equal(a, b) for a, b in zip(arm.gains, gains, strict=True))  # restored
+    with lockstep_arm(ARM6G, channel + "-s", q0=READY, enable=True) as (arm, sim):
+        with pytest.raises(MotorFault), arm.servo() as s:
+            for k in range(60):
+                s.twist([0.05, 0.0, 0.0, 0.0, 0.0, 0.0])
+                arm.sleep(0.01)
+                if k == 20:
+                    sim.joint("gripper").inject(faults.ErrorCode(2))
+        assert not arm.enabled
+        with pytest.raises(MotorFault):
+            s.twist([0.05, 0.0, 0.0, 0.0, 0.0, 0.0])
+        assert not arm.mode.powered  # limp, nothing re-enabled

@@ -747,7 +747,10 @@ class Arm:
             with self._ctl.lock:
                 return np.array([j.state.position for j in self.joints])
 
-        return Impedance(self._ctl, law, kds, self.ik.model, measured, self.limits, self.config.workspace)
+        def reach(T: np.ndarray) -> None:
+            self.ik.solve(T, measured(), position_only=self.n < 6, check_singular=False)  # (fewer joints: where)
+
+        return Impedance(self._ctl, law, kds, self.ik.model, measured, self.limits, self.config.workspace, reach)
 
     def move_until_contact(self, direction: Sequence[float], speed: float = 0.02, force: float = 5.0, *,
                            max_distance: float = 0.2, back_off: float = 0.0) -> Contact:

@@ -259,14 +259,16 @@ class Impedance:
 
     Args (from :meth:`akarm.Arm.impedance`): the controller, the law, each joint's damping (kd) meanwhile,
     a model for the caller's thread, and how joint positions are read; the joint limits and the robot
-    file's walls a target must keep to (a target past them is a :class:`~akarm.LimitError`, nothing moves).
+    file's walls a target must keep to (a target past them is a :class:`~akarm.LimitError`, nothing moves),
+    and ``reach(T)``, which raises unless joint positions within the ranges put the tool at the pose ``T``
+    (inverse kinematics: an :class:`~akarm.UnreachableError` or a LimitError, nothing moves).
     """
 
     def __init__(self, ctl: _Controller, law: ImpedanceLaw, kd: Sequence[float], model: RobotModel,
                  measured: Callable[[], np.ndarray], limits: JointLimits | None = None,
-                 walls: Workspace | None = None) -> None:
+                 walls: Workspace | None = None, reach: Callable[[np.ndarray], object] | None = None) -> None:
         self._ctl, self.law, self._kd, self._model, self._measured = ctl, law, list(kd), model, measured
-        self._limits, self._walls = limits, walls
+        self._limits, self._walls, self._reach = limits, walls, reach
         self._used = False
 
     def __enter__(self) -> Impedance:
@@ -299,7 +301,8 @@ class Impedance:
 
         Raises:
             ArgumentError: not a pose, or not one finite angle per joint. LimitError: a joint target past
-                a joint's limits, a line to the target that leaves the workspace (nothing moves).
+                a joint's limits, a pose no joint positions within the ranges reach (UnreachableError: out of
+                reach), a line to the target that leaves the workspace (nothing moves).
             StateError: outside the handle's block (or the arm's safety stop, if it stopped)."""
         law = self.law
         if law.joint:
@@ -327,8 +330,12 @@ class Impedance:
                     raise LimitError(f"the impedance target is at {num(q, sign=True)} rad, outside "
                                      f"[{num(lo, sign=True)}, {num(hi, sign=True)}] rad; nothing moved",
                                      joint=law.names[i], fix="give a target within the joint's limits")
+        if law.joint:
+            return
+        if self._reach is not None:  # a pose out of reach: the spring would pull the arm out until it stopped
+            self._reach(value)
         walls = self._walls
-        if law.joint or walls is None:
+        if walls is None:
             return
         a, b = law.target_at(self._ctl.plan_now())[:3, 3], value[:3, 3]
         start = walls.outside(a)

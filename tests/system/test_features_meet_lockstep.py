@@ -14,7 +14,7 @@ import pytest
 import akarm
 from akarm.config.workspace import Workspace
 from akarm.dynamics.model import RobotModel
-from akarm.errors import LimitError, MotorFault, StateError
+from akarm.errors import LimitError, MotorFault, StateError, UnreachableError
 from akarm.sim import faults
 
 from ..conftest import ROBOTS, lockstep_arm
@@ -131,3 +131,22 @@ def test_a_gripper_fault_ends_impedance_and_servoing_and_their_handles_refuse(ch
         with pytest.raises(MotorFault):
             s.twist([0.05, 0.0, 0.0, 0.0, 0.0, 0.0])
         assert not arm.mode.powered  # limp, nothing re-enabled
+
+
+def test_an_impedance_target_out_of_reach_is_refused_before_anything_moves(channel: str) -> None:
+    # (it was taken: the spring pulled the arm toward it until the deviation passed its bound, a stop)
+    with lockstep_arm(ARM6G, channel, q0=READY, enable=True) as (arm, sim):
+        with arm.impedance(stiffness=SOFT) as imp:
+            arm.sleep(0.1)
+            far = arm.tool_pose()
+            far[0, 3] += 1.0  # a metre further out than the arm reaches
+            with pytest.raises(UnreachableError):
+                imp.set_target(far)
+            arm.sleep(1.5)
+            assert np.abs(sim.q - READY).max() < 0.01  # nothing moved
+            near = arm.tool_pose()
+            near[2, 3] += 0.02
+            imp.set_target(near)  # one in reach is taken
+            arm.sleep(1.0)
+            assert abs(FK.tool_pose(sim.q)[2, 3] - near[2, 3]) < 0.003
+        assert arm.enabled and arm.fault is None

@@ -150,3 +150,24 @@ def test_an_impedance_target_out_of_reach_is_refused_before_anything_moves(chann
             arm.sleep(1.0)
             assert abs(FK.tool_pose(sim.q)[2, 3] - near[2, 3]) < 0.003
         assert arm.enabled and arm.fault is None
+
+
+def test_arm6g_servos_to_a_wall_and_makes_a_guarded_move_while_its_gripper_closes_and_holds(channel: str) -> None:
+    p = FK.tool_pose(READY)[:3, 3]
+    ceiling = p[2] + 0.02
+    walled = dataclasses.replace(ARM6G, workspace=Workspace.box([-1.0, -1.0, -0.2], [1.0, 1.0, ceiling]))
+    with lockstep_arm(walled, channel, q0=READY, enable=True, self_collision="capsules") as (arm, sim):
+        assert arm.gripper is not None
+        sim.place_object(0.03)
+        arm.gripper.close(force=20.0, wait=False)
+        with arm.servo() as s:
+            for _ in range(150):
+                s.twist([0.0, 0.0, 0.1, 0.0, 0.0, 0.0])
+                arm.sleep(0.01)
+            assert s.status.state == "stopped" and s.status.reason == "wall"
+        assert -0.005 < FK.tool_pose(sim.q)[2, 3] - ceiling < 0.0  # stopped short of it
+        assert arm.gripper.state().grasped and 16.0 <= sim.object_force() <= 24.0
+        contact = arm.move_until_contact([0.0, 0.0, -1.0], speed=0.02, force=5.0, max_distance=0.04)
+        assert not contact.touched and abs(contact.distance - 0.04) < 0.003
+        assert arm.gripper.state().grasped and 16.0 <= sim.object_force() <= 24.0
+        assert arm.enabled and arm.fault is None

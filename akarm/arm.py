@@ -759,7 +759,10 @@ class Arm:
             with self._ctl.lock:
                 return np.array([j.state.position for j in self.joints])
 
-        return Impedance(self._ctl, law, kds, self.ik.model, measured)
+        def reach(T: np.ndarray) -> None:
+            self.ik.solve(T, measured(), position_only=self.n < 6, check_singular=False)  # (fewer joints: where)
+
+        return Impedance(self._ctl, law, kds, self.ik.model, measured, self.limits, self.config.workspace, reach)
 
     def move_until_contact(self, direction: Sequence[float], speed: float = 0.02, force: float = 5.0, *,
                            max_distance: float = 0.2, back_off: float = 0.0) -> Contact:
@@ -838,6 +841,7 @@ class Arm:
         Raises:
             ArgumentError: a gain that is not a finite number ≥ 0 within its motor's range, a list
                 that is not one per joint (names the joint).
+            StateError: under impedance control (:meth:`impedance`: its gains are the law's).
         """
         self._ctl.set_gains(self._gain(kp, "kp", "N·m/rad"), self._gain(kd, "kd", "N·m·s/rad"))
 

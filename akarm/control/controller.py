@@ -613,6 +613,10 @@ class Controller:
         """Change MIT gains, each within its motor's range (see :meth:`Arm.set_gains`)."""
         motors = [j.motor for j in self.joints]
         with self.lock:
+            if self.law is not None:  # (kp = 0 is the law's; its end restores the gains saved at its start)
+                raise StateError("the arm is under impedance control: its gains are the law's (kp = 0)",
+                                 fix="change the stiffness with imp.set_stiffness(...), or the gains after the "
+                                     "`with arm.impedance(...)` block")
             new = {}
             for name, value, top in (("kp", kp, [m.kp_max for m in motors]), ("kd", kd, [m.kd_max for m in motors])):
                 if value is None:
@@ -787,6 +791,10 @@ class Controller:
     def enter_teach(self, damping: float) -> None:
         with self.lock:
             self._require_active()
+            if self.law is not None:  # (its torque would go on as teach mode's extra, its old target after)
+                raise StateError("the arm is under impedance control: it is not hand-guided too",
+                                 fix="leave the `with arm.impedance(...)` block first (a low stiffness is "
+                                     "hand-guiding with a spring)")
             self._teach_damping = np.minimum(damping, self._kd).tolist()
             self.motions.cancel()
             self.modes.go(Mode.TEACH)

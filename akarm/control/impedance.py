@@ -18,6 +18,7 @@ by the feed-forward, :mod:`akarm.control.feedforward`):
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Sequence
 from typing import Protocol
@@ -26,11 +27,14 @@ import numpy as np
 import pinocchio as pin
 import ruckig
 
+from akarm.config.workspace import Workspace
 from akarm.dynamics.ik import as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError, DeviationError
+from akarm.errors import ArgumentError, DeviationError, LimitError, StateError, num
+from akarm.motion.trajectory import JointLimits
+from akarm.motion.walls import WALL_TOLERANCE
 
-__all__ = ["CARTESIAN_INERTIA", "POSTURE", "STIFFNESS_RAMP", "TARGET_LIMITS", "TORQUE_STEP", "Impedance",
+__all__ = ["CARTESIAN_INERTIA", "MOVED", "POSTURE", "STIFFNESS_RAMP", "TARGET_LIMITS", "TORQUE_STEP", "Impedance",
            "ImpedanceLaw", "stiffness_values"]
 
 #: s over which a new stiffness is reached (linearly)
@@ -43,6 +47,9 @@ CARTESIAN_INERTIA = ((0.2, 20.0), (0.002, 0.5))
 TARGET_LIMITS = (0.1, 0.5, 5.0)
 #: N·m/rad and N·m·s/rad: the null-space posture's stiffness and damping
 POSTURE = (2.0, 0.2)
+#: rad: a joint further than this from where ``arm.impedance()`` found it when its block begins: the handle
+#: is stale (its target would spring the arm back there), and is refused
+MOVED = 0.01
 _W_ROT = 0.1
 
 
@@ -131,6 +138,11 @@ class ImpedanceLaw:
                 dr = np.asarray(pin.log3(end[:3, :3] @ start[:3, :3].T))
                 length = max(float(np.linalg.norm(end[:3, 3] - start[:3, 3])), _W_ROT * float(np.linalg.norm(dr)))
             self._move = _Move(now, start, end, length)
+
+    def target_at(self, now: float) -> np.ndarray:
+        """(Any thread) Where the target is at plan time ``now`` (a 4×4 pose, or joint positions)."""
+        with self._lock:
+            return np.array(self._target_now(now)[0], dtype=float)
 
     def set_stiffness(self, k: np.ndarray) -> None:
         with self._lock:
@@ -225,6 +237,9 @@ class ImpedanceLaw:
 
 
 class _Controller(Protocol):
+    @property
+    def law(self) -> ImpedanceLaw | None: ...
+
     def begin_torque_law(self, law: ImpedanceLaw, kd: Sequence[float]) -> None: ...
 
     def end_torque_law(self) -> None: ...
@@ -239,26 +254,56 @@ class _Controller(Protocol):
 class Impedance:
     """The handle of ``arm.impedance(...)``: ``with arm.impedance(stiffness=[...]) as imp:`` makes the arm
     soft about its pose (or its joint positions) until the block ends, when it holds where it is, stiff
-    again (the gains ramping up from zero).
+    again (the gains ramping up from zero). A handle serves one block: before it, after it, or after a stop
+    ended it, its commands are refused (:class:`~akarm.StateError`), as is a second block.
 
     Args (from :meth:`akarm.Arm.impedance`): the controller, the law, each joint's damping (kd) meanwhile,
-    a model for the caller's thread, and how joint positions are read.
+    a model for the caller's thread, and how joint positions are read; the joint limits and the robot
+    file's walls a target must keep to (a target past them is a :class:`~akarm.LimitError`, nothing moves),
+    and ``reach(T)``, which raises unless joint positions within the ranges put the tool at the pose ``T``
+    (inverse kinematics: an :class:`~akarm.UnreachableError` or a LimitError, nothing moves).
     """
 
     def __init__(self, ctl: _Controller, law: ImpedanceLaw, kd: Sequence[float], model: RobotModel,
-                 measured: Callable[[], np.ndarray]) -> None:
+                 measured: Callable[[], np.ndarray], limits: JointLimits | None = None,
+                 walls: Workspace | None = None, reach: Callable[[np.ndarray], object] | None = None) -> None:
         self._ctl, self.law, self._kd, self._model, self._measured = ctl, law, list(kd), model, measured
+        self._limits, self._walls, self._reach = limits, walls, reach
+        self._used = False
 
     def __enter__(self) -> Impedance:
+        if self._used:
+            raise StateError("this impedance handle served its block once already",
+                             fix="make a new one where the arm is: `with arm.impedance(...) as imp:`")
+        self._used = True
+        moved = np.abs(self._measured() - self.law.q0)
+        worst = int(np.argmax(moved))
+        if moved[worst] > MOVED:  # its target is where the arm was: it would spring back there
+            raise StateError(f"the arm moved {moved[worst]:.3f} rad since arm.impedance() made this handle",
+                             joint=self.law.names[worst],
+                             fix="make the handle where the arm is: `with arm.impedance(...) as imp:`")
         self._ctl.begin_torque_law(self.law, self._kd)
         return self
 
     def __exit__(self, *exc: object) -> None:
         self._ctl.end_torque_law()
 
+    def _require_in_block(self) -> None:
+        """The arm's safety stop, if it stopped; else a StateError unless this handle's block is in force."""
+        self._ctl.require_enabled()
+        if self._ctl.law is not self.law:
+            raise StateError("this impedance handle commands nothing outside its `with` block (not begun, ended, "
+                             "or ended by a stop)", fix="command it inside `with arm.impedance(...) as imp:`")
+
     def set_target(self, target: object) -> None:
         """Move the target, jerk-limited from where it is: a pose (as :meth:`akarm.Arm.move_to_pose` takes
-        it) under Cartesian impedance, one position per joint (rad) under joint impedance."""
+        it) under Cartesian impedance, one position per joint (rad) under joint impedance.
+
+        Raises:
+            ArgumentError: not a pose, or not one finite angle per joint. LimitError: a joint target past
+                a joint's limits, a pose no joint positions within the ranges reach (UnreachableError: out of
+                reach), a line to the target that leaves the workspace (nothing moves).
+            StateError: outside the handle's block (or the arm's safety stop, if it stopped)."""
         law = self.law
         if law.joint:
             try:
@@ -271,13 +316,44 @@ class Impedance:
             value = q
         else:
             value, _ = as_pose(target, law.target)
-        self._ctl.require_enabled()
+        self._within_limits(np.array(value, dtype=float))
+        self._require_in_block()
         law.set_target(np.array(value, dtype=float), self._ctl.plan_now())
+
+    def _within_limits(self, value: np.ndarray) -> None:
+        """A joint target within each joint's range; a Cartesian target's line (from the target now) inside
+        the walls, further out than it starts nowhere: else a LimitError."""
+        law, lim = self.law, self._limits
+        if law.joint and lim is not None:
+            for i, (q, lo, hi) in enumerate(zip(value.tolist(), lim.lower.tolist(), lim.upper.tolist(), strict=True)):
+                if not lo <= q <= hi:
+                    raise LimitError(f"the impedance target is at {num(q, sign=True)} rad, outside "
+                                     f"[{num(lo, sign=True)}, {num(hi, sign=True)}] rad; nothing moved",
+                                     joint=law.names[i], fix="give a target within the joint's limits")
+        if law.joint:
+            return
+        if self._reach is not None:  # a pose out of reach: the spring would pull the arm out until it stopped
+            self._reach(value)
+        walls = self._walls
+        if walls is None:
+            return
+        a, b = law.target_at(self._ctl.plan_now())[:3, 3], value[:3, 3]
+        start = walls.outside(a)
+        for s in np.linspace(0.0, 1.0, max(2, math.ceil(float(np.linalg.norm(b - a)) / 0.005) + 1)).tolist():
+            p = a + s * (b - a)
+            out = walls.outside(p)
+            if out > start + WALL_TOLERANCE:
+                raise LimitError(f"the impedance target's line takes the tool {out * 1e3:.1f} mm outside the "
+                                 f"workspace ({walls.describe()}) at [{p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}] m; "
+                                 "nothing moved", fix="choose a target inside the workspace, or widen `workspace:` "
+                                                      "in the robot file")
 
     def set_stiffness(self, stiffness: Sequence[float]) -> None:
         """New stiffness (6 values N/m, N·m/rad; or one per joint N·m/rad under joint impedance), reached
         smoothly over :data:`STIFFNESS_RAMP` s."""
-        self.law.set_stiffness(stiffness_values(stiffness, self.law.k.size, "stiffness"))
+        k = stiffness_values(stiffness, self.law.k.size, "stiffness")
+        self._require_in_block()
+        self.law.set_stiffness(k)
 
     @property
     def error(self) -> np.ndarray:

@@ -52,9 +52,9 @@ import math
 import struct
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -97,6 +97,7 @@ __all__ = [
     "Goal",
     "Tolerances",
     "action_name",
+    "cancel_choice",
     "goal_tolerances",
     "violation",
 ]
@@ -193,6 +194,31 @@ def violation(names: Sequence[str], error_q: np.ndarray, error_dq: np.ndarray, p
             if tol > 0.0 and abs(err) > tol:
                 return f"joint {name!r}: {what} error {err:+.4f} {unit} is past the tolerance {tol:g} {unit}"
     return None
+
+
+class _Cancelable(Protocol):
+    id: bytes
+    stamp: Any
+
+    @property
+    def terminal(self) -> bool: ...
+
+
+_G = TypeVar("_G", bound=_Cancelable)
+
+
+def cancel_choice(goals: Mapping[bytes, _G], req: at.CancelGoalRequest) -> tuple[int, list[_G]]:
+    """rcl_action ``rcl_action_process_cancel_request``'s choice: the return code, and the goals (of
+    ``goals``, by id) a cancel request asks for: one by id, every one up to a stamp (and that id), or all."""
+    goal_id = bytes(req.goal_info.goal_id.uuid)
+    stamp = req.goal_info.stamp.sec * 1_000_000_000 + req.goal_info.stamp.nanosec
+    if any(goal_id) and stamp == 0:
+        goal = goals.get(goal_id)
+        code = ERROR_UNKNOWN_GOAL_ID if goal is None else (ERROR_GOAL_TERMINATED if goal.terminal else ERROR_NONE)
+        return code, ([goal] if goal is not None and not goal.terminal else [])
+    limit = stamp if stamp else math.inf
+    return ERROR_NONE, [g for g in goals.values() if not g.terminal and
+                        (g.stamp.sec * 1_000_000_000 + g.stamp.nanosec <= limit or g.id == goal_id)]
 
 
 class Goal:
@@ -415,17 +441,7 @@ class ActionServer:
     # -- cancel, result ----------------------------------------------------------------------------
     def _on_cancel(self, req: at.CancelGoalRequest) -> None:
         """rcl_action ``rcl_action_process_cancel_request``: a goal by id, every goal up to a stamp, or all."""
-        goal_id = bytes(req.goal_info.goal_id.uuid)
-        stamp = req.goal_info.stamp.sec * 1_000_000_000 + req.goal_info.stamp.nanosec
-        if any(goal_id) and stamp == 0:
-            goal = self.goals.get(goal_id)
-            code = ERROR_UNKNOWN_GOAL_ID if goal is None else (ERROR_GOAL_TERMINATED if goal.terminal else ERROR_NONE)
-            chosen = [goal] if goal is not None and not goal.terminal else []
-        else:
-            limit = stamp if stamp else math.inf
-            code = ERROR_NONE
-            chosen = [g for g in self.goals.values() if not g.terminal and
-                      (g.stamp.sec * 1_000_000_000 + g.stamp.nanosec <= limit or g.id == goal_id)]
+        code, chosen = cancel_choice(self.goals, req)
         self._reply(self.cancel_goal, req, at.CancelGoalResponse(return_code=code,
                                                                  goals_canceling=[g.info() for g in chosen]))
         for goal in chosen:

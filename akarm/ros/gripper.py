@@ -49,14 +49,12 @@ from akarm.ros.action import (
     ACCEPTED,
     CANCELED,
     CANCELING,
-    ERROR_GOAL_TERMINATED,
-    ERROR_NONE,
-    ERROR_UNKNOWN_GOAL_ID,
     EXECUTING,
     MAX_RESULTS,
     RESULT_TIMEOUT,
     SUCCEEDED,
     UNKNOWN,
+    cancel_choice,
 )
 from akarm.ros.commands import CommandQueue
 from akarm.ros.dds import Node, ServiceServer, latched_qos, qos, topic_name
@@ -280,17 +278,7 @@ class GripperActionServer:
     # -- cancel, result ----------------------------------------------------------------------------
     def _on_cancel(self, req: at.CancelGoalRequest) -> None:
         """rcl_action ``rcl_action_process_cancel_request``: a goal by id, every goal up to a stamp, or all."""
-        goal_id = bytes(req.goal_info.goal_id.uuid)
-        stamp = req.goal_info.stamp.sec * 1_000_000_000 + req.goal_info.stamp.nanosec
-        if any(goal_id) and stamp == 0:
-            found = self.goals.get(goal_id)
-            code = ERROR_UNKNOWN_GOAL_ID if found is None else (ERROR_GOAL_TERMINATED if found.terminal else ERROR_NONE)
-            chosen = [found] if found is not None and not found.terminal else []
-        else:
-            limit = stamp if stamp else math.inf
-            code = ERROR_NONE
-            chosen = [g for g in self.goals.values() if not g.terminal and
-                      (g.stamp.sec * 1_000_000_000 + g.stamp.nanosec <= limit or g.id == goal_id)]
+        code, chosen = cancel_choice(self.goals, req)
         self._reply(self.cancel_goal, req, at.CancelGoalResponse(return_code=code,
                                                                  goals_canceling=[g.info() for g in chosen]))
         for goal in chosen:

@@ -409,3 +409,25 @@ def test_a_stop_is_latched_once_and_an_acknowledged_one_never_again(channel, tmp
         server.dispatch("stop", {})  # (what a served verb's Ctrl-C sends: it waits for the stored motions)
         assert server.latched is None and server.mode == "holding"
         server.dispatch("move", {"target": [0.0, 0.0]})  # not refused
+
+
+def test_after_a_gripper_stop_the_served_gripper_and_servoing_are_refused_until_an_enable(channel, tmp_path):
+    """A stop of the gripper's motor latches as an arm's does: gripper_move and servo_twist are refused,
+    naming it, and nothing is enabled again until an enable acknowledges it."""
+    from akarm.errors import StopLatched
+    from akarm.sim import faults
+
+    config = akarm.load_robot(relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)).with_bus(interface="virtual",
+                                                                                       channel=channel)
+    with SimulatedRobot(config, q0=config.pose("ready")) as sim, akarm.Arm(config) as arm, \
+            ArmServerCore(arm) as server:
+        server.dispatch("servo_twist", {"twist": [0.02, 0.0, 0.0, 0.0, 0.0, 0.0]})
+        sim.joint("gripper").inject(faults.ErrorCode(2))
+        with pytest.raises(MotorFault):
+            server.dispatch("sleep", {"seconds": 0.2})
+        assert server.latched is not None and not arm.enabled
+        for op, args in (("gripper_move", {"width": 0.05, "wait": False}),
+                         ("servo_twist", {"twist": [0.02, 0.0, 0.0, 0.0, 0.0, 0.0]})):
+            with pytest.raises(StopLatched, match="MotorFault"):
+                server.dispatch(op, args)
+        assert not arm.enabled and server.latched is not None

@@ -269,8 +269,8 @@ def run(args: argparse.Namespace) -> int:
         from akarm.telemetry.plot import plot_log
 
         print(f"plot: {plot_log(log, args.output, title='akarm demo: simulated arm6', events=events)}")
-    print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then the README's "
-          "'From simulator to hardware'.")
+    print(f"akarm demo: done in {wall:.1f} s. Next: examples/first_move.py, then "
+          "docs/sim-to-hardware.md ('From simulator to hardware').")
     if view is not None:
         return _play_back(args, config, log, view.port)
     return 0 if stopped is None else 1

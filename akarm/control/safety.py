@@ -51,7 +51,11 @@ Checks, per joint, in order (the first that fires is the stop):
    than its command repeats its reading but stays near it; a motor at its limit is the saturation
    check's). Under a timing profile with a lag, the following-error limit grows by how far the command
    moved within the lag (a reading that trails by the lag is that far behind), nothing more: a joint
-   that fell while the arm holds still is caught as on any machine; so does the stuck travel. →
+   that fell while the arm holds still is caught as on any machine; so does the stuck travel, until the
+   reading has repeated for :data:`DEAD_STOP_TIME` on new replies: from then on the stuck travel grows
+   only by how far the command moved within the replies the joint owes (a plant trails its commands
+   only as far as its replies do; one that answers on time and repeats its reading for that long does
+   not move: a frozen encoder or a blocked joint). →
    :class:`~akarm.TrackingError`.
 
 A constant reply delay cannot be seen in feedback age (every cycle brings a reply, just an old one).
@@ -62,6 +66,7 @@ which feedback age catches.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -105,6 +110,11 @@ RESET_REPLIES = 3
 #: whose readings lag (``slow``): longer than the oldest feedback measured there at 25 Hz (177 ms, see
 #: :mod:`akarm.timing`), short enough that a driver reset stops the arm within 1 s of its power loss.
 RESET_LAG_TIME = 0.3
+#: s a reading must repeat on new replies, under a timing profile whose readings lag, before the stuck
+#: travel stops allowing for the whole lag: longer than the oldest feedback measured there at 25 Hz
+#: (177 ms; a simulator working through a backlog answers several frames with one state, in a burst),
+#: short enough that a frozen encoder stops a move within 0.3 s as on a normal machine.
+DEAD_STOP_TIME = 0.2
 #: The share of a joint's torque limit the law must ask for before a reply without it counts.
 RESET_ASK = 0.1
 #: A reply "has no torque" when it reports less than this share of the motor's torque range (a driver
@@ -248,6 +258,9 @@ class Supervisor:
         self._last_stamp = [-math.inf] * n
         self._last_value = [math.nan] * n
         self._des_at_value = [0.0] * n
+        # (under a lag) when each joint's reading last changed, and its command then
+        self._changed_at = [math.inf] * n
+        self._des_changed = [0.0] * n
         self._window_end = math.inf
         self._window_start: list[tuple[int, int, int]] = []
         self._rejected_start = [0] * n
@@ -526,6 +539,7 @@ class Supervisor:
                 tracked[i] = True
                 new = True
                 last_stamp[i], last_value[i], des_at[i] = s.stamp, q, qd
+                self._changed_at[i], self._des_changed[i] = now, qd
             e = qd - q
             limit = self._following[i] if slack is None else self._following[i] + slack[i]
             if feedforward is not None:  # the model's torque may be off by its uncertainty: the PD makes it up
@@ -561,20 +575,34 @@ class Supervisor:
                 sat_since[i] = math.inf
             if s.stamp != last_stamp[i]:  # a new reading
                 last_stamp[i] = s.stamp
-                if q != last_value[i] or sat:
+                if q != last_value[i]:
+                    self._changed_at[i], self._des_changed[i] = now, qd
+                # under a lag, a reading repeated on new replies for DEAD_STOP_TIME stopped dead: only the
+                # replies the joint owes explain how far it trails, and a saturated command is no excuse
+                dead = slack is not None and now - self._changed_at[i] >= DEAD_STOP_TIME
+                if q != last_value[i] or (sat and not dead):
                     last_value[i], des_at[i] = q, qd
                 else:
                     # the command moved on, and is that far from the reading now: a joint that only turns
                     # round slower than its command (readings repeat within one step of the field) is not
                     travel, lim = qd - des_at[i], stuck
+                    if dead:
+                        travel, lim = qd - self._des_changed[i], self._stuck[i] + self._owed_slack(i, qd)
                     if (travel > lim or travel < -lim) and (e > lim or e < -lim):
                         return TrackingError(
                             f"its reading stays at {q:+.4f} rad while the command moved {travel * 1e3:+.0f} mrad "
-                            f"(limit {stuck * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
-                            "was damped and disabled", error=travel, limit=stuck, joint=j.name,
+                            f"(limit {lim * 1e3:.0f} mrad): a frozen encoder or a blocked joint; the arm "
+                            "was damped and disabled", error=travel, limit=lim, joint=j.name,
                             fix="check the joint moves freely and the encoder (power-cycle the driver); raise "
                                 "stuck_travel only if the joint is sound")
         return None
+
+    def _owed_slack(self, i: int, qd: float) -> float:
+        """(Under a lag) how far (rad) joint ``i``'s command ``qd`` lies from the commands its owed replies
+        (and the last one) answer: as far as a plant whose replies trail that much may trail."""
+        k = self._in_flight(i) + 2
+        past = self._q_des_past
+        return max(abs(qd - p[i]) for p in itertools.islice(past, max(0, len(past) - k), None))
 
     def _check_replies(self, now: float) -> SafetyStop | None:
         """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID,

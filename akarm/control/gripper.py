@@ -4,11 +4,11 @@ Two halves, as the arm's controller and :class:`~akarm.Arm` are:
 
 - :class:`GripperDrive` is the loop's side. The controller owns it, supervises its motor (a
   :class:`~akarm.control.joints.Joint` after the arm's, in the same :class:`~akarm.control.safety.Supervisor`,
-  enabler and bus set) and asks it for one command a cycle (:meth:`GripperDrive.command`).
+  enabler and bus set) and asks it for one frame a cycle (:meth:`GripperDrive.frame`).
 - :class:`Gripper` is the caller's (``arm.gripper``): it checks what it is asked, hands it to the
   drive under the controller's lock, and waits in the controller's way (lock step included).
 
-The law, chosen every cycle from the last feedback (angles past closed; ``τF`` the closing torque of
+The MIT law, chosen every cycle from the last feedback (angles past closed; ``τF`` the closing torque of
 the force asked at the present angle, ``force · dwidth/dangle``):
 
 - **approach** (further than ``band = τF / kp`` from the target): no stiffness, the velocity toward
@@ -22,6 +22,10 @@ the force asked at the present angle, ``force · dwidth/dangle``):
   the torque goes down to :data:`HOLD_FRACTION` of it over :data:`RELAX_TIME` s: what holding needs,
   less heat in the motor. An object that slips or goes (the jaws move on towards the target by more
   than :data:`SLIP`) ends the grasp: the jaws approach the target again.
+
+A servo-mode motor (``mode: servo``) gets the same moves, stall, grasp and relaxation through
+:meth:`GripperDrive.servo_frame`: only currents, each clamped to ``τF``, the law worked out here from
+the last status frame (the firmware's position loop would push with whatever current it takes).
 
 So the squeeze is the asked force at rest, at most ``force_limit`` (the torque is clamped to its
 value at every angle), and the stall on an object is a grasp, never a fault: the gripper's guard has

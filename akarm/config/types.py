@@ -233,6 +233,7 @@ class GripperConfig:
         fingers: URDF joints the jaws move (mimic joints, not in the arm's chain).
         speed: m/s, the jaws' approach speed.
         max_temperature: °C, the watchdog's limit. feedback_timeout: s (``None``: the arm's default).
+        status_rate_hz: servo mode: the rate the motor sends status frames at (its own setting).
     """
 
     name: str
@@ -254,6 +255,7 @@ class GripperConfig:
     reply_id: int = 0
     max_temperature: float = 80.0
     feedback_timeout: float | None = None
+    status_rate_hz: float = 50.0
     _angles: tuple[float, ...] = field(default=(), repr=False, compare=False)
     _widths: tuple[float, ...] = field(default=(), repr=False, compare=False)
 
@@ -351,7 +353,8 @@ class GripperConfig:
                                          self.torque_limit),
                            firmware=self.firmware, direction=self.direction, offset=self.offset,
                            gains=Gains(self.kp, self.kd), reply_id=self.reply_id,
-                           feedback_timeout=self.feedback_timeout, max_temperature=self.max_temperature)
+                           feedback_timeout=self.feedback_timeout, max_temperature=self.max_temperature,
+                           status_rate_hz=self.status_rate_hz)
 
 
 @dataclass(frozen=True)

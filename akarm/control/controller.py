@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from akarm.buses.frames import message
 from akarm.clock import Clock
 from akarm.config import JointConfig, RobotConfig
 from akarm.control.busset import BusSet
@@ -987,7 +988,7 @@ class Controller:
             tau = k * (qd[i] - s.position) + kd[i] * (vd[i] - s.velocity) + ff[i]
             sat[i] = tau >= tmax[i] or tau <= -tmax[i]
         if grip is not None:
-            frames.append(grip.joint.track_frame(*grip.command(t)))
+            frames.append(grip.frame(t))
             grip.record(now)
         self.bus.send_frames(frames)
         t5 = pc()
@@ -1065,8 +1066,8 @@ class Controller:
         """(Teach, a stop's damping) The gripper's command of this cycle, alone."""
         grip = self.gripper
         if grip is not None:
-            j = grip.joint
-            self.bus.send(j, j.track(*grip.command(self._t_plan)))
+            f = grip.frame(self._t_plan)
+            self.bus.send(grip.joint, message(f[0], f[2], f[1]))
             grip.record(now)
 
     def _gravity_and_gripper(self, q: Sequence[float]) -> np.ndarray:

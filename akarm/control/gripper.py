@@ -4,11 +4,11 @@ Two halves, as the arm's controller and :class:`~akarm.Arm` are:
 
 - :class:`GripperDrive` is the loop's side. The controller owns it, supervises its motor (a
   :class:`~akarm.control.joints.Joint` after the arm's, in the same :class:`~akarm.control.safety.Supervisor`,
-  enabler and bus set) and asks it for one command a cycle (:meth:`GripperDrive.command`).
+  enabler and bus set) and asks it for one frame a cycle (:meth:`GripperDrive.frame`).
 - :class:`Gripper` is the caller's (``arm.gripper``): it checks what it is asked, hands it to the
   drive under the controller's lock, and waits in the controller's way (lock step included).
 
-The law, chosen every cycle from the last feedback (angles past closed; ``τF`` the closing torque of
+The MIT law, chosen every cycle from the last feedback (angles past closed; ``τF`` the closing torque of
 the force asked at the present angle, ``force · dwidth/dangle``):
 
 - **approach** (further than ``band = τF / kp`` from the target): no stiffness, the velocity toward
@@ -22,6 +22,10 @@ the force asked at the present angle, ``force · dwidth/dangle``):
   the torque goes down to :data:`HOLD_FRACTION` of it over :data:`RELAX_TIME` s: what holding needs,
   less heat in the motor. An object that slips or goes (the jaws move on towards the target by more
   than :data:`SLIP`) ends the grasp: the jaws approach the target again.
+
+A servo-mode motor (``mode: servo``) gets the same moves, stall, grasp and relaxation through
+:meth:`GripperDrive.servo_frame`: only currents, each clamped to ``τF``, the law worked out here from
+the last status frame (the firmware's position loop would push with whatever current it takes).
 
 So the squeeze is the asked force at rest, at most ``force_limit`` (the torque is clamped to its
 value at every angle), and the stall on an object is a grasp, never a fault: the gripper's guard has
@@ -41,6 +45,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from akarm.buses.frames import Frame
+from akarm.control.joints import ServoJoint
 from akarm.errors import StateError
 
 if TYPE_CHECKING:
@@ -48,8 +54,8 @@ if TYPE_CHECKING:
     from akarm.control.joints import Joint
     from akarm.control.safety import Guard
 
-__all__ = ["HOLD_FRACTION", "RELAX_AFTER", "RELAX_TIME", "SHORT_OF", "SLIP", "STALL_SPEED", "STALL_TIME",
-           "Gripper", "GripperDrive", "GripperLog", "GripperState", "Host"]
+__all__ = ["HOLD_FRACTION", "RELAX_AFTER", "RELAX_TIME", "SERVO_BRAKING", "SHORT_OF", "SLIP", "STALL_SPEED",
+           "STALL_TIME", "Gripper", "GripperDrive", "GripperLog", "GripperState", "Host"]
 
 #: rad/s: slower than this the jaws are at rest
 STALL_SPEED = 0.05
@@ -65,6 +71,8 @@ SLIP = 0.003
 RELAX_AFTER = 1.0
 #: s over which it goes down
 RELAX_TIME = 0.5
+#: rad/s²: how fast the servo law's velocity toward the target brakes near it
+SERVO_BRAKING = 25.0
 #: what a long hold keeps of the asked force (the asked force, less 15 %: within the 20 % a grasp allows)
 HOLD_FRACTION = 0.85
 
@@ -122,7 +130,9 @@ class GripperDrive:
         self._short = SHORT_OF / c.max_slope
         self._reached = REACHED / c.max_slope
         # N·m: the motor's Coulomb friction, made up for near the target (else it stops short by coulomb / kp)
-        self._coulomb = joint.config.friction_model().coulomb
+        friction = joint.config.friction_model()
+        self._coulomb = friction.coulomb
+        self._viscous = friction.viscous
         self._slip = SLIP / c.max_slope
         self._t_max = joint.motor.t_max * 0.999
         self.target = c.open_angle  # rad
@@ -131,8 +141,16 @@ class GripperDrive:
         self.moving = False
         self.grasped = False
         self._still = 0.0  # s at rest short of the target
+        self._slowed = 0.0  # s (servo) slower than half the speed since last free
         self._hold_from = 0.0  # s of plan time the grasp began
         self._held_at = 0.0  # rad where the grasp began
+        self.servo = c.mode == "servo"
+        if self.servo:  # the servo law's numbers (see servo_frame)
+            jc = joint.config
+            inertia = c.motor.reflected_inertia + 0.1 * c.max_slope ** 2  # (the jaws' mass, about 0.1 kg)
+            # the feedback is a status frame up to a period old: the damping stays stable over that delay
+            delay = 1.0 / jc.status_rate_hz + period
+            self._kd_servo = inertia / (2.0 * delay)
         self.mode = "idle"  # idle | approach | settle | grasp: the law of the last command
         self.sequence = 0  # moves asked: a waiter knows its own move ended
         # the per-cycle record: a ring of (t, angle, velocity, torque, target angle), preallocated
@@ -189,6 +207,7 @@ class GripperDrive:
         self.moving = True
         self.grasped = False
         self._still = 0.0
+        self._slowed = 0.0
         self.sequence += 1
         return self.sequence
 
@@ -225,11 +244,7 @@ class GripperDrive:
                 self._still = 0.0
             else:
                 self.mode = "grasp"
-                held = t - self._hold_from
-                if held > RELAX_AFTER:
-                    f = min(1.0, (held - RELAX_AFTER) / RELAX_TIME)
-                    tau_f *= 1.0 - (1.0 - HOLD_FRACTION) * f
-                return (q, 0.0, 0.0, self._kd, toward * tau_f)
+                return (q, 0.0, 0.0, self._kd, toward * self._relaxed(t, tau_f))
         if self.moving:
             if abs(v) >= STALL_SPEED:
                 self._still = 0.0
@@ -239,11 +254,7 @@ class GripperDrive:
                 self._still += self.period
                 if self._still >= STALL_TIME:
                     if abs(err) > self._short:  # stopped short on something: hold it at the force asked
-                        self.grasped = True
-                        self._hold_from = t
-                        self._held_at = q
-                        self.mode = "grasp"
-                        self.moving = False
+                        self._grasp(t, q)
                         return (q, 0.0, 0.0, self._kd, toward * tau_f)
                     self.moving = False  # near enough: friction holds it
         coulomb = min(self._coulomb, 0.5 * tau_f)
@@ -255,6 +266,95 @@ class GripperDrive:
         self.mode = "settle"
         # the friction made up for, fading out at the target: kp · band + coulomb is τF at most
         return (target, 0.0, self._kp, self._kd, coulomb * max(-1.0, min(1.0, err / self._reached)))
+
+    def frame(self, t: float) -> Frame:
+        """This cycle's frame (its fields): the MIT law's :meth:`command`, or the servo law's."""
+        if self.servo:
+            return self.servo_frame(t)
+        return self.joint.track_frame(*self.command(t))
+
+    def servo_frame(self, t: float) -> Frame:
+        """This cycle's servo-mode frame; ``t`` plan time, s. Always a current (SET_CURRENT) whose torque
+        is clamped to ``τF``, worked out here from the last status frame: the firmware's position loop
+        is never used, as it pushes with whatever current it takes until the stall is seen (see
+        docs/gripper.md). The same moves, grasp and relaxation as the MIT law's; its own law:
+
+        - **approach** and **settle**: a velocity toward the target, the speed the MIT law's damping
+          reaches against the motor's friction (``speed`` less for a low force) far from it, braking
+          at :data:`SERVO_BRAKING` near it, through damping ``kd`` (at most what stays stable on
+          feedback a status period old, ``J / 2·delay``), plus the motor's friction (``τc``, fading
+          out within :data:`REACHED` of the target, and ``b·v``). Held back short of the target
+          (slower than half that velocity), the torque goes up to ``τF`` over :data:`STALL_TIME`, as
+          pressing at rest under the MIT law does;
+        - **grasp**: ``τF`` toward the target, damped.
+        """
+        c = self.config
+        j = self.joint
+        assert isinstance(j, ServoJoint)
+        s = j.state
+        q, v = s.position, s.velocity
+        if not self.active or not math.isfinite(q):
+            return j.current_frame(0.0)  # zero current: limp
+        err = self.target - q
+        toward = 1.0 if err > 0.0 else -1.0
+        tau_f = min(self.force * c.slope_at(q), c.torque_limit, self._t_max)
+        kd = min(self._kd, self._kd_servo)
+        if self.grasped:
+            if toward * (q - self._held_at) > self._slip:  # it slipped or went: approach again
+                self.grasped = False
+                self.moving = True
+                self._still = 0.0
+            else:
+                self.mode = "grasp"
+                return j.current_frame(max(-tau_f, min(tau_f, toward * self._relaxed(t, tau_f) - kd * v)))
+        if self.moving and self._stalled(t, q, v, err):
+            return j.current_frame(toward * tau_f)
+        far = abs(err) > self._short
+        self.mode = "approach" if far else "settle"
+        # the speed the MIT law's damping reaches against the friction (slower at a low force: a softer impact)
+        free = self.speed * max(0.1, (tau_f - self._coulomb) / (tau_f + self._viscous * self.speed))
+        vd = toward * min(free, math.sqrt(2.0 * SERVO_BRAKING * abs(err)))
+        kd = min(tau_f / self.speed, kd)
+        tau = (kd * (vd - v) + self._viscous * vd
+               + min(self._coulomb, 0.5 * tau_f) * max(-1.0, min(1.0, err / self._reached)))
+        if not (self.moving and far) or abs(v) >= 0.9 * abs(vd):  # free again (a margin: no chatter)
+            self._slowed = 0.0
+        elif abs(v) < 0.5 * abs(vd):
+            self._slowed += self.period
+        if self._slowed > 0.0:  # held back: up to τF over the stall time, as a grasp will press
+            tau += (toward * tau_f - tau) * min(1.0, self._slowed / STALL_TIME)
+        return j.current_frame(max(-tau_f, min(tau_f, tau)))
+
+    def _stalled(self, t: float, q: float, v: float, err: float) -> bool:
+        """(A move) The stall check of this cycle: whether a grasp began (else the move may have ended)."""
+        if abs(v) >= STALL_SPEED:
+            self._still = 0.0
+        elif abs(err) <= self._reached:
+            self.moving = False  # at the target
+        else:
+            self._still += self.period
+            if self._still >= STALL_TIME:
+                self.moving = False
+                if abs(err) > self._short:  # stopped short on something: hold it at the force asked
+                    self._grasp(t, q)
+                    return True
+        return False
+
+    def _grasp(self, t: float, q: float) -> None:
+        """A grasp begins at plan time ``t`` and angle ``q``."""
+        self.grasped = True
+        self._hold_from = t
+        self._held_at = q
+        self.mode = "grasp"
+        self.moving = False
+        self._still = 0.0
+
+    def _relaxed(self, t: float, tau_f: float) -> float:
+        """``τF`` after the grasp's relaxation (:data:`RELAX_AFTER`, :data:`RELAX_TIME`, :data:`HOLD_FRACTION`)."""
+        held = t - self._hold_from
+        if held > RELAX_AFTER:
+            tau_f *= 1.0 - (1.0 - HOLD_FRACTION) * min(1.0, (held - RELAX_AFTER) / RELAX_TIME)
+        return tau_f
 
     def state(self) -> GripperState:
         c = self.config

@@ -483,6 +483,12 @@ class ServoJoint(Joint):
         accel = max(10.0, self._accel_cap * speed_fraction * speed_fraction)
         return servo.encode_position_speed(self.can_id, deg, speed, accel)
 
+    def current_frame(self, torque: float) -> Frame:
+        """The current (SET_CURRENT) that gives ``torque`` N·m at the output, joint side, as the loop's
+        frame fields (the gripper's force-limited law: the firmware's current loop, no position loop)."""
+        aid, data = servo.encode_current(self.can_id, units.torque_to_amps(self.motor, torque * self.direction))
+        return aid, True, data
+
     def brake(self, amps: float) -> can.Message:
         """Current-brake frame (A, ≥ 0): resists motion without a position target."""
         return self._msg(servo.encode_current_brake(self.can_id, amps))

@@ -677,10 +677,6 @@ def gripper(found: Findings, item: Item | None, joints: Joints, urdf: Urdf | Non
     motor = joints.motor_of(given, owner)
     table = _gripper_table(found, given.get("table"), owner)
     fingers = _fingers(found, given.get("fingers"), owner, joints, urdf)
-    if given.value("mode") == "servo":  # (the key is in the format: a later version may drive one)
-        found.add(given["mode"].node, f"{owner}: a servo-mode gripper cannot limit its force (the servo "
-                  "firmware's position loop pushes with whatever current it takes)",
-                  "use `mode: mit`: the force-limited grasp commands the motor's torque")
     if motor is not None:
         for key, top in (("kp", motor.kp_max), ("kd", motor.kd_max)):
             v = given.value(key, GRIPPER[key].default)
@@ -698,7 +694,7 @@ def gripper(found: Findings, item: Item | None, joints: Joints, urdf: Urdf | Non
             return None
         travel = table[-1][0]
     settings = {k: given.value(k) for k in ("mode", "direction", "offset", "kp", "kd", "speed", "reply_id",
-                                            "max_temperature") if given.value(k) is not None}
+                                            "max_temperature", "status_rate_hz") if given.value(k) is not None}
     settings["firmware"] = given.value("firmware", motor.firmware)
     out = GripperConfig(name=name, motor=motor, can_id=can_id, bus=bus, stroke=stroke, travel=travel,
                         force_limit=given.value("force_limit"), table=tuple(table), fingers=tuple(fingers or ()),

@@ -703,8 +703,8 @@ GRIPPER = Section("gripper", nested=False, doc=(
     Key("can_id", Integer(1, 127), "the motor's CAN ID, unique on its bus", required=True,
         fix="the motor's CAN ID, 1-127"),
     Key("bus", Name(), "the bus its motor is on", default_text="the only bus, when there is one"),
-    Key("mode", Choice(("mit", "servo")), "MIT; servo is refused (its firmware cannot limit the force)",
-        default=_GRIPPER["mode"]),
+    Key("mode", Choice(("mit", "servo")), "MIT (the torque law), or servo (the current loop holds the force, "
+        "the position loop moves the jaws only where nothing is squeezed)", default=_GRIPPER["mode"]),
     Key("firmware", Choice(("v2", "v3")), "as a joint's", default_text="the motor entry's"),
     Key("direction", Choice((1, -1)), "1 when the jaws open as the motor turns positive, else -1",
         default=_GRIPPER["direction"]),
@@ -728,6 +728,9 @@ GRIPPER = Section("gripper", nested=False, doc=(
         default_text="as a joint's"),
     Key("max_temperature", Number(minimum=1.0, maximum=150.0, unit="°C"), "watchdog: the arm stops above it",
         default=_GRIPPER["max_temperature"]),
+    Key("status_rate_hz", Number(minimum=1.0, maximum=500.0, unit="Hz"), "servo: the status rate set in the motor "
+        "(the watchdog waits three periods at least)", default=_GRIPPER["status_rate_hz"],
+        fix="the motor's status rate setting, 1-500 Hz"),
 ))
 
 WORKSPACE = Section("workspace", term="workspace {key}", doc="Walls: where the tool frame's origin may be (m, base "

@@ -89,6 +89,15 @@ def test_robot_file_with_a_gripper(tmp_path: Path) -> None:
     assert len(bus_loads(config)["arm"].joints) == 3  # its motor loads the bus
 
 
+def test_a_servo_mode_gripper_loads_with_its_status_rate(tmp_path: Path) -> None:
+    """Issue 36's `mode: servo`: the force-limited grasp on the servo firmware's current loop."""
+    config = load_robot(write(tmp_path, BASE + GRIPPER.replace("  can_id: 7\n", "  can_id: 7\n  mode: servo\n"
+                                                                               "  status_rate_hz: 200\n")))
+    g = config.gripper
+    assert g is not None and (g.mode, g.status_rate_hz) == ("servo", 200.0)
+    assert (g.joint.mode, g.joint.status_rate_hz) == ("servo", 200.0)
+
+
 def test_robot_file_without_a_gripper(tmp_path: Path) -> None:
     assert load_robot(write(tmp_path, BASE)).gripper is None
 
@@ -98,7 +107,7 @@ def test_robot_file_without_a_gripper(tmp_path: Path) -> None:
     ("  motor: AK40-10\n", "  motor: AK41-10\n"),          # unknown model
     ("  stroke: 0.08\n", "  stroke: -0.08\n"),             # not positive
     ("  force_limit: 40.0\n", ""),                         # required
-    ("  can_id: 7\n", "  can_id: 7\n  mode: servo\n"),    # no force limit in servo mode
+    ("  can_id: 7\n", "  can_id: 7\n  status_rate_hz: 0\n"),  # servo status rate 1-500 Hz
 ])
 def test_gripper_problems(tmp_path: Path, edit: str, fragment: str) -> None:
     text = BASE + GRIPPER.replace(edit, fragment)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from akarm import load_robot
-from akarm.control.joints import MitJoint, make_joint
+from akarm.control.joints import MitJoint, ServoJoint, make_joint
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 
@@ -35,3 +35,17 @@ def test_replies_across_the_p_max_wrap_count_turns(direction: int, offset: float
     assert s.torque == pytest.approx(direction * -2.0, abs=0.02)
     assert s.temperature == pytest.approx(40.0) and s.error == 0 and s.stamp == pytest.approx(0.01 * (len(motor) - 1))
     assert joint.frames_received == len(motor) and not math.isnan(s.position)
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_servo_current_frame_is_the_torque_through_kt(direction: int) -> None:
+    """The servo-mode gripper's frame: SET_CURRENT (packet 1, int32 mA), ``τ / (kt · GR)`` on the motor side."""
+    g = load_robot(ROBOTS / "arm6g.yaml").gripper
+    assert g is not None
+    joint = make_joint(7, replace(g, mode="servo", direction=direction).joint)
+    assert isinstance(joint, ServoJoint)
+    amps = -0.8 / (g.motor.kt * g.motor.gear_ratio)  # 0.8 N·m closing: 20 N at 40 mm/rad
+    aid, extended, data = joint.current_frame(-0.8)
+    assert (aid, extended) == ((1 << 8) | g.can_id, True)
+    assert data == round(direction * amps * 1000).to_bytes(4, "big", signed=True)
+    assert data.hex() == ("fffffa6b" if direction == 1 else "00000595")  # -1429 mA, +1429 mA

@@ -343,6 +343,7 @@ class ModelResidual:
         #: estimate come back to it, before the reflex watches again)
         self.frozen = False
         self.margin = [0.0] * n
+        self.level_margin = [math.inf] * n
 
     def set_model(self, coulomb: Sequence[float], viscous: Sequence[float],
                   uncertainty: Sequence[Uncertainty]) -> None:
@@ -379,6 +380,7 @@ class ModelResidual:
             q.append(x[:])  # (a copy: the lags change in place)
         self._prediction = list(self._r[0])
         self.margin = [0.0] * self.n
+        self.level_margin = [math.inf] * self.n
 
     def update(self, now: float, estimate: Sequence[float], tau: Sequence[float] | np.ndarray, v: Sequence[float],
                dt: float, reported: Sequence[float] | None = None) -> list[float]:
@@ -407,6 +409,11 @@ class ModelResidual:
         self._prediction = r0
         self.margin = [ut * max(abs(x - y), REPORTED_SHARE * abs(m - n)) + uf * abs(f - g)
                        for ut, uf, x, y, f, g, m, n in zip(self._ut, self._uf, tl, t0, fl, f0, ml, m0, strict=True)]
+        # the whole estimate may be the model's error up to its uncertainty times the model's torque now
+        # (not its change): what a contact that builds up slower than the window (a joint blocked while its
+        # command moves on, a person pinned slowly) is judged against
+        self.level_margin = [ut * max(abs(x), REPORTED_SHARE * abs(m)) + uf * abs(f)
+                             for ut, uf, x, f, m in zip(self._ut, self._uf, tl, fl, ml, strict=True)]
         return [x - y for x, y in zip(r, r0, strict=True)]
 
 
@@ -624,15 +631,22 @@ class CollisionReflex:
                 self.residual.frozen = False
             return None
         if over < 0:
-            return None
-        k = over
-        torque = self._sudden[k]
-        grown = f" + {margin[k]:.2f} N·m for the model's uncertainty" if margin[k] >= 0.005 else ""
+            k = self._over_level(thresholds)
+            if k < 0:
+                return None
+            torque = obs.estimate_list[k]
+            grown = f" + {self.residual.level_margin[k]:.2f} N·m for the model's uncertainty"
+            what = (f"collision: an external torque that built up to {torque:+.2f} N·m (threshold "
+                    f"{thresholds[k]:.2f} N·m{grown}); ")
+        else:
+            k = over
+            torque = self._sudden[k]
+            grown = f" + {margin[k]:.2f} N·m for the model's uncertainty" if margin[k] >= 0.005 else ""
+            what = (f"collision: a sudden external torque of {torque:+.2f} N·m (threshold {thresholds[k]:.2f} "
+                    f"N·m{grown}; the model's slow error {self.residual.slow[k]:+.2f} N·m set aside); ")
         err = CollisionError(
-            f"collision: a sudden external torque of {torque:+.2f} N·m (threshold {thresholds[k]:.2f} N·m{grown}; "
-            f"the model's slow error {self.residual.slow[k]:+.2f} N·m set aside); "
-            + ("the arm was damped and disabled" if self.reaction == "disable" else
-               "the arm was brought to rest and holds there"),
+            what + ("the arm was damped and disabled" if self.reaction == "disable" else
+                    "the arm was brought to rest and holds there"),
             torque=float(torque), threshold=float(thresholds[k]), reaction=self.reaction, joint=self.names[k],
             fix="clear the obstacle (move the arm away from it); if nothing was hit, check the payload "
                 "(arm.set_payload), run `akarm identify`, or raise the joint's collision threshold")
@@ -641,6 +655,18 @@ class CollisionReflex:
         self.armed = False
         self.residual.frozen = True  # re-armed once the contact has ended: the estimate back to where it was
         return err
+
+    def _over_level(self, thresholds: Sequence[float]) -> int:
+        """The joint whose whole estimate is furthest over its threshold widened by the model's uncertainty
+        at the model's torque now (:attr:`ModelResidual.level_margin`), or -1: a contact slower than the
+        window, which the sudden part does not show."""
+        k, worst = -1, 1.0
+        for i, (x, th, lm) in enumerate(zip(self.observer.estimate_list, thresholds, self.residual.level_margin,
+                                            strict=True)):
+            ratio = abs(x) / (th + lm)
+            if ratio > worst:
+                k, worst = i, ratio
+        return k
 
 
 def reflex_for(config: RobotConfig, model: RobotModel, gain: float = DEFAULT_GAIN, reaction: Reaction = "disable",

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from akarm.config import JointConfig, RobotConfig
+from akarm.control.collision import uncertainty_for
 from akarm.errors import AkarmError, TurnCountLost
 from akarm.files import FileProblem, atomic_write, read_text
 
@@ -298,7 +299,8 @@ class GravityTurnCheck:
             default: the robot file's limits.
 
     A joint's torque at rest is the model's gravity within its band: its Coulomb friction plus
-    :data:`WEIGH_SHARE` of its torque limit. The readings explain the torque when every checked joint
+    :data:`WEIGH_SHARE` of its torque limit, plus the model's uncertainty share of that gravity torque
+    (:func:`~akarm.control.collision.uncertainty_for`: a real unit is not its model). The readings explain the torque when every checked joint
     is within its band; a hypothesis (joint ``i`` ``k`` turns from its reading: it stands at
     ``reading - k·step``) explains it likewise. A joint at (or near) a hard stop may rest on it: its
     torque may then lie anywhere from gravity's towards the stop (:data:`WEIGH_STOP`). The enable is
@@ -315,6 +317,9 @@ class GravityTurnCheck:
         self._gravity = gravity
         self.checked = [i for i, c in enumerate(checked) if c]
         self.band = np.array([j.friction_model().coulomb + WEIGH_SHARE * j.limits.torque for j in self.joints])
+        # and a share of gravity's torque: a real unit's torque constant, reported-to-true torque and link
+        # masses differ from the model's (akarm.control.collision.Uncertainty; less once identified)
+        self.share = np.array([uncertainty_for(j).torque for j in self.joints])
         self.step = [turn_step(j) for j in self.joints]
         self.lower = np.array([j.limits.lower for j in self.joints] if lower is None else lower, dtype=float)
         self.upper = np.array([j.limits.upper for j in self.joints] if upper is None else upper, dtype=float)
@@ -359,7 +364,7 @@ class GravityTurnCheck:
         # at the upper stop the stop pushes down: the motor may hold more than gravity asks; at the lower, less
         e = np.where(qi >= self.upper[idx] - WEIGH_STOP, np.minimum(e, 0.0), e)
         e = np.where(qi <= self.lower[idx] + WEIGH_STOP, np.maximum(e, 0.0), e)
-        return float(np.max(np.abs(e) / self.band[idx]))
+        return float(np.max(np.abs(e) / (self.band[idx] + self.share[idx] * np.abs(g[idx]))))
 
     def _pose(self, q: np.ndarray, turns: Mapping[int, int]) -> np.ndarray:
         qk = q.copy()

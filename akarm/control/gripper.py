@@ -237,14 +237,8 @@ class GripperDrive:
         err = target - q
         toward = 1.0 if err > 0.0 else -1.0
         tau_f = min(self.force * c.slope_at(q), c.torque_limit, self._t_max)
-        if self.grasped:
-            if toward * (q - self._held_at) > self._slip:  # it slipped or went: approach again
-                self.grasped = False
-                self.moving = True
-                self._still = 0.0
-            else:
-                self.mode = "grasp"
-                return (q, 0.0, 0.0, self._kd, toward * self._relaxed(t, tau_f))
+        if self.grasped and self._holds(q, toward):
+            return (q, 0.0, 0.0, self._kd, toward * self._relaxed(t, tau_f))
         if self.moving:
             if abs(v) >= STALL_SPEED:
                 self._still = 0.0
@@ -299,14 +293,8 @@ class GripperDrive:
         toward = 1.0 if err > 0.0 else -1.0
         tau_f = min(self.force * c.slope_at(q), c.torque_limit, self._t_max)
         kd = min(self._kd, self._kd_servo)
-        if self.grasped:
-            if toward * (q - self._held_at) > self._slip:  # it slipped or went: approach again
-                self.grasped = False
-                self.moving = True
-                self._still = 0.0
-            else:
-                self.mode = "grasp"
-                return j.current_frame(max(-tau_f, min(tau_f, toward * self._relaxed(t, tau_f) - kd * v)))
+        if self.grasped and self._holds(q, toward):
+            return j.current_frame(max(-tau_f, min(tau_f, toward * self._relaxed(t, tau_f) - kd * v)))
         if self.moving and self._stalled(t, q, v, err):
             return j.current_frame(toward * tau_f)
         far = abs(err) > self._short
@@ -348,6 +336,17 @@ class GripperDrive:
         self.mode = "grasp"
         self.moving = False
         self._still = 0.0
+
+    def _holds(self, q: float, toward: float) -> bool:
+        """Whether the grasp still holds at ``q`` (rad; ``toward``: the sign of the way to the target):
+        jaws that slipped or went past the slip allowance start a new approach."""
+        if toward * (q - self._held_at) > self._slip:
+            self.grasped = False
+            self.moving = True
+            self._still = 0.0
+            return False
+        self.mode = "grasp"
+        return True
 
     def _relaxed(self, t: float, tau_f: float) -> float:
         """``τF`` after the grasp's relaxation (:data:`RELAX_AFTER`, :data:`RELAX_TIME`, :data:`HOLD_FRACTION`)."""

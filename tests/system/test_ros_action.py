@@ -455,7 +455,8 @@ def test_ros_discovery_info_names_the_node_and_every_endpoint_it_opens(rig: Rig)
         builtins = [(BuiltinDataReader(node.participant, kind), kind, found) for kind, found in
                     ((BuiltinTopicDcpsPublication, writers), (BuiltinTopicDcpsSubscription, readers))]
         end = time.monotonic() + 10
-        while len(readers) < 1 + 3 + 3 or len(writers) < 2 + 3 + 3 + 2:  # topics, Trigger services, action
+        # readers: the trajectory and servo twist topics, Trigger services, action; writers: topics, services, action
+        while len(readers) < 2 + 3 + 3 or len(writers) < 2 + 3 + 3 + 2:
             assert time.monotonic() < end, f"discovered {len(readers)} readers, {len(writers)} writers"
             for builtin, kind, found in builtins:
                 for s in builtin.take(N=500):
@@ -464,7 +465,7 @@ def test_ros_discovery_info_names_the_node_and_every_endpoint_it_opens(rig: Rig)
                         if kind is BuiltinTopicDcpsPublication:
                             pubs[s.topic_name] = s.type_name
             time.sleep(0.05)
-        assert len(readers) == 7 and len(writers) == 10
+        assert len(readers) == 8 and len(writers) == 10
         listed_r = {bytes(g.data[:16]) for g in entry.reader_gid_seq}
         listed_w = {bytes(g.data[:16]) for g in entry.writer_gid_seq}
         assert listed_r == readers and listed_w == writers

@@ -442,6 +442,11 @@ class Controller:
             else:
                 time.sleep(pause)
 
+    def _enable_refusal(self) -> AkarmError | None:
+        """:attr:`enable_error`, read afresh: the loop's thread sets it while :meth:`enable` waits (a
+        compiled ``enable`` would otherwise take it for the ``None`` it cleared earlier)."""
+        return self.enable_error
+
     def enable(self, timeout: float | None = None, accept_position: bool = False) -> None:
         """Enable (see :meth:`Arm.enable`); blocks until held, or raises what refused it. ``timeout``:
         s for every joint's replies (default: the timing profile's); ``accept_position``: skip the
@@ -482,15 +487,17 @@ class Controller:
             self.modes.go(Mode.ENABLING)
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
                       longest + self.options.settle_timeout + 2.0, "the joints to answer and the arm to settle")
-        if self.enable_error is not None:
+        refused_by = self._enable_refusal()
+        if refused_by is not None:
             self.wait_disabled()  # the exit frames, on RELEASES cycles, delivered
-            raise self.enable_error
+            raise refused_by
         weigh = self.options.timing.lag + WEIGH_TIMEOUT  # (the turn check's weighing, at most)
         self.wait_for(lambda: self.modes.mode is not Mode.ACTIVE or (self.ramp.done and self._weighing is None),
                       self.options.enable_ramp + weigh + 1.0, "the gains to ramp up and the arm to be weighed")
-        if self.enable_error is not None:  # the turn check by physics refused it: the arm is being lowered
+        refused_by = self._enable_refusal()
+        if refused_by is not None:  # the turn check by physics refused it: the arm is being lowered
             self.wait_disabled()
-            raise self.enable_error
+            raise refused_by
         self._forget_positions()
 
     def _clear_errors(self) -> None:

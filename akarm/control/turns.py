@@ -300,14 +300,13 @@ class GravityTurnCheck:
 
     A joint's torque at rest is the model's gravity within its band: its Coulomb friction plus
     :data:`WEIGH_SHARE` of its torque limit, plus the model's uncertainty share of that gravity torque
-    (:func:`~akarm.control.collision.uncertainty_for`: a real unit is not its model). The readings explain the torque when every checked joint
-    is within its band; a hypothesis (joint ``i`` ``k`` turns from its reading: it stands at
-    ``reading - k·step``) explains it likewise. A joint at (or near) a hard stop may rest on it: its
-    torque may then lie anywhere from gravity's towards the stop (:data:`WEIGH_STOP`). The enable is
-    refused when the readings do not explain the torque (outside the band on some joint) and a
-    hypothesis does, :data:`WEIGH_CLEAR` bands better at least: each joint alone first (the fewest
-    turns that explain it are named, the others listed), then combinations over the joints a turn
-    changes the torque of.
+    (:func:`~akarm.control.collision.uncertainty_for`: a real unit is not its model). The readings explain the
+    torque when every checked joint is within its band; a hypothesis (joint ``i`` ``k`` turns from its
+    reading: it stands at ``reading - k·step``) explains it likewise. A joint at (or near) a hard stop may
+    rest on it: its torque may then lie anywhere from gravity's towards the stop (:data:`WEIGH_STOP`). The
+    enable is refused when the readings do not explain the torque (outside the band on some joint) and a
+    hypothesis does, :data:`WEIGH_CLEAR` bands better at least: each joint alone first (the fewest turns that
+    explain it are named, the others listed), then combinations over the joints a turn changes the torque of.
     """
 
     def __init__(self, joints: Sequence[JointConfig], gravity: Callable[[np.ndarray], np.ndarray],

@@ -239,18 +239,8 @@ class GripperDrive:
         tau_f = min(self.force * c.slope_at(q), c.torque_limit, self._t_max)
         if self.grasped and self._holds(q, toward):
             return (q, 0.0, 0.0, self._kd, toward * self._relaxed(t, tau_f))
-        if self.moving:
-            if abs(v) >= STALL_SPEED:
-                self._still = 0.0
-            elif abs(err) <= self._reached:
-                self.moving = False  # at the target
-            else:
-                self._still += self.period
-                if self._still >= STALL_TIME:
-                    if abs(err) > self._short:  # stopped short on something: hold it at the force asked
-                        self._grasp(t, q)
-                        return (q, 0.0, 0.0, self._kd, toward * tau_f)
-                    self.moving = False  # near enough: friction holds it
+        if self.moving and self._stalled(t, q, v, err):  # stopped short: hold it at the force asked
+            return (q, 0.0, 0.0, self._kd, toward * tau_f)
         coulomb = min(self._coulomb, 0.5 * tau_f)
         band = (tau_f - coulomb) / self._kp if self._kp > 0.0 else 0.0
         if abs(err) > band:

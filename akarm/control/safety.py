@@ -11,14 +11,16 @@ Checks, per joint, in order (the first that fires is the stop):
 1. **Foreign traffic**: another node sent one of our joints a command, ENTER, EXIT or ZERO since the
    arm was enabled (a second controller, a forgotten script, the upper computer), or a joint answers
    more frames than it was sent (a second motor with the same CAN ID, a forger): in a
-   :data:`REPLY_WINDOW`, more replies than the commands sent in it plus those still owed at its start
-   (a driver that fell behind answers them late, in a burst), with a margin of 5 %. →
+   :data:`REPLY_WINDOW`, more plausible replies (those the gate passed; its rejects are check 3's) than
+   the commands sent in it plus those still owed at its start (a driver that fell behind answers them
+   late, in a burst), with a margin of 5 %. →
    :class:`~akarm.ForeignTraffic`.
 2. **Motor error code** reported by the driver. → :class:`~akarm.MotorFault`.
 3. **Implausible feedback**: the joint rejects a reply whose position it cannot have reached since
    the last good one (the gate in :mod:`akarm.control.joints`); ``implausible_limit`` in a row stop the
-   arm, and so do :data:`IMPLAUSIBLE_PER_WINDOW` in one :data:`REPLY_WINDOW` between good ones (CAN's
-   own CRC makes a corrupt frame rare: these come from another node). →
+   arm, and so do :data:`IMPLAUSIBLE_PER_WINDOW` within any :data:`REPLY_WINDOW` (sliding: the stop comes
+   with the tenth) between good ones (CAN's own CRC makes a corrupt frame rare: these come from another
+   node), under every timing profile. →
    :class:`~akarm.ImplausibleFeedback`.
 4. **A silent joint**, judged on what it was actually sent, never on the clock alone: a MIT joint
    that answered none of its last ``K`` commands (``K`` = its feedback timeout in loop periods, 10
@@ -264,6 +266,9 @@ class Supervisor:
         self._window_end = math.inf
         self._window_start: list[tuple[int, int, int]] = []
         self._rejected_start = [0] * n
+        # the gate's rejects per joint: the count last seen, and when each of the last REPLY_WINDOW s came
+        self._rejected_seen = [j.rejected for j in self.joints]
+        self._rejected_at: list[deque[float]] = [deque() for _ in range(n)]
         self._refresh()
 
     def _refresh(self) -> None:
@@ -298,6 +303,9 @@ class Supervisor:
         self._ran_then = [0.0] * n
         self._last_check = now
         self._no_torque = [0] * n
+        self._rejected_seen = [j.rejected for j in self.joints]
+        for d in self._rejected_at:
+            d.clear()
 
     def unanswered(self, index: int) -> int:
         """Commands sent to joint ``index`` since the last check at which it had answered (MIT; 0 for servo)."""
@@ -380,6 +388,10 @@ class Supervisor:
                     value=j.last_rejected, limit=j.max_speed, count=run, joint=j.name,
                     fix="check the CAN wiring and termination (corrupt frames), and that no other node sends "
                         "replies with this driver ID")
+            if j.rejected != self._rejected_seen[i]:
+                between = self._rejected_between(i, j, now)
+                if between is not None:
+                    return between
             if self._keeps_laws[i] and j.frames_sent != self._laws_sent[i]:
                 self._keep_law(i, j)
             r = j.frames_received
@@ -422,6 +434,23 @@ class Supervisor:
                     fix="let the motor cool; lower duty, speed or payload; check max_temperature in the YAML")
         self._reset = reset
         return None
+
+    def _rejected_between(self, i: int, j: Joint, now: float) -> ImplausibleFeedback | None:
+        """Joint ``i`` rejected replies since the last check: the stop once :data:`IMPLAUSIBLE_PER_WINDOW` came
+        within the last :data:`REPLY_WINDOW` s, a sliding window (one that starts every second may split
+        a dozen forged replies in two halves neither of which stops the arm), or ``None``."""
+        times = self._rejected_at[i]
+        times.extend([now] * min(j.rejected - self._rejected_seen[i], IMPLAUSIBLE_PER_WINDOW))
+        self._rejected_seen[i] = j.rejected
+        while times and times[0] <= now - REPLY_WINDOW:
+            times.popleft()
+        if len(times) < IMPLAUSIBLE_PER_WINDOW:
+            return None
+        return ImplausibleFeedback(
+            f"{len(times)} replies within {REPLY_WINDOW:g} s claimed positions it cannot have reached "
+            f"(the last {j.last_rejected:+.4f} rad; the arm was at {j.state.position:+.4f} rad); the arm was damped "
+            "and disabled", value=j.last_rejected, limit=j.max_speed, count=len(times), joint=j.name,
+            fix="another node sends replies with this driver ID: find it (candump), or give the motors distinct IDs")
 
     def _keep_law(self, i: int, j: Joint) -> None:
         """Keep joint ``i``'s last law sent (a lagging machine's replies may answer it later)."""
@@ -605,20 +634,15 @@ class Supervisor:
         return max(abs(qd - p[i]) for p in itertools.islice(past, max(0, len(past) - k), None))
 
     def _check_replies(self, now: float) -> SafetyStop | None:
-        """Every REPLY_WINDOW s: a joint that answered more frames than it was sent is not alone on its ID,
-        and one that rejected many replies hears another node."""
-        for j, r0 in zip(self.joints, self._rejected_start, strict=True):
-            if j.rejected - r0 >= IMPLAUSIBLE_PER_WINDOW:
-                return ImplausibleFeedback(
-                    f"{j.rejected - r0} replies in {REPLY_WINDOW:g} s claimed positions it cannot have reached (the "
-                    f"last {j.last_rejected:+.4f} rad; the arm was at {j.state.position:+.4f} rad); the arm was damped "
-                    "and disabled", value=j.last_rejected, limit=j.max_speed, count=j.rejected - r0, joint=j.name,
-                    fix="another node sends replies with this driver ID: find it (candump), or give the motors "
-                        "distinct IDs")
+        """Every REPLY_WINDOW s: a joint that answered more plausible frames than it was sent is not alone on
+        its ID (its implausible ones are :meth:`_rejected_between`'s)."""
         for k, i in enumerate(self._answering):
             j = self.joints[i]
             r0, s0, owed = self._window_start[k]
-            replies, sent = j.frames_received - r0, j.frames_sent - s0
+            # the plausible replies: the gate's rejects are judged above, as implausible traffic (at 25 Hz a
+            # dozen forged replies outnumber the margin and were named a second motor)
+            replies = j.frames_received - r0 - (j.rejected - self._rejected_start[i])
+            sent = j.frames_sent - s0
             if replies > sent + owed + max(3, sent // 20):
                 return self.foreign_stop(j, "replies", f"{replies} replies to {sent} frames in {REPLY_WINDOW:g} s"
                                          + (f" and {owed} unanswered before" if owed else ""))

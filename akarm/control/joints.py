@@ -12,7 +12,10 @@ Feedback is **gated**: a reply whose position is further from the last accepted 
 could have turned since (:attr:`Joint.max_speed`) is discarded and counted
 (:attr:`Joint.rejected_run`), so a corrupt or forged frame never reaches the commands, nor the
 turn counting of MIT replies across their ±P_MAX wrap. The supervisor (:mod:`akarm.control.safety`) stops
-the arm when several come in a row.
+the arm when several come in a row. While an enable makes contact (:attr:`Joint.adopting`), the first
+reply is the reference only until two replies in a row disagree with it and agree with each other: then
+it was the odd one (a forged reply just before contact) and the later of them is the reference instead
+(:meth:`Joint.rebase`), in the same pass over the replies.
 
 Replies are routed per bus by :class:`Router`: MIT (V1/V2 firmware) replies are standard frames
 whose byte 0 is the driver ID (the arbitration ID differs between units and is not used); servo
@@ -83,6 +86,8 @@ class Joint(abc.ABC):
             (frames drained together can hold a run and the good frame after it).
         accepted_run: accepted in a row since the last rejected one (or :meth:`begin_contact`).
         last_rejected: the position the last rejected one claimed (rad, joint side).
+        adopting: while an enable makes contact (from :meth:`begin_contact` until the enabler has made it):
+            a second rejected reply in a row that agrees with the first is taken as the new reference.
         foreign, foreign_at: the kind of the last frame another node sent to this joint's command
             IDs (``"exit"``, ``"enter"``, ``"zero"``, ``"command"``), and when (clock time, s).
         cmd_position, cmd_velocity, cmd_kp, cmd_kd, cmd_torque: MIT joints: the law of the last
@@ -112,6 +117,8 @@ class Joint(abc.ABC):
         self.rejected_peak = 0
         self.accepted_run = 0
         self.last_rejected = math.nan
+        self._rejected_at = -math.inf
+        self.adopting = False
         self.foreign: str | None = None
         self.foreign_at = -math.inf
         # MIT: the law of the last command (joint side): the driver applies kp·(position - q) + kd·(velocity
@@ -218,15 +225,31 @@ class Joint(abc.ABC):
     def begin_contact(self) -> None:
         """Start over (at enable): the next frame is accepted as it comes, and is the reference the
         ones after it are gated against. :meth:`rebase` returns here."""
+        self._restart()
+
+    def _restart(self) -> None:
         self.state.stamp = -math.inf
         self.rejected_run = 0
         self.rejected_peak = 0  # replies refused before (while disabled, or an odd reference) do not count
         self.accepted_run = 0
+        self.adopting = True
 
     def rebase(self) -> None:
         """Drop the reference taken since :meth:`begin_contact` (it was the odd one out: the replies
         after it all disagreed with it) and start over from the same point."""
-        self.begin_contact()
+        self._restart()
+
+    def _odd_reference(self, claimed: float, now: float) -> bool:
+        """(A reply claiming ``claimed`` rad at ``now`` was just rejected.) True when, during contact, it is
+        the second rejected in a row and agrees with the first: the reference was the odd one. Notes it as
+        the last rejected either way."""
+        prev, at = self.last_rejected, self._rejected_at
+        self.last_rejected = claimed
+        self._rejected_at = now
+        if not (self.adopting and self.rejected_run >= 2):
+            return False
+        dt = max(now - at, self.min_interval)
+        return abs(claimed - prev) <= self.max_speed * dt + self._slack
 
     def set_gate(self, max_speed: float, min_interval: float) -> None:
         """Gate feedback: reject positions implying more than ``max_speed`` rad/s since the last
@@ -249,7 +272,9 @@ class Joint(abc.ABC):
         if self.rejected_run > self.rejected_peak:
             self.rejected_peak = self.rejected_run
         self.accepted_run = 0
-        self.last_rejected = claimed
+        if self._odd_reference(claimed, now):
+            self.rebase()
+            return True  # taken as the first reply after the checkpoint: the new reference
         return False
 
     def _update(self, p_motor: float, v_motor: float, t_motor: float, temperature: float | None,
@@ -394,7 +419,12 @@ class MitJoint(Joint):
                     if self.rejected_run > self.rejected_peak:
                         self.rejected_peak = self.rejected_run
                     self.accepted_run = 0
-                    self.last_rejected = self.direction * (raw + turns * self._span) + self.offset
+                    if not self._odd_reference(self.direction * (raw + turns * self._span) + self.offset, now):
+                        return
+                    # the reference was the odd one: from the checkpoint, this reply is the first again
+                    self.rebase()
+                    self.frames_received -= 1
+                    self.handle_reply(data, now)
                     return
         self.rejected_run = 0
         self.accepted_run += 1
@@ -413,7 +443,7 @@ class MitJoint(Joint):
         self._checkpoint = (self._last_raw, self._turns)  # a forged first reply must not keep a turn
 
     def rebase(self) -> None:
-        super().rebase()
+        super().rebase()  # (not begin_contact: the checkpoint stays the one taken there)
         self._last_raw, self._turns = self._checkpoint
 
     def rezeroed(self) -> None:

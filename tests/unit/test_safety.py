@@ -329,11 +329,38 @@ def test_a_forged_first_reply_at_contact_is_dropped_with_its_turn(planar2: Robot
     reply(j, 12.45, 1.0)                           # ... and it is a forgery, 12.95 rad "through the wrap"
     assert j.state.position == pytest.approx(12.45 - 25.0, abs=1e-3)
     reply(j, -0.5, 1.0 + DT)
+    assert j.rejected_run == 1 and j.state.position == pytest.approx(12.45 - 25.0, abs=1e-3)
+    reply(j, -0.5, 1.0 + DT)                       # (drained in the same cycle)
+    # two true replies disagree with it and agree with each other: it was the odd one, and the
+    # second of them is the reference, in the same pass over the replies
+    assert j.rejected == 2 and j.rejected_run == 0 and j.accepted_run == 1
+    assert j.state.position == pytest.approx(-0.5, abs=1e-3)  # no turn left behind
     reply(j, -0.5, 1.0 + 2 * DT)
-    assert j.rejected_run == 2                     # every true reply disagrees with it: it was the odd one
-    j.rebase()
+    assert j.accepted_run == 2 and j.state.position == pytest.approx(-0.5, abs=1e-3)
+
+
+def test_once_contact_is_made_a_reply_that_disagrees_is_never_the_reference(planar2: RobotConfig) -> None:
+    (j, _) = joints_of(planar2)
+    reply(j, -0.5, 0.0)
+    j.begin_contact()
+    reply(j, 12.45, 1.0)                           # a forgery taken as it came ...
+    j.adopting = False                             # ... and contact made with it (the enabler's doing)
+    reply(j, -0.5, 1.0 + DT)
+    reply(j, -0.5, 1.0 + 2 * DT)
+    assert j.rejected_run == 2 and j.state.position == pytest.approx(12.45 - 25.0, abs=1e-3)  # the supervisor's
+    j.rebase()                                     # (the enabler's own start over, the next reply first)
     reply(j, -0.5, 1.0 + 3 * DT)
     assert j.state.position == pytest.approx(-0.5, abs=1e-3)  # no turn left behind
+
+
+def test_two_rejected_replies_that_disagree_with_each_other_are_no_reference(planar2: RobotConfig) -> None:
+    (j, _) = joints_of(planar2)
+    reply(j, -0.5, 0.0)
+    j.begin_contact()
+    reply(j, -0.5, 1.0)
+    reply(j, 6.0, 1.0 + DT)
+    reply(j, -6.0, 1.0 + 2 * DT)                   # two forgeries, 12 rad apart
+    assert j.rejected_run == 2 and j.state.position == pytest.approx(-0.5, abs=1e-3)
 
 
 def test_implausible_replies_in_a_row_stop_even_with_a_good_one_after_them(rig) -> None:

@@ -49,6 +49,10 @@ class TimingProfile:
         stall_limit: s the control loop itself may fail to run (this process stopped or starved: load,
             a long garbage collection, SIGSTOP) and resume without a stop; longer stops the arm with
             :class:`~akarm.LoopStall` (see the README's Timing section for why 0.2 s).
+        contact_rate_hz: an enable's contact and settling run at this rate, between the loop's own
+            cycles, when it is above the loop's, for at most :data:`akarm.control.enabler.CONTACT_BURST`
+            s (``None``: at the loop's). The drivers are limp until contact is made and the arm is
+            carried: at 25 Hz that took three cycles, 120 ms, in which an arm carrying weight falls.
     """
 
     name: str
@@ -60,6 +64,7 @@ class TimingProfile:
     sim_rate_hz: float
     lag: float = 0.0
     stall_limit: float = 0.2
+    contact_rate_hz: float | None = None
 
     def loop_rate(self, rate_hz: float) -> float:
         """The loop rate for a robot file's ``rate_hz``, Hz."""
@@ -104,7 +109,7 @@ PROFILES: dict[str, TimingProfile] = {
     "slow": TimingProfile("slow", "slow or shared machines (virtual machines, CI): loop at most 25 Hz, 1 s "
                                   "watchdog and stall limit, simulator at 250 Hz",
                           max_rate_hz=25.0, feedback_timeout=1.0, min_feedback_timeout=1.0, enable_timeout=5.0,
-                          sim_rate_hz=250.0, lag=1.0, stall_limit=1.0),
+                          sim_rate_hz=250.0, lag=1.0, stall_limit=1.0, contact_rate_hz=500.0),
 }
 
 

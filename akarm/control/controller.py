@@ -111,6 +111,11 @@ def _feedback_timeout(j: JointConfig, default: float) -> float:
     return default
 
 
+def _contact_period(rate_hz: float | None) -> float | None:
+    """s between an enable's contact cycles at a timing profile's ``contact_rate_hz`` (``None``: the loop's)."""
+    return None if rate_hz is None else 1.0 / rate_hz
+
+
 class Controller:
     """The real-time side of an :class:`~akarm.Arm` (see the module's docstring).
 
@@ -199,7 +204,8 @@ class Controller:
         self.enabler = Enabler(motors, config.buses, self.bus.send, self.supervisor, gravity, commanded,
                                damping=damping, timeouts=timeouts, period=self.period,
                                settle_speed=options.settle_speed, settle_timeout=options.settle_timeout,
-                               at_contact=self._turn_check, lag=options.timing.lag)
+                               at_contact=self._turn_check, lag=options.timing.lag,
+                               contact_period=_contact_period(options.timing.contact_rate_hz))
         self.reflex = self._make_reflex()
         # a torque law (impedance, akarm.control.impedance): its torque each cycle, kp = 0 meanwhile
         self.law: ImpedanceLaw | None = None
@@ -485,6 +491,7 @@ class Controller:
             self.turn_verdict = None
             longest = self.enabler.begin(now, timeout)
             self.modes.go(Mode.ENABLING)
+            self._contact_soon(now)
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
                       longest + self.options.settle_timeout + 2.0, "the joints to answer and the arm to settle")
         refused_by = self._enable_refusal()
@@ -499,6 +506,13 @@ class Controller:
             self.wait_disabled()
             raise refused_by
         self._forget_positions()
+
+    def _contact_soon(self, now: float) -> None:
+        """(Caller, an enable begun) Where contact runs faster than the loop (a slow profile), its first
+        cycle comes at once, not at the loop's next slot."""
+        soon = self.enabler.hurry(now)
+        if soon is not None:
+            self.loop.hasten(now + soon)
 
     def _clear_errors(self) -> None:
         # a method of its own: a type checker that saw these set to None in enable() would take them for
@@ -1116,6 +1130,7 @@ class Controller:
     def _cycle_enabling(self, now: float) -> None:
         step = self.enabler.step(now)
         if step is None:
+            self.loop.soon = self.enabler.hurry(now)  # (slow profile: contact at its own rate, extra cycles)
             return
         if isinstance(step, Refusal):
             self._enable_failed(step)

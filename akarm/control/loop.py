@@ -117,6 +117,13 @@ _PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30  # prctl(2) options (Linux)
 #: machines 1 µs of slack made them end about 50 µs sooner (the median from 113 to 60 µs late), and
 #: so shortened the spin. (A thread with real-time priority has no slack.)
 TIMER_SLACK = 1000
+#: s: a loop whose period is at least this long (a slow profile's 25 Hz) sleeps towards its next cycle
+#: on an event that :meth:`ControlLoop.hasten` sets, up to :data:`HASTEN_MARGIN` before it, then as
+#: its clock sleeps: an enable's first cycle need not wait for the next slot (the normal profile's
+#: loops, at 100 Hz and faster, sleep as they did)
+HASTEN_PERIOD = 0.01
+#: s before a cycle's time its loop stops waiting on the event (the clock's own sleep does the rest)
+HASTEN_MARGIN = 0.002
 
 
 def _prctl(option: int, value: int = 0) -> int | None:
@@ -302,8 +309,9 @@ class ControlLoop:
 
     ``cycle`` receives the clock time at which it started and the ring index for its stage timings
     (``loop.stats.row(slot)[k]``, s); while it runs, :attr:`deadline`, :attr:`skipped` and
-    :attr:`gap` describe its slot. It must not raise; if it does, the loop stops and calls
-    ``on_crash(exception)`` (the Arm uses that to send exit frames).
+    :attr:`gap` describe its slot, and it may set :attr:`soon` to have the next cycle sooner than the
+    next slot (an extra cycle between the slots, which stay where they were). It must not raise; if it
+    does, the loop stops and calls ``on_crash(exception)`` (the Arm uses that to send exit frames).
     """
 
     def __init__(self, rate_hz: object, clock: Clock, cycle: Callable[[float, int], None], *,
@@ -332,7 +340,13 @@ class ControlLoop:
         #: s from the start of the cycle before to this one's (0 for the first): one period, give or
         #: take the jitter, while the loop keeps time; more where it did not run (a stall)
         self.gap = 0.0
+        #: s: set by a cycle, the next one runs this long after this one's time, when that comes before
+        #: the next slot of the grid (an extra cycle: an enable's contact on a slow profile); read once
+        self.soon: float | None = None
         self._next: float | None = None
+        self._slot = 0.0  # the next slot of the grid of periods (the extra cycles leave it where it is)
+        self._early: float | None = None  # an extra cycle's time asked for from outside (:meth:`hasten`)
+        self._hastened = threading.Event()
         self._in_cycle = False  # (stepped) this loop's own cycle is under way: the clock must not start another
         self._worker: threading.Thread | None = None  # (not `_thread`: compiled, that is C's `__thread`)
         self._running = threading.Event()
@@ -351,12 +365,21 @@ class ControlLoop:
     # -- one cycle ----------------------------------------------------------------------------
     def _one(self) -> None:
         if self._next is None:
-            self._next = self.clock.now() + self.period
-        deadline = self._next
+            self._next = self._slot = self.clock.now() + self.period
+        deadline = self._take_early(self._next)
         self._in_cycle = True
         try:
+            if not self.clock.stepped and self.period >= HASTEN_PERIOD:
+                while True:  # until shortly before the cycle, a hasten() may bring it forward
+                    lead = deadline - self.clock.now() - HASTEN_MARGIN
+                    if lead <= 0.0 or not self._hastened.wait(lead):
+                        break
+                    self._hastened.clear()
+                    deadline = self._take_early(deadline)
             self.clock.sleep_until(deadline)
             now = self.clock.now()
+            if deadline < self._slot <= now + 1e-12:  # an extra cycle that came as late as the slot: the slot's
+                deadline = self._slot
             late = now - deadline
             skipped = 0
             if late >= self.period:  # skip the slots we missed rather than burst
@@ -369,19 +392,43 @@ class ControlLoop:
             self.deadline = deadline
             self.skipped = skipped
             slot = self.stats.begin(now, late)
+            self.soon = None
             self.cycle(now, slot)
-            self._next = deadline + self.period
+            if deadline >= self._slot - 1e-12:  # (not an extra cycle)
+                self._slot = deadline + self.period
+            soon = self.soon
+            self._next = self._slot if soon is None or deadline + soon >= self._slot else deadline + soon
         finally:
             self._in_cycle = False
+
+    def hasten(self, t: float) -> None:
+        """Run an extra cycle at clock time ``t`` (at once if past) when the next one would come later
+        (an enable's first contact on a slow profile); the grid's slots stay where they were. With a real
+        clock, a loop whose period is shorter than :data:`HASTEN_PERIOD` is not woken early."""
+        self._early = t
+        self._hastened.set()
+
+    def _take_early(self, deadline: float) -> float:
+        """``deadline``, or the :meth:`hasten` time asked for if sooner (then forgotten)."""
+        early = self._early
+        if early is None:
+            return deadline
+        self._early = None
+        return early if early < deadline else deadline
+
+    def _due(self) -> float | None:
+        nxt, early = self._next, self._early
+        return nxt if nxt is None or early is None or early >= nxt else early
 
     # -- on a stepped clock shared with other loops (akarm.clock.SteppedLoop) -----------------
     def due(self) -> float | None:
         """The time of the next cycle, while started on a stepped clock and not in a cycle now."""
-        return None if self._in_cycle else self._next
+        return None if self._in_cycle else self._due()
 
     def run_due(self, now: float) -> None:
         """Run the cycle due at ``now``, if one is (another loop or a test advanced the shared clock)."""
-        if not self._in_cycle and self._next is not None and self._next <= now + 1e-12:
+        due = self._due()
+        if not self._in_cycle and due is not None and due <= now + 1e-12:
             self._one()
 
     def step(self, cycles: int = 1) -> None:
@@ -400,7 +447,7 @@ class ControlLoop:
         self.realtime_report = "not requested"
         if self.stepped:
             if isinstance(self.clock, SteppedClock):  # its cycles run whoever advances the clock
-                self._next = self.clock.now() + self.period
+                self._next = self._slot = self.clock.now() + self.period
                 self.clock.join(self)
             return
         self._running.set()
@@ -428,7 +475,7 @@ class ControlLoop:
             keep_from_collections()
         if reports:
             self.realtime_report = "; ".join(reports)
-        self._next = None
+        self._next = self._early = None
         try:
             while self._running.is_set():
                 self._one()
@@ -462,7 +509,7 @@ class ControlLoop:
         if t is not None:
             gc.unfreeze()  # what request_realtime or keep_from_collections froze may be collected again
         self._worker = None
-        self._next = None
+        self._next = self._early = None
 
     def wait_cycle(self, timeout: float) -> None:
         """Block until the next cycle has run (real clocks), or run one (stepped clocks)."""

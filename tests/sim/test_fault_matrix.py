@@ -223,9 +223,6 @@ def test_forged_replies_between_good_ones_stop_the_arm_too(channel: str) -> None
         damping_then_exit(wire, arm.config)
 
 
-@pytest.mark.xfail(LAG > 0, strict=True, raises=AssertionError,
-                   reason="slow (a defect, open): each rejected reply costs the enable a 40 ms cycle limp; "
-                          "planar2 sags 0.53 rad (0.22 without forged replies), arm6 0.42 rad (0.17)")
 @pytest.mark.parametrize("robot", ["planar2", "arm6"])
 def test_forged_replies_during_enable_are_not_held_or_driven(robot: str, channel: str) -> None:
     q0 = [0.3, -0.2] if robot == "planar2" else [0.1, 0.2, 0.5, 0.1, 0.2, 0.1]

@@ -32,6 +32,71 @@ def test_a_late_cycle_skips_the_slots_it_missed_and_keeps_the_grid():
     assert s.late_max == pytest.approx(0.0015)
 
 
+def test_a_cycle_may_ask_for_extra_cycles_between_the_slots_which_stay_on_the_grid():
+    clock = SteppedClock()
+    starts: list[float] = []
+
+    def cycle(now: float, slot: int) -> None:
+        starts.append(now)
+        if 0.04 - 1e-9 <= now < 0.05:  # from the first slot, extra cycles every 2 ms for 10 ms
+            loop.soon = 0.002
+
+    loop = ControlLoop(25.0, clock, cycle)
+    loop.step(9)
+    assert starts == pytest.approx([0.04, 0.042, 0.044, 0.046, 0.048, 0.050, 0.08, 0.12, 0.16])
+    assert loop.stats.missed == 0
+
+
+def test_hasten_brings_the_next_cycle_forward_once(monkeypatch):
+    clock = SteppedClock()
+    starts: list[float] = []
+    loop = ControlLoop(25.0, clock, lambda now, slot: starts.append(now))
+    loop.start()
+    clock.sleep_until(0.05)                  # the slot at 0.04 ran; the next is at 0.08
+    loop.hasten(0.052)
+    assert loop.due() == pytest.approx(0.052)
+    clock.sleep_until(0.1)
+    assert starts == pytest.approx([0.04, 0.052, 0.08])
+    loop.stop()
+
+
+def test_a_slow_loop_on_a_real_clock_is_woken_from_its_wait_by_hasten():
+    """With a real clock, a 25 Hz loop waits for its next slot on an event (an enable need not wait up
+    to 40 ms for its first contact). A clock that only moves when told: the wait is the event's."""
+    import threading
+
+    class Manual:
+        stepped = False
+        def __init__(self) -> None:
+            self.t = 0.0
+            self.slept: list[float] = []
+
+        def now(self) -> float:
+            return self.t
+
+        def sleep_until(self, t: float) -> None:
+            self.slept.append(t)
+            self.t = max(self.t, t)
+
+    clock = Manual()
+    starts: list[float] = []
+    loop = ControlLoop(25.0, clock, lambda now, slot: starts.append(now))  # type: ignore[arg-type]
+    loop.step()                               # the slot at 0.04
+    clock.t = -60.0                           # (the next slot is a minute away: only hasten ends the wait)
+
+    def enable() -> None:
+        while loop.due() is not None:  # (None while it is in _one: waiting for its cycle)
+            threading.Event().wait(0.001)
+        clock.t = 0.049
+        loop.hasten(0.05)
+
+    helper = threading.Thread(target=enable)
+    helper.start()
+    loop.step()
+    helper.join()
+    assert starts == pytest.approx([0.04, 0.05]) and clock.slept[-1] == pytest.approx(0.05)
+
+
 def test_stats_summarise_stage_times():
     clock = SteppedClock()
     loop = ControlLoop(100.0, clock, lambda now, slot: loop.stats.stage[slot].__setitem__(0, 1e-4 * (slot + 1)),

@@ -235,7 +235,7 @@ class Enabler:
                 return stale
             if j.rejected_run >= 2:  # the reference disagrees with every reply since: it was the odd one
                 j.rebase()
-            if j.accepted_run < CONTACT_REPLIES:
+            if j.accepted_run < CONTACT_REPLIES or j.state.stamp <= j.adopted_at:  # (see Joint.adopted_at)
                 ready = False
                 if now - en.t0 > en.timeout[i]:
                     late.append(j)

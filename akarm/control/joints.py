@@ -88,6 +88,9 @@ class Joint(abc.ABC):
         last_rejected: the position the last rejected one claimed (rad, joint side).
         adopting: while an enable makes contact (from :meth:`begin_contact` until the enabler has made it):
             a second rejected reply in a row that agrees with the first is taken as the new reference.
+        adopted_at: when that last happened (clock time, s; ``-inf``: not since :meth:`begin_contact`).
+            The enabler makes contact only on a reply from a later cycle: a burst of forged replies
+            drained together never makes contact by itself.
         foreign, foreign_at: the kind of the last frame another node sent to this joint's command
             IDs (``"exit"``, ``"enter"``, ``"zero"``, ``"command"``), and when (clock time, s).
         cmd_position, cmd_velocity, cmd_kp, cmd_kd, cmd_torque: MIT joints: the law of the last
@@ -119,6 +122,7 @@ class Joint(abc.ABC):
         self.last_rejected = math.nan
         self._rejected_at = -math.inf
         self.adopting = False
+        self.adopted_at = -math.inf
         self.foreign: str | None = None
         self.foreign_at = -math.inf
         # MIT: the law of the last command (joint side): the driver applies kp·(position - q) + kd·(velocity
@@ -226,6 +230,7 @@ class Joint(abc.ABC):
         """Start over (at enable): the next frame is accepted as it comes, and is the reference the
         ones after it are gated against. :meth:`rebase` returns here."""
         self._restart()
+        self.adopted_at = -math.inf
 
     def _restart(self) -> None:
         self.state.stamp = -math.inf
@@ -249,7 +254,10 @@ class Joint(abc.ABC):
         if not (self.adopting and self.rejected_run >= 2):
             return False
         dt = max(now - at, self.min_interval)
-        return abs(claimed - prev) <= self.max_speed * dt + self._slack
+        if abs(claimed - prev) > self.max_speed * dt + self._slack:
+            return False
+        self.adopted_at = now
+        return True
 
     def set_gate(self, max_speed: float, min_interval: float) -> None:
         """Gate feedback: reject positions implying more than ``max_speed`` rad/s since the last

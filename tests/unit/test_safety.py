@@ -339,6 +339,23 @@ def test_a_forged_first_reply_at_contact_is_dropped_with_its_turn(planar2: Robot
     assert j.accepted_run == 2 and j.state.position == pytest.approx(-0.5, abs=1e-3)
 
 
+def test_a_burst_of_forged_replies_is_adopted_but_not_confirmed_by_itself(planar2: RobotConfig) -> None:
+    """Three forgeries that agree, drained in one cycle after a true reference: the second becomes
+    the reference and the third agrees with it, but contact needs a reply from a later cycle
+    (the enabler: ``state.stamp > adopted_at``), which the true replies then reject it with."""
+    (j, _) = joints_of(planar2)
+    j.begin_contact()
+    reply(j, -0.5, 1.0)
+    for _ in range(3):
+        reply(j, 6.0, 1.0 + DT)
+    assert j.accepted_run == 2 and j.adopted_at == j.state.stamp == 1.0 + DT  # not contact: one batch
+    reply(j, -0.5, 1.0 + 2 * DT)
+    reply(j, -0.5, 1.0 + 2 * DT)                   # the true ones take it back
+    assert j.state.position == pytest.approx(-0.5, abs=1e-3) and j.adopted_at == 1.0 + 2 * DT
+    reply(j, -0.5, 1.0 + 3 * DT)
+    assert j.accepted_run == 2 and j.state.stamp > j.adopted_at
+
+
 def test_once_contact_is_made_a_reply_that_disagrees_is_never_the_reference(planar2: RobotConfig) -> None:
     (j, _) = joints_of(planar2)
     reply(j, -0.5, 0.0)

@@ -201,7 +201,10 @@ class StatsSummary:
 
 
 class LoopStats:
-    """Ring buffers of per-cycle timings (the last ``capacity`` cycles) and counters."""
+    """Ring buffers of per-cycle timings (the last ``capacity`` cycles) and counters.
+
+    Extra cycles between the loop's slots (:attr:`ControlLoop.soon`) are counted in :attr:`extra` and
+    not measured: the rate, periods and lateness are the slots'."""
 
     def __init__(self, stages: Sequence[str], capacity: int = 1 << 16) -> None:
         self.stages = tuple(stages)
@@ -217,8 +220,10 @@ class LoopStats:
         self._stage = self.stage.data.cast("B").cast("d")
         self._stage_bytes = self.stage.data.cast("B")
         self._row_zero = bytes(8 * len(self.stages))
+        self._extra_row = np.zeros(len(self.stages)).data.cast("B").cast("d")  # an extra cycle's, never summarised
         self.cycles = 0
         self.missed = 0
+        self.extra = 0
         self.first_start: float | None = None
         self.last_start: float | None = None
 
@@ -227,8 +232,14 @@ class LoopStats:
         self.period[:] = 0
         self.late[:] = 0
         self.stage[:] = 0
-        self.cycles = self.missed = 0
+        self.cycles = self.missed = self.extra = 0
         self.first_start = self.last_start = None
+
+    def begin_extra(self) -> int:
+        """Count an extra cycle between the slots; return its index for :meth:`row` (-1: a row of its own,
+        never summarised)."""
+        self.extra += 1
+        return -1
 
     def begin(self, now: float, lateness: float) -> int:
         """Record a cycle start; return its ring index."""
@@ -244,7 +255,10 @@ class LoopStats:
         return i
 
     def row(self, i: int) -> memoryview[float]:
-        """Cycle ``i``'s stage times (s, :attr:`stages` order) to write: a view of its row of :attr:`stage`."""
+        """Cycle ``i``'s stage times (s, :attr:`stages` order) to write: a view of its row of :attr:`stage`
+        (``-1``, an extra cycle's: a row of its own, never summarised)."""
+        if i < 0:
+            return self._extra_row
         k = len(self.stages)
         return self._stage[i * k:(i + 1) * k]
 
@@ -254,7 +268,7 @@ class LoopStats:
         if n == 0:
             zero = {s: 0.0 for s in self.stages}
             return StatsSummary(0, self.missed, 0.0, 0, 0, 0, 0, 0, 0, zero, dict(zero), 0, 0, 0)
-        period = self.period[:n] if self.cycles <= self.capacity else self.period
+        period = self.period[:n]
         periods = period[period > 0] if np.any(period > 0) else np.zeros(1)
         late = self.late[:n]
         stage = self.stage[:n]
@@ -391,7 +405,8 @@ class ControlLoop:
             self.gap = now - last if last is not None else 0.0
             self.deadline = deadline
             self.skipped = skipped
-            slot = self.stats.begin(now, late)
+            # (an extra cycle between the slots is counted, not measured: the statistics are the slots')
+            slot = self.stats.begin(now, late) if deadline >= self._slot - 1e-12 else self.stats.begin_extra()
             self.soon = None
             self.cycle(now, slot)
             if deadline >= self._slot - 1e-12:  # (not an extra cycle)

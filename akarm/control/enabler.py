@@ -54,7 +54,7 @@ CONTACT_REPLIES = 2  #: consistent replies in a row that establish contact with 
 LISTEN = 0.02  #: s the loop listens to a bus before the first enable (a controller at 50 Hz or more shows)
 FOREIGN_RECENT = 0.5  #: s: foreign frames this recent refuse an enable
 AT_REST: Final = "at rest"  #: what :meth:`Enabler.step` returns once the arm is at rest: hold it
-#: s from an enable's start during which its cycles may come at the contact period (:meth:`Enabler.hurry`):
+#: s from an enable's first frames during which its cycles may come at the contact period (:meth:`Enabler.hurry`):
 #: contact and settling take about 10 ms there; a joint that answers later is waited for at the loop's own
 #: period (a slow machine's CPU is not spent on more cycles than that)
 CONTACT_BURST = 0.2
@@ -165,9 +165,10 @@ class Enabler:
 
     def hurry(self, now: float) -> float | None:
         """s to the next cycle the enable under way wants (sooner than the loop's period: the contact
-        period, within :data:`CONTACT_BURST` s of its start), or ``None`` (the loop's own)."""
+        period, within :data:`CONTACT_BURST` s of its first frames, or before them), or ``None`` (the
+        loop's own)."""
         en = self._attempt
-        if en is None or self.contact_period is None or now - en.t0 >= CONTACT_BURST:
+        if en is None or self.contact_period is None or (en.entered and now - en.first_sent >= CONTACT_BURST):
             return None
         return self.contact_period
 

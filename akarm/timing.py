@@ -49,10 +49,11 @@ class TimingProfile:
         stall_limit: s the control loop itself may fail to run (this process stopped or starved: load,
             a long garbage collection, SIGSTOP) and resume without a stop; longer stops the arm with
             :class:`~akarm.LoopStall` (see the README's Timing section for why 0.2 s).
-        contact_rate_hz: an enable's contact and settling run at this rate, between the loop's own
-            cycles, when it is above the loop's, for at most :data:`akarm.control.enabler.CONTACT_BURST`
-            s (``None``: at the loop's). The drivers are limp until contact is made and the arm is
-            carried: at 25 Hz that took three cycles, 120 ms, in which an arm carrying weight falls.
+        contact_rate_hz: an enable's contact (and the first cycle carrying the arm) runs at this rate,
+            between the loop's own cycles, when it is above the loop's, for at most
+            :data:`akarm.control.enabler.CONTACT_BURST` s (``None``: at the loop's). The drivers are
+            limp until contact is made and the arm is carried: at 25 Hz that took three cycles, 120 ms,
+            in which an arm carrying weight falls.
     """
 
     name: str

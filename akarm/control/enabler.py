@@ -14,10 +14,11 @@
    until every joint is slower than the settle speed; then the arm is at rest and is held there.
 4. **Ramp** (:class:`GainRamp`): kp rises from zero over the enable ramp once the arm is held.
 
-Contact and settling run at ``contact_period`` (a timing profile's ``contact_rate_hz``) where the loop's
-own period is longer, for at most :data:`CONTACT_BURST` s (:meth:`Enabler.hurry`: extra cycles between
-the loop's): until contact is made the drivers are limp, and an arm carrying weight falls with the
-square of that time. At 25 Hz (the ``slow`` profile) contact took three cycles, 120 ms; at 500 Hz 6 ms.
+Contact, and the first cycle that carries the arm after it, run at ``contact_period`` (a timing profile's
+``contact_rate_hz``) where the loop's own period is longer, for at most :data:`CONTACT_BURST` s
+(:meth:`Enabler.hurry`: extra cycles between the loop's): until contact is made the drivers are limp, and
+an arm carrying weight falls with the square of that time. At 25 Hz (the ``slow`` profile) contact took
+three cycles, 120 ms; at 500 Hz 6 ms.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ LISTEN = 0.02  #: s the loop listens to a bus before the first enable (a control
 FOREIGN_RECENT = 0.5  #: s: foreign frames this recent refuse an enable
 AT_REST: Final = "at rest"  #: what :meth:`Enabler.step` returns once the arm is at rest: hold it
 #: s from an enable's first frames during which its cycles may come at the contact period (:meth:`Enabler.hurry`):
-#: contact and settling take about 10 ms there; a joint that answers later is waited for at the loop's own
+#: contact takes about 6 ms there; a joint that answers later is waited for at the loop's own
 #: period (a slow machine's CPU is not spent on more cycles than that)
 CONTACT_BURST = 0.2
 
@@ -100,7 +101,7 @@ class Enabler:
         lag: s a reading may trail on this machine (the timing profile's).
         at_contact: ``at_contact(now)`` once every joint answered, before anything with gains or
             torque is sent: the error refusing the enable, or ``None`` (the turn check).
-        contact_period: s between the cycles of contact and settling (at most :data:`CONTACT_BURST` s of
+        contact_period: s between the cycles of contact (at most :data:`CONTACT_BURST` s of
             them) where it is shorter than ``period``: the loop runs extra cycles (:meth:`hurry`).
     """
 
@@ -166,9 +167,13 @@ class Enabler:
     def hurry(self, now: float) -> float | None:
         """s to the next cycle the enable under way wants (sooner than the loop's period: the contact
         period, within :data:`CONTACT_BURST` s of its first frames, or before them), or ``None`` (the
-        loop's own)."""
+        loop's own). Contact, and the first cycle after it, which carries the arm: settling goes on at the
+        loop's period (the supervisor's checks count commands, and a watchdog of K commands must not
+        shrink to K contact periods)."""
         en = self._attempt
         if en is None or self.contact_period is None or (en.entered and now - en.first_sent >= CONTACT_BURST):
+            return None
+        if en.settling_since is not None and en.settling_since < now:
             return None
         return self.contact_period
 

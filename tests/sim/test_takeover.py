@@ -37,6 +37,21 @@ def test_an_arm_held_by_a_dead_controller_is_taken_over_where_it_is(robot: str, 
         arm.enable(accept_position=True)
         arm.sleep(0.5)
         sim.clock.detach(watch)
-        # normal: 1.0 mrad (planar2), 6.7 (arm6, in the gain ramp); slow: 0.8 and 9.2 (was 118 and 276)
+        # normal: 1.0 mrad (planar2), 6.7 (arm6, in the gain ramp); slow: 0.8 and 9.8 (was 118 and 276)
         assert worst.max() < 0.012, worst
-        assert np.max(np.abs(arm.state().q_des - before)) < 4e-3  # held where it was (slow arm6: 2.6 mrad)
+        assert np.max(np.abs(arm.state().q_des - before)) < 6e-3  # held where it was (slow arm6: 3.8 mrad)
+
+
+@pytest.mark.parametrize("delay", [0.1, 0.5])
+def test_contact_at_500_hz_is_no_false_stop_when_replies_lag_under_slow(delay: float, channel: str) -> None:
+    """Under slow, replies may trail the commands (a simulator behind on a slow machine): contact at
+    500 Hz sends one frame every 2 ms meanwhile. Settling goes on at 25 Hz, so the watchdog's 25
+    unanswered commands stay the profile's 1 s, never 50 ms; the reply count sees no second motor."""
+    from akarm.sim import faults
+
+    with lockstep_arm("planar2", channel, timing="slow", q0=[0.3, -0.2],
+                      sim_options={"faults": {"elbow": faults.DelayReplies(delay)}}) as (arm, sim):
+        arm.enable()
+        arm.sleep(3.0)                               # three reply windows
+        assert arm.enabled and arm.fault is None
+        assert np.max(np.abs(arm.state().q_des - sim.q)) < 0.01

@@ -58,6 +58,7 @@ from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
+from akarm.control.selfcollision import SelfCollisionGuard
 from akarm.control.turns import WEIGH_TIMEOUT, GravityTurnCheck, PositionMemory, Weighed, Weighing, stays_put
 from akarm.control.walls import WallGuard
 from akarm.dynamics.model import RobotModel
@@ -209,6 +210,10 @@ class Controller:
         self._watch_thresholds = np.zeros(n)
         # the robot file's walls: the tool measured outside them is a safety stop (akarm.control.walls)
         self.walls = WallGuard(model, config.workspace) if config.workspace is not None else None
+        # the links measured touching (the planner keeps them a margin apart): a safety stop
+        sc = options.self_collision
+        self.self_collision = (None if sc is None else
+                               SelfCollisionGuard(sc.copy(margin=0.0), config.rate_hz, sc.margin))
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,
                                 on_crash=self._crashed)
@@ -957,6 +962,9 @@ class Controller:
         walls = self.walls
         if stop is None and walls is not None:
             stop = walls.check(now, fb[0], qd)
+        self_collision = self.self_collision
+        if stop is None and self_collision is not None:
+            stop = self_collision.step(now, fb[0], qd)
         watch = self.watch
         if stop is None and watch is not None and watch.step(fb[0], self.reflex.estimate_list):
             # a guarded move felt its contact: stop (jerk-limited, from this cycle's command) and hold

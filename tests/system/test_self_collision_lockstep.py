@@ -17,7 +17,7 @@ import pytest
 import akarm
 from akarm.config import SelfCollisionConfig
 from akarm.dynamics.selfcollision import SelfCollision
-from akarm.errors import ArgumentError, LimitError
+from akarm.errors import ArgumentError, LimitError, SelfCollisionStop
 
 from ..conftest import ROBOTS, lockstep_arm
 
@@ -78,6 +78,23 @@ def test_servoing_stops_short_of_a_collision(channel: str) -> None:
         assert not arm.self_collision.colliding(sim.q)
         assert reason in ("collision", "joint limit")
         assert arm.fault is None
+
+
+def test_an_arm_pushed_into_itself_is_a_named_safety_stop(channel: str) -> None:
+    # capsules: arm6's housings touch only past the elbow's range; these at 2.43 rad, 10 mm apart at 2.25
+    start = np.array([0.0, 0.3, 2.1, 0.0, 0.0, 0.0])
+    with lockstep_arm(ARM6, channel, q0=start, enable=True, self_collision="capsules") as (arm, sim):
+        arm.set_collision([None] * 6)  # the push is the point here, not a collision
+        arm.set_gains(kp=[20.0] * 6)
+        push = np.zeros(6)
+        push[2] = 12.0  # the elbow folded on, against its command (0.6 rad at kp 20, less its hold)
+        sim.set_external_torque(push)
+        with pytest.raises(SelfCollisionStop, match="link2_0 touching link4_0") as info:
+            arm.sleep(2.0)
+        assert info.value.pair == ("link2_0", "link4_0") and not arm.enabled
+        folded = info.value.q[2]
+        assert 2.42 < folded < 2.5, folded  # at contact (2.43 rad), a check (8 ms) at most later
+        assert arm.self_collision is not None and arm.self_collision.collides(info.value.q)
 
 
 def test_the_robot_file_and_the_arm_turn_it_on_and_off(channel: str) -> None:

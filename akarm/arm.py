@@ -763,7 +763,8 @@ class Arm:
         Raises:
             ArgumentError: not exactly one of ``stiffness`` (6 values) and ``joint_stiffness`` (one per
                 joint), values that are not finite and ≥ 0, a damping ratio or bound that is not > 0.
-            StateError: the arm is not enabled, or a joint is in servo mode (no torque control).
+            StateError: the arm is not enabled, a joint is in servo mode (no torque control), or a guarded
+                move (:meth:`move_until_contact`) runs.
         """
         from akarm.control.impedance import ImpedanceLaw, stiffness_values
 
@@ -785,6 +786,7 @@ class Arm:
                 raise StateError("impedance needs torque control, and this joint is in servo mode",
                                  joint=j.name, fix="drive it in MIT mode (`mode: mit` in the robot file)")
         self._ctl.require_enabled()
+        self._ctl.refuse_during_watch("impedance")  # (before the hold that would stop it; again under the lock)
         self.hold()
         fr = [j.friction_model() for j in self.config.joints]
         on = 1.0 if self._ctl.options.friction_compensated else 0.0
@@ -818,7 +820,8 @@ class Arm:
         Raises:
             ArgumentError: a direction that is not 3 finite numbers (not all 0), a speed, force or distance
                 that is not a finite number > 0 (back_off ≥ 0).
-            StateError: the arm is moving or not enabled. LimitError, UnreachableError, SingularityError:
+            StateError: the arm is moving or not enabled, or under impedance control (:meth:`impedance`).
+                LimitError, UnreachableError, SingularityError:
                 the line is refused before anything moves (as :meth:`move_linear`'s).
         """
         from akarm.control.guard import ContactWatch

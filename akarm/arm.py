@@ -741,7 +741,7 @@ class Arm:
         def start(s: ServoStream) -> Motion:
             return self._start(s.begin, walls=False)
 
-        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model)
+        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model, self._ctl.raise_fault)
 
     def impedance(self, stiffness: Sequence[float] | None = None, damping_ratio: float = 1.0, *,
                   joint_stiffness: Sequence[float] | None = None, max_deviation: tuple[float, float] = (0.1, 0.5),

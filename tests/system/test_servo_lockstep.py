@@ -187,13 +187,12 @@ def test_a_stream_taking_over_late_is_moved_itself_and_still_ends() -> None:
 
 def test_a_stop_inside_the_block_is_raised_when_the_block_ends_normally(channel: str) -> None:
     with lockstep_arm(ARM6, channel, q0=READY, enable=True) as (arm, sim):
-        with pytest.raises(CollisionError):
-            with arm.servo(timeout=0.1) as s:
-                s.twist([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
-                push = np.zeros(6)
-                push[2] = 6.0  # the elbow hit: past its 1.1 N·m threshold
-                sim.set_external_torque(push)
-                arm.clock.sleep_until(arm.clock.now() + 1.0)  # the clock goes on; nothing in the block asks the arm
+        with pytest.raises(CollisionError), arm.servo(timeout=0.1) as s:
+            s.twist([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+            push = np.zeros(6)
+            push[2] = 6.0  # the elbow hit: past its 1.1 N·m threshold
+            sim.set_external_torque(push)
+            arm.clock.sleep_until(arm.clock.now() + 1.0)  # the clock goes on; nothing in the block asks the arm
         assert not arm.enabled and isinstance(arm.fault, CollisionError)
         sim.set_external_torque(None)
         arm.enable()

@@ -1019,7 +1019,8 @@ class Controller:
         ramp = self.ramp
         holding = plan is None and ramp.scale >= 1.0 and weighing is None
         vd = dq_d.tolist()
-        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd)
+        live = plan is not None and plan.duration == math.inf  # servoing: the hold integral's torque kept
+        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd, live)
         self._t_last = t
         self.tau_ff = ff
         t4 = pc()

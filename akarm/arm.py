@@ -48,7 +48,7 @@ from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.dynamics.selfcollision import SelfCollision
+from akarm.dynamics.selfcollision import SelfCollision, self_collision_for
 from akarm.errors import (
     ArgumentError,
     CollisionError,
@@ -100,7 +100,7 @@ def _self_collision(config: RobotConfig, which: object, margin: object) -> SelfC
                                                                          at_least=0.0, unit="m", fix="e.g. 0.01")
     if source == "none":
         return None
-    sc = SelfCollision(config, source, m)
+    sc = self_collision_for(config, source, m)
     if source == "auto" and sc.source == "capsules":
         # capsules guessed from the masses can refuse the moves a real arm makes (or miss what it hits): on
         # request only

@@ -25,7 +25,7 @@ from akarm.config import RobotConfig
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ArgumentError, LimitError
 
-__all__ = ["ALWAYS", "SAMPLES", "SelfCollision", "Source"]
+__all__ = ["ALWAYS", "SAMPLES", "SelfCollision", "Source", "self_collision_for"]
 
 Source = Literal["auto", "collision", "visual", "capsules"]
 #: random poses tried to find the pairs that always touch, and the share of them that makes "always"
@@ -214,3 +214,27 @@ class SelfCollision:
                              f"{f', closer than {self.margin * 1e3:.0f} mm' if self.margin else ''}) {t:.2f} s into "
                              "the move; nothing moved", fix="choose another target or path (move_through waypoints "
                                                             "around it)")
+
+
+#: checks built (the URDF read, the pairs sampled: about 25 ms for arm6), by what they depend on; at most
+#: _MAX_BUILT of them, each handed out as a copy
+_BUILT: dict[tuple[object, ...], SelfCollision] = {}
+_MAX_BUILT = 32
+
+
+def self_collision_for(config: RobotConfig, source: Source = "auto", margin: float = 0.0) -> SelfCollision:
+    """A :class:`SelfCollision` for ``config``: a copy of one built before for the same URDF (and file
+    time), source, margin, joint ranges and locked joints, else a new one (an Arm is made in a few ms)."""
+    try:
+        stamp = config.urdf.stat().st_mtime_ns
+    except OSError:
+        stamp = -1
+    key = (str(config.urdf), stamp, source, float(margin) if isinstance(margin, int | float) else repr(margin),
+           tuple((j.name, j.limits.lower, j.limits.upper) for j in config.joints), tuple(sorted(config.locked.items())))
+    built = _BUILT.get(key)
+    if built is None:
+        built = SelfCollision(config, source, margin)
+        if len(_BUILT) >= _MAX_BUILT:
+            _BUILT.clear()
+        _BUILT[key] = built
+    return built.copy()

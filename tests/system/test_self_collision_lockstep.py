@@ -104,6 +104,8 @@ def test_the_robot_file_and_the_arm_turn_it_on_and_off(channel: str) -> None:
         arm.move_to(FOLDED, speed=0.5)  # nothing checks: it goes
     assert akarm.Arm(ARM6, self_collision=False).self_collision is None
     assert akarm.Arm(ARM6, self_collision_margin=0.02).self_collision.margin == 0.02
+    one, two = akarm.Arm(ARM6).self_collision, akarm.Arm(ARM6).self_collision  # built once, shared read only
+    assert one is not two and one.geom is two.geom and one.margin == two.margin == 0.01
     with pytest.raises(ArgumentError, match="self_collision must be"):
         akarm.Arm(ARM6, self_collision="meshes")
     with pytest.raises(ArgumentError, match="self_collision_margin"):

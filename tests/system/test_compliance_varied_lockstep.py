@@ -29,7 +29,7 @@ V_MAX = np.array([j.limits.velocity for j in ARM6.joints])
 SEEDS = (1, 3)  # 3: every joint's torque constant 0.68-0.91 of the catalogue's, the pan's friction × 2
 #: m: how near its target an identified unit's tool comes back after a push (nominal: 2 mm). Impedance has
 #: no integral: the model's gravity error (masses ± 20 %) and Coulomb friction (not compensated at rest)
-#: hold it off by their force over K (measured 1.5-5.7 mm on seeds 1-4 at K = 500 N/m)
+#: hold it off by their force over K (measured 1.4-5.7 mm on seeds 1-4 at K = 500 N/m)
 BACK = 0.008
 
 

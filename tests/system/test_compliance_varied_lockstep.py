@@ -87,7 +87,7 @@ def test_a_10_newton_push_on_a_varied_unit_identified(channel: str, seed: int) -
     assert abs(wrench[2] + 10.0) <= 3.0
 
 
-@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("seed", SEEDS[1:])  # (one seed: a guarded move takes the longest; 1-4 in the docs)
 def test_a_guarded_move_on_a_varied_unit_identified(channel: str, seed: int) -> None:
     variation = Variation(seed=seed)
     with lockstep_arm(ARM6, channel, q0=READY, enable=True, sim_options={"variation": variation}) as (arm, sim):

@@ -10,6 +10,7 @@ AK80-9 98, AK60-6 80) and the tubes with their clamps; its visuals are thinner (
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,6 +34,8 @@ def test_shapes_come_from_the_urdf_else_capsules_and_neighbours_are_left_out() -
     for name, q in ARM6.poses.items():
         assert not housings.colliding(q), name
     assert not housings.colliding([0.0, 0.3, 2.3, 0.0, 2.0, 0.0])  # the elbow 0.2 rad short of its limit
+    demo = np.loadtxt(Path(akarm.__file__).parent / "data" / "demo_path.csv", delimiter=",", skiprows=1)[:, 1:]
+    assert not any(housings.colliding(q) for q in demo)  # the demo's figure eight
     copy, touching = housings.copy(), housings.copy(margin=0.0)  # another thread's: the shapes shared
     assert copy.pairs == housings.pairs and copy.colliding(FOLDED) == housings.colliding(FOLDED)
     assert not touching.colliding(FOLDED)  # 3.8 mm apart: inside the margin, not touching

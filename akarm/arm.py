@@ -18,6 +18,7 @@ All positions are rad, velocities rad/s, torques N·m, times s, in config joint 
 
 from __future__ import annotations
 
+import logging
 import math
 import numbers
 import re
@@ -47,7 +48,7 @@ from akarm.control.view import ControllerView
 from akarm.dynamics.gravity import GravityPeak
 from akarm.dynamics.ik import IKSolver, as_pose
 from akarm.dynamics.model import RobotModel
-from akarm.dynamics.selfcollision import SelfCollision
+from akarm.dynamics.selfcollision import SelfCollision, self_collision_for
 from akarm.errors import (
     ArgumentError,
     CollisionError,
@@ -81,6 +82,35 @@ def _bounded(items: object, limit: int, what: str, context: str, fix: str) -> No
         return  # not a sequence: the code that reads it says what is wrong
     if n > limit:
         raise ArgumentError(f"{n} {what}: {context} at most {limit} (akarm.motion.bounds)", fix=fix)
+
+
+def _self_collision(config: RobotConfig, which: object, margin: object) -> SelfCollision | None:
+    """The Arm's self-collision check: ``which`` True (the robot file's ``self_collision:``), False (none) or
+    a source of shapes; ``margin`` m, or ``None``: the robot file's."""
+    fix = "self_collision=True (the robot file's), False (off), or 'auto', 'collision', 'visual', 'capsules'"
+    if which is True or (isinstance(which, np.bool_) and bool(which)):
+        source = config.self_collision.shapes
+    elif which is False or isinstance(which, np.bool_):
+        return None
+    elif which in ("auto", "collision", "visual", "capsules"):
+        source = which
+    else:
+        raise ArgumentError(f"self_collision must be True, False or where the shapes come from, got {which!r}", fix=fix)
+    m = config.self_collision.margin if margin is None else finite_number(margin, "self_collision_margin",
+                                                                         at_least=0.0, unit="m", fix="e.g. 0.01")
+    if source == "none":
+        return None
+    sc = self_collision_for(config, source, m)
+    if source == "auto" and sc.source == "capsules":
+        # capsules guessed from the masses can refuse the moves a real arm makes (or miss what it hits): on
+        # request only
+        logging.getLogger(__name__).warning(
+            "self-collision is not checked: the URDF %s has no <collision> or <visual> shapes akarm can read (meshes "
+            "not found?); give it <collision> shapes, or `self_collision: {shapes: capsules}` in the robot file",
+            config.urdf.name)
+        return None
+    return sc
+
 
 FeedForward = FeedForwardKind
 Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
@@ -221,6 +251,14 @@ class Arm:
             are remembered under it, whatever its robot file, buses or channels. Default: keyed by the
             robot file's name, buses, channels and CAN IDs, so that two arms of one robot file (a leader
             and a follower, two identical arms on ``can0`` and ``can1``) never share one memory.
+        self_collision: the links checked against each other (:mod:`akarm.dynamics.selfcollision`): a planned
+            path that makes two of them come closer than the margin is refused (nothing moves), servoing
+            stops short of it, and the supervisor stops an arm measured with two shapes touching
+            (:class:`~akarm.SelfCollisionStop`). ``True`` (default): as the robot file's ``self_collision:``
+            says (on, with the URDF's ``<collision>`` shapes, unless ``shapes: none``); ``False``: off; or
+            where the shapes come from: ``"auto"``, ``"collision"``, ``"visual"``, ``"capsules"``.
+        self_collision_margin: m two shapes keep apart on a planned path or while servoing; ``None``
+            (default): the robot file's (10 mm unless it says otherwise).
 
     While it is open, an Arm makes SIGTERM and SIGHUP (where their action is the default) raise
     :class:`akarm.signals.Terminated`, a :class:`KeyboardInterrupt`, so that ``with arm:`` unwinds
@@ -239,8 +277,8 @@ class Arm:
                  range_margin: float = 0.05, implausible_limit: int = 3,
                  timing: str | TimingProfile | None = None, collision_reaction: Reaction = "disable",
                  collision_gain: float = DEFAULT_GAIN,
-                 remember_positions: bool | str | PathLike[str] = True, self_collision: str | None = None,
-                 self_collision_margin: float = 0.0, arm_id: str | None = None) -> None:
+                 remember_positions: bool | str | PathLike[str] = True, self_collision: bool | str = True,
+                 self_collision_margin: float | None = None, arm_id: str | None = None) -> None:
         for name, flag in (("realtime_priority", realtime_priority), ("friction_feedforward", friction_feedforward),
                            ("busy_wait", busy_wait)):
             if not isinstance(flag, bool | np.bool_):
@@ -273,7 +311,8 @@ class Arm:
             stop_damping_time=stop_damping_time, settle_speed=settle_speed, settle_timeout=settle_timeout,
             implausible_limit=implausible_limit, telemetry_seconds=telemetry_seconds, can_log=can_log,
             realtime_priority=realtime_priority, loop_cpu=loop_cpu,
-            collision_reaction=collision_reaction, collision_gain=collision_gain, position_file=position_file)
+            collision_reaction=collision_reaction, collision_gain=collision_gain, position_file=position_file,
+            self_collision=_self_collision(config, self_collision, self_collision_margin))
         config = self.timing.apply(config)
         self.config = config
         self.clock: Clock = clock if clock is not None else RealClock(busy=busy_wait)
@@ -288,9 +327,8 @@ class Arm:
             np.array([x.jerk for x in lim]))
         self.planner = Planner(self.limits, range_margin, outer=(self.model.lower, self.model.upper))
         self._ik_solver: IKSolver | None = None
-        self.self_collision: SelfCollision | None = None
-        if self_collision is not None:
-            self.self_collision = SelfCollision(config, self_collision, self_collision_margin)  # type: ignore[arg-type]
+        #: the self-collision check (the planner's; ``None``: off), :mod:`akarm.dynamics.selfcollision`
+        self.self_collision: SelfCollision | None = options.self_collision
         self._ctl = Controller(config, self.model, self.planner, self.clock, options)
         self.joints: list[Joint] = self._ctl.joints
         self._observe = ControllerView(self._ctl)
@@ -698,12 +736,12 @@ class Arm:
         sc = self.self_collision
         stream = ServoStream(RobotModel(self.config), self.limits, self.config.workspace, 1.0 / self.config.rate_hz,
                              timeout, "tool" if frame == "tool" else "base", max_speed, max_rotation,
-                             None if sc is None else SelfCollision(self.config, sc.source, sc.margin))  # type: ignore[arg-type]
+                             None if sc is None else sc.copy())
 
         def start(s: ServoStream) -> Motion:
             return self._start(s.begin, walls=False)
 
-        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model)
+        return Servo(stream, start, self._ctl.plan_now, self._ctl.require_enabled, self.ik.model, self._ctl.raise_fault)
 
     def impedance(self, stiffness: Sequence[float] | None = None, damping_ratio: float = 1.0, *,
                   joint_stiffness: Sequence[float] | None = None, max_deviation: tuple[float, float] = (0.1, 0.5),
@@ -725,7 +763,8 @@ class Arm:
         Raises:
             ArgumentError: not exactly one of ``stiffness`` (6 values) and ``joint_stiffness`` (one per
                 joint), values that are not finite and ≥ 0, a damping ratio or bound that is not > 0.
-            StateError: the arm is not enabled, or a joint is in servo mode (no torque control).
+            StateError: the arm is not enabled, a joint is in servo mode (no torque control), or a guarded
+                move (:meth:`move_until_contact`) runs.
         """
         from akarm.control.impedance import ImpedanceLaw, stiffness_values
 
@@ -747,6 +786,7 @@ class Arm:
                 raise StateError("impedance needs torque control, and this joint is in servo mode",
                                  joint=j.name, fix="drive it in MIT mode (`mode: mit` in the robot file)")
         self._ctl.require_enabled()
+        self._ctl.refuse_during_watch("impedance")  # (before the hold that would stop it; again under the lock)
         self.hold()
         fr = [j.friction_model() for j in self.config.joints]
         on = 1.0 if self._ctl.options.friction_compensated else 0.0
@@ -780,7 +820,8 @@ class Arm:
         Raises:
             ArgumentError: a direction that is not 3 finite numbers (not all 0), a speed, force or distance
                 that is not a finite number > 0 (back_off ≥ 0).
-            StateError: the arm is moving or not enabled. LimitError, UnreachableError, SingularityError:
+            StateError: the arm is moving or not enabled, or under impedance control (:meth:`impedance`).
+                LimitError, UnreachableError, SingularityError:
                 the line is refused before anything moves (as :meth:`move_linear`'s).
         """
         from akarm.control.guard import ContactWatch

@@ -81,6 +81,7 @@ __all__ = [
     "ProtocolError",
     "RecordingError",
     "SafetyStop",
+    "SelfCollisionStop",
     "SingularityError",
     "StaleFeedback",
     "StateError",
@@ -556,6 +557,24 @@ class WorkspaceExit(SafetyStop):
         self.distance = distance
         self.margin = margin
         self.position = position
+        super().__init__(what, joint=joint, fix=fix)
+
+
+class SelfCollisionStop(SafetyStop):
+    """Two of the arm's links were measured touching (their shapes from the URDF, as the planner checks them,
+    :mod:`akarm.dynamics.selfcollision`) while its command kept them apart by the robot file's
+    ``self_collision: {margin: ...}``: the arm was pushed into itself, or lags far behind its command; the
+    arm was damped and disabled.
+
+    Attributes:
+        pair: the two shapes that touched (``link_k`` names). q: the measured joint positions then (rad,
+            config order).
+    """
+
+    def __init__(self, what: str, *, pair: tuple[str, str], q: tuple[float, ...], joint: str | None = None,
+                 fix: str = "") -> None:
+        self.pair = pair
+        self.q = q
         super().__init__(what, joint=joint, fix=fix)
 
 

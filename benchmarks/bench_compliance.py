@@ -3,8 +3,9 @@
     .venv/bin/python benchmarks/bench_compliance.py [--cycles N]
 
 Cost: the per-cycle work alone, on this thread (no loop, no bus): a ServoStream stepping a +z twist from
-`ready` (plain; inside a workspace box; with capsule self-collision), and an ImpedanceLaw from measured
-states along a push. Then the whole control cycle in lock step (compute per cycle, the loop's own
+`ready` (plain; inside a workspace box; with self-collision), and an ImpedanceLaw from measured
+states along a push. Self-collision: the supervisor's check of a measured pose, and the planner's
+check of a planned move's path. Then the whole control cycle in lock step (compute per cycle, the loop's own
 stage times) holding, servoing, and under impedance.
 
 Latency: commands given at random moments between cycles in lock step; the time from the command to
@@ -46,7 +47,7 @@ def stream_cost(cycles: int) -> None:
     top = RobotModel(ARM6).tool_pose(READY)[2, 3] + 0.5
     for label, walls, sc in (("servo step", None, None),
                              ("servo step, workspace box", Workspace.box([-1, -1, -0.5], [1, 1, top]), None),
-                             ("servo step, self-collision", None, SelfCollision(ARM6, "capsules"))):
+                             ("servo step, self-collision", None, SelfCollision(ARM6, margin=0.01))):
         s = ServoStream(RobotModel(ARM6), arm.limits, walls, 1 / 480, 0.1, "base", 0.25, 1.0, sc)
         s.begin((READY, np.zeros(6), np.zeros(6)), 0.0)
         times = []
@@ -68,6 +69,42 @@ def stream_cost(cycles: int) -> None:
         law.step(k / 480, q.tolist(), rng.normal(0.0, 0.05, 6).tolist())
         times.append(time.perf_counter() - t0)
     print(f"  {'impedance step (Cartesian)':<28} {us(times)}")
+
+
+def self_collision_cost(cycles: int) -> None:
+    """The supervisor's check of a measured pose (a check every 4th cycle at 480 Hz) and the planner's check of
+    a planned move's path (every 10 ms of it)."""
+    from akarm.control.selfcollision import SelfCollisionGuard
+    from akarm.motion.trajectory import JointLimits, Planner
+    from akarm.motion.walls import path_samples
+
+    sc = SelfCollision(ARM6, margin=0.01)
+    guard = SelfCollisionGuard(sc.copy(margin=0.0), ARM6.rate_hz, sc.margin)
+    rng = np.random.default_rng(7)
+    times, per_cycle = [], []
+    for k in range(cycles):
+        q = (READY + rng.normal(0.0, 0.01, 6)).tolist()
+        t0 = time.perf_counter()
+        guard.check.collides(q)
+        times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        guard.step(k / 480, q, q)
+        per_cycle.append(time.perf_counter() - t0)
+    print(f"  {'supervisor: one check':<28} {us(times)} ({len(sc.pairs)} pairs)")
+    print(f"  {'supervisor: per cycle':<28} mean {np.mean(per_cycle) * 1e6:6.1f} µs (a check every {guard.every})")
+    lim = [j.limits for j in ARM6.joints]
+    planner = Planner(JointLimits(ARM6.joint_names, np.array([x.lower for x in lim]), np.array([x.upper for x in lim]),
+                                  np.array([x.velocity for x in lim]), np.array([x.acceleration for x in lim]),
+                                  np.array([x.jerk for x in lim])), 0.05)
+    zero = np.zeros(6)
+    for a, b in (("ready", "home"), ("home", "reach"), ("ready", "left")):
+        plan = planner.move_from((np.array(ARM6.pose(a)), zero, zero), np.array(ARM6.pose(b)), 0.0, 1.0)
+        t0 = time.perf_counter()
+        samples = path_samples(plan)
+        sc.check_path(samples, False)
+        dt = time.perf_counter() - t0
+        print(f"  {'planned move ' + a + ' → ' + b:<28} {dt * 1e3:6.2f} ms for {plan.duration:.2f} s of path "
+              f"({len(samples)} samples, {dt / len(samples) * 1e6:.0f} µs each)")
 
 
 def cycle_cost(seconds: float) -> None:
@@ -122,6 +159,8 @@ def main() -> None:
     args = parser.parse_args()
     print("per-cycle work alone:")
     stream_cost(args.cycles)
+    print("self-collision (arm6's <collision> shapes, margin 10 mm):")
+    self_collision_cost(args.cycles)
     print("the whole control cycle, lock step:")
     cycle_cost(3.0)
     print("servo latency, lock step:")

@@ -25,6 +25,7 @@ from akarm.config.types import (
     Mode,
     Payload,
     RobotConfig,
+    SelfCollisionConfig,
     parse_channel,
 )
 
@@ -42,5 +43,6 @@ __all__ = [
     "Mode",
     "Payload",
     "RobotConfig",
+    "SelfCollisionConfig",
     "parse_channel",
 ]

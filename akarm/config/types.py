@@ -30,6 +30,7 @@ __all__ = [
     "Limits",
     "Payload",
     "RobotConfig",
+    "SelfCollisionConfig",
     "parse_channel",
 ]
 
@@ -118,6 +119,16 @@ class Friction:
     #: N·m the joint gets per N·m the motor reports (a real unit's torque constant and gearbox; 1: the
     #: catalogue's); the feed-forward asks for the model's torque over it, the observer counts it in
     torque_scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class SelfCollisionConfig:
+    """The robot file's ``self_collision:``: where the links' shapes come from (``"auto"``: the URDF's
+    ``<collision>``, else its ``<visual>``, else capsules; ``"none"``: no check) and the margin (m) the
+    planner and servoing keep between two shapes (:mod:`akarm.dynamics.selfcollision`)."""
+
+    shapes: Literal["auto", "collision", "visual", "capsules", "none"] = "auto"
+    margin: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -383,6 +394,8 @@ class RobotConfig:
             ``joints``: every joint vector of the arm leaves it out.
         workspace: the walls the tool frame's origin stays within (``workspace:``;
             :class:`~akarm.config.workspace.Workspace`), or ``None``: no walls.
+        self_collision: the links' self-collision check (``self_collision:``; :class:`SelfCollisionConfig`):
+            on by default.
     """
 
     name: str
@@ -400,6 +413,7 @@ class RobotConfig:
     warnings: tuple[ConfigProblem, ...] = ()
     gripper: GripperConfig | None = None
     workspace: Workspace | None = None
+    self_collision: SelfCollisionConfig = field(default_factory=SelfCollisionConfig)
 
     @property
     def motors(self) -> tuple[JointConfig, ...]:

@@ -58,6 +58,7 @@ from akarm.control.modes import Mode, ModeMachine
 from akarm.control.motions import Motion, Motions, PathRecorder, State
 from akarm.control.options import ControllerOptions
 from akarm.control.safety import Guard, Supervisor, default_following_error, default_stuck_travel
+from akarm.control.selfcollision import SelfCollisionGuard
 from akarm.control.turns import WEIGH_TIMEOUT, GravityTurnCheck, PositionMemory, Weighed, Weighing, stays_put
 from akarm.control.walls import WallGuard
 from akarm.dynamics.model import RobotModel
@@ -209,12 +210,19 @@ class Controller:
         self.reflex = self._make_reflex()
         # a torque law (impedance, akarm.control.impedance): its torque each cycle, kp = 0 meanwhile
         self.law: ImpedanceLaw | None = None
-        self._saved_gains = (self._kp.copy(), self._kd.copy(), np.zeros(n))  # (kp, kd, thresholds) before it
-        # a guarded move's contact watch (akarm.control.guard), the collision thresholds it suspended
+        self._saved_gains = (self._kp.copy(), self._kd.copy())  # (kp, kd) before it
+        # a guarded move's contact watch (akarm.control.guard)
         self.watch: ContactWatch | None = None
-        self._watch_thresholds = np.zeros(n)
+        # the collision thresholds in force, suspended (the reflex only watches) while a torque law or a watch
+        # runs: how many of them suspend them (one at a time: each refuses the other), and what they are
+        self._suspended = 0
+        self._held_thresholds = np.zeros(n)
         # the robot file's walls: the tool measured outside them is a safety stop (akarm.control.walls)
         self.walls = WallGuard(model, config.workspace) if config.workspace is not None else None
+        # the links measured touching (the planner keeps them a margin apart): a safety stop
+        sc = options.self_collision
+        self.self_collision = (None if sc is None else
+                               SelfCollisionGuard(sc.copy(margin=0.0), config.rate_hz, sc.margin))
         self.loop = ControlLoop(config.rate_hz, clock, self.cycle, stages=STAGES,
                                 realtime_priority=options.realtime_priority, cpu=options.loop_cpu,
                                 on_crash=self._crashed)
@@ -712,8 +720,10 @@ class Controller:
     # -- the collision reflex ----------------------------------------------------------------------
     @property
     def collision_thresholds(self) -> list[float | None]:
-        """N·m per joint, ``None`` where a joint is not checked."""
-        return [None if math.isinf(x) else float(x) for x in self.reflex.thresholds]
+        """N·m per joint, ``None`` where a joint is not checked (those set, also while impedance or a guarded
+        move suspends them)."""
+        held = self._held_thresholds if self._suspended else self.reflex.thresholds
+        return [None if math.isinf(x) else float(x) for x in held]
 
     @property
     def collision_reaction(self) -> str:
@@ -744,11 +754,28 @@ class Controller:
             return self.reflex.estimate.copy()
 
     def set_collision(self, thresholds: Sequence[float | None] | None, reaction: str | None) -> None:
+        """New thresholds (N·m; while they are suspended, those in force once they are back) and reaction."""
         with self.lock:
             if thresholds is not None:
-                self.reflex.set_thresholds(thresholds)
+                self.reflex.set_thresholds(thresholds)  # (checks them)
+                if self._suspended:
+                    self._held_thresholds = self.reflex.thresholds.copy()
+                    self.reflex.set_thresholds([None] * self.n)
             if reaction is not None:
                 self.reflex.set_reaction(reaction)
+
+    def _suspend_thresholds(self) -> None:
+        """(Under the lock) The reflex only watches until :meth:`_resume_thresholds` (counted)."""
+        if self._suspended == 0:
+            self._held_thresholds = self.reflex.thresholds.copy()
+            self.reflex.set_thresholds([None] * self.n)
+        self._suspended += 1
+
+    def _resume_thresholds(self) -> None:
+        """(Under the lock) One suspension less; at none, the thresholds in force (set meanwhile or before) again."""
+        self._suspended = max(0, self._suspended - 1)
+        if self._suspended == 0:
+            self.reflex.set_thresholds([None if math.isinf(x) else float(x) for x in self._held_thresholds.tolist()])
 
     # -- guarded moves: a contact watch ------------------------------------------------------------
     def begin_watch(self, watch: ContactWatch) -> None:
@@ -756,10 +783,20 @@ class Controller:
         meanwhile (the contact is expected: the watch stops the arm instead)."""
         with self.lock:
             self._require_active()
-            if self.watch is None:
-                self._watch_thresholds = self.reflex.thresholds.copy()
-                self.reflex.set_thresholds([None] * self.n)
+            if self.law is not None:
+                raise StateError("a guarded move needs position control, and the arm is under impedance control",
+                                 fix="leave the impedance block first (or push against the impedance's target "
+                                     "with set_target and read imp.wrench())")
+            if self.watch is not None:
+                raise StateError("a guarded move is already running", fix="one guarded move at a time")
+            self._suspend_thresholds()
             self.watch = watch
+
+    def refuse_during_watch(self, what: str) -> None:
+        """A :class:`~akarm.StateError` while a guarded move runs (``what`` would take the arm from it)."""
+        if self.watch is not None:
+            raise StateError(f"{what} is refused while a guarded move (move_until_contact) runs",
+                             fix="wait for move_until_contact to return")
 
     def end_watch(self) -> None:
         """(Any thread; under the lock) No contact watch: the collision thresholds are back."""
@@ -767,8 +804,7 @@ class Controller:
             if self.watch is None:
                 return
             self.watch = None
-            self.reflex.set_thresholds([None if math.isinf(x) else float(x)
-                                        for x in self._watch_thresholds.tolist()])
+            self._resume_thresholds()
 
     # -- impedance: a torque law -------------------------------------------------------------------
     def begin_torque_law(self, law: ImpedanceLaw, kd: Sequence[float]) -> None:
@@ -778,12 +814,13 @@ class Controller:
             self._require_active()
             if self.law is not None:
                 raise StateError("the arm is already under impedance control", fix="one impedance block at a time")
-            self._saved_gains = (self._kp.copy(), self._kd.copy(), self.reflex.thresholds.copy())
+            self.refuse_during_watch("impedance")
+            self._saved_gains = (self._kp.copy(), self._kd.copy())
             self.motions.hold_at(np.array([j.state.position for j in self.joints]))
             self._kp[:] = 0.0
             self._kd[:] = np.asarray(kd, dtype=float)
             self._gains_changed()
-            self.reflex.set_thresholds([None] * self.n)
+            self._suspend_thresholds()
             self.ff.extra = [0.0] * self.n
             self.law = law
 
@@ -792,11 +829,11 @@ class Controller:
         if self.law is None:
             return
         self.law = None
-        kp, kd, thresholds = self._saved_gains
+        kp, kd = self._saved_gains
         self.ff.extra = [0.0] * self.n
         self._kp[:], self._kd[:] = kp, kd
         self._gains_changed()
-        self.reflex.set_thresholds([None if math.isinf(x) else float(x) for x in thresholds.tolist()])
+        self._resume_thresholds()
 
     def end_torque_law(self) -> None:
         """Back to position control: hold the measured pose, the gains in force before ramping up from zero."""
@@ -971,6 +1008,9 @@ class Controller:
         walls = self.walls
         if stop is None and walls is not None:
             stop = walls.check(now, fb[0], qd)
+        self_collision = self.self_collision
+        if stop is None and self_collision is not None:
+            stop = self_collision.step(now, fb[0], qd)
         watch = self.watch
         if stop is None and watch is not None and watch.step(fb[0], self.reflex.estimate_list):
             # a guarded move felt its contact: stop (jerk-limited, from this cycle's command) and hold
@@ -993,7 +1033,8 @@ class Controller:
         ramp = self.ramp
         holding = plan is None and ramp.scale >= 1.0 and weighing is None
         vd = dq_d.tolist()
-        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd)
+        live = plan is not None and plan.duration == math.inf  # servoing: the hold integral's torque kept
+        ff = self.ff.torques(q_d, dq_d, ddq_d, q_meas, holding, t - self._t_last, qd, vd, live)
         self._t_last = t
         self.tau_ff = ff
         t4 = pc()

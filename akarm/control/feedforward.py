@@ -54,7 +54,7 @@ class FeedForward:
         self._hold_integral = hold_integral
         self._integrating = list(integrating)
         self._integral = [0.0] * self.n  # ∫(q_des - q) dt while holding, rad·s
-        self.extra = [0.0] * self.n  # user torque, N·m
+        self.extra = [0.0] * self.n  # user torque (or a torque law's), N·m at the joint
         self.set_gains([0.0] * self.n)
 
     def set_friction(self, coulomb: Sequence[float], viscous: Sequence[float],
@@ -90,10 +90,13 @@ class FeedForward:
         return np.clip(tau, -self._lim_array, self._lim_array)
 
     def torques(self, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, q_meas: Sequence[float], holding: bool,
-                dt: float, qd: list[float] | None = None, vd: list[float] | None = None) -> list[float]:
+                dt: float, qd: list[float] | None = None, vd: list[float] | None = None,
+                keep: bool = False) -> list[float]:
         """Feed-forward torque per joint (N·m) for the desired state and the measured positions.
 
-        ``holding``: the arm holds still at ``q_d`` (the hold integral runs; otherwise it is reset).
+        ``holding``: the arm holds still at ``q_d`` (the hold integral runs; otherwise it is reset, unless
+        ``keep``: servoing, a slow live motion about where the arm held, goes on with the torque the integral
+        found, frozen: what the model misses there, a unit's masses or torque constant, stays made up for).
         ``dt``: s since the last call (for the integral). ``qd``, ``vd``: ``q_d`` and ``dq_d`` as lists
         of floats where the caller has them already (the loop: each numpy call costs it a few µs cold).
         """
@@ -119,13 +122,17 @@ class FeedForward:
             v = vd[i]
             mt = model_tau[i]
             th = tanh(v * _INV_FRICTION_SMOOTHING)
-            t = (mt + (c[i] + load[i] * abs(mt)) * th + b[i] * v) * inv[i] + ex[i]
+            # (all of it N·m the joint should get: asked of the motor over its torque scale, the user's and a
+            # torque law's too, or a unit whose torque constant is 0.7 of the catalogue's is 0.7 as stiff)
+            t = (mt + (c[i] + load[i] * abs(mt)) * th + b[i] * v + ex[i]) * inv[i]
             if holding:
                 if ki[i] > 0.0:
                     ti = ki[i] * (integ[i] + (qd[i] - q_meas[i]) * dt)
                     ti = imax[i] if ti > imax[i] else -imax[i] if ti < -imax[i] else ti
                     integ[i] = ti / ki[i]
                     t += ti
+            elif keep:
+                t += ki[i] * integ[i]  # (frozen; within its clamp: it was clamped as it grew)
             else:
                 integ[i] = 0.0
             out[i] = lim[i] if t > lim[i] else -lim[i] if t < -lim[i] else t

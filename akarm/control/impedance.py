@@ -250,12 +250,15 @@ class _Controller(Protocol):
 
     def require_enabled(self) -> None: ...
 
+    def raise_fault(self) -> None: ...
+
 
 class Impedance:
     """The handle of ``arm.impedance(...)``: ``with arm.impedance(stiffness=[...]) as imp:`` makes the arm
     soft about its pose (or its joint positions) until the block ends, when it holds where it is, stiff
     again (the gains ramping up from zero). A handle serves one block: before it, after it, or after a stop
-    ended it, its commands are refused (:class:`~akarm.StateError`), as is a second block.
+    ended it, its commands are refused (:class:`~akarm.StateError`), as is a second block. A safety stop
+    that ended the block is raised by the next command, or by the block's end if nothing else did.
 
     Args (from :meth:`akarm.Arm.impedance`): the controller, the law, each joint's damping (kd) meanwhile,
     a model for the caller's thread, and how joint positions are read; the joint limits and the robot
@@ -287,6 +290,8 @@ class Impedance:
 
     def __exit__(self, *exc: object) -> None:
         self._ctl.end_torque_law()
+        if exc[0] is None:
+            self._ctl.raise_fault()  # a stop that ended the block (an exception leaving it goes on unchanged)
 
     def _require_in_block(self) -> None:
         """The arm's safety stop, if it stopped; else a StateError unless this handle's block is in force."""

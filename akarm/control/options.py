@@ -11,11 +11,15 @@ import math
 import os
 from dataclasses import dataclass, field
 from os import PathLike
+from typing import TYPE_CHECKING
 
 from akarm.control.collision import DEFAULT_GAIN, Reaction
 from akarm.control.feedforward import FeedForwardKind
 from akarm.errors import ArgumentError
 from akarm.timing import TimingProfile, get_profile
+
+if TYPE_CHECKING:
+    from akarm.dynamics.selfcollision import SelfCollision
 
 __all__ = ["MAX_PHASE", "ControllerOptions"]
 
@@ -35,6 +39,8 @@ class ControllerOptions:
     ``stall_limit`` ``None`` takes the timing profile's; :attr:`loop_stall_limit` is the one in force.
     ``position_file``: the state file where the joints' positions are remembered when the arm stops
     and compared at the next enable (:mod:`akarm.control.turns`); ``None``: nothing is remembered.
+    ``self_collision``: the planner's self-collision check; the supervisor checks the measured pose with a
+    copy of its own (:mod:`akarm.control.selfcollision`); ``None``: no check.
 
     Raises:
         ArgumentError: a value of the wrong kind or out of its range (names it).
@@ -58,6 +64,7 @@ class ControllerOptions:
     collision_reaction: Reaction = "disable"
     collision_gain: float = DEFAULT_GAIN
     position_file: str | PathLike[str] | None = None
+    self_collision: SelfCollision | None = None
 
     def __post_init__(self) -> None:
         if self.feedforward not in ("full", "gravity", "none"):

@@ -7,8 +7,9 @@ shapes on one link, on neighbouring links (a joint between them), and pairs that
 every pose (:data:`ALWAYS` of :data:`SAMPLES` random poses within the ranges). Two shapes count as
 colliding closer than ``margin`` (m).
 
-:class:`SelfCollision` is used on one thread (each caller builds its own): the planner checks a
-path's samples (:meth:`SelfCollision.check_path`), servoing the pose a step ahead.
+:class:`SelfCollision` is used on one thread (each caller its own, :meth:`SelfCollision.copy` shares the
+shapes): the planner checks a path's samples (:meth:`SelfCollision.check_path`), servoing the pose a
+step ahead, the supervisor the measured pose (:mod:`akarm.control.selfcollision`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from akarm.config import RobotConfig
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ArgumentError, LimitError
 
-__all__ = ["ALWAYS", "SAMPLES", "SelfCollision", "Source"]
+__all__ = ["ALWAYS", "SAMPLES", "SelfCollision", "Source", "self_collision_for"]
 
 Source = Literal["auto", "collision", "visual", "capsules"]
 #: random poses tried to find the pairs that always touch, and the share of them that makes "always"
@@ -76,13 +77,24 @@ class SelfCollision:
         source: the source used. pairs: the pairs checked, as (shape, shape) names.
     """
 
-    def __init__(self, config: RobotConfig, source: Source = "auto", margin: float = 0.0) -> None:
+    def __init__(self, config: RobotConfig, source: Source = "auto", margin: float = 0.0, *,
+                 like: SelfCollision | None = None) -> None:
         if source not in ("auto", "collision", "visual", "capsules"):
             raise ArgumentError(f"self-collision shapes come from 'auto', 'collision', 'visual' or 'capsules', "
                                 f"not {source!r}", fix="e.g. self_collision='auto'")
         if not (isinstance(margin, int | float) and math.isfinite(margin) and margin >= 0.0):
             raise ArgumentError(f"the self-collision margin must be a finite number of m ≥ 0, got {margin!r}",
                                 fix="e.g. 0.01")
+        self.margin = float(margin)
+        self.model: RobotModel
+        self.source: str
+        self.geom: pin.GeometryModel
+        self.pairs: list[tuple[str, str]]
+        if like is not None:  # a copy (copy()): its shapes and pairs, data of its own
+            self.model, self.source, self.geom, self.pairs = like.model, like.source, like.geom, like.pairs
+            self._data = self.model.pin_model.createData()
+            self._new_geometry_data()
+            return
         self.model = RobotModel(config)
         pm = self.model.pin_model
         geom = None
@@ -103,16 +115,19 @@ class SelfCollision:
             geom = _capsules(pm)
         self.source = used
         self.geom = geom
-        self.margin = float(margin)
         geom.addAllCollisionPairs()
         self._data = pm.createData()
         self._leave_out_neighbours()
-        self._gdata = pin.GeometryData(geom)
-        for req in self._gdata.collisionRequests:
-            req.security_margin = self.margin
+        self._new_geometry_data()
         self._leave_out_always(config)
         self.pairs = [(geom.geometryObjects[p.first].name, geom.geometryObjects[p.second].name)
                       for p in geom.collisionPairs]
+
+    def copy(self, margin: float | None = None) -> SelfCollision:
+        """The same check for another thread (the shapes and pairs shared, read only), with its own
+        ``margin`` (m) if given."""
+        source: Source = self.source  # type: ignore[assignment]
+        return SelfCollision(self.model.config, source, self.margin if margin is None else margin, like=self)
 
     def _from_urdf(self, config: RobotConfig, gtype: pin.GeometryType) -> pin.GeometryModel:
         """The URDF's shapes on the (reduced) model: built on the full model, then reduced alike."""
@@ -160,9 +175,12 @@ class SelfCollision:
             geom.removeAllCollisionPairs()
             for p in keep:
                 geom.addCollisionPair(p)
-            self._gdata = pin.GeometryData(geom)
-            for req in self._gdata.collisionRequests:
-                req.security_margin = self.margin
+            self._new_geometry_data()
+
+    def _new_geometry_data(self) -> None:
+        self._gdata = pin.GeometryData(self.geom)
+        for req in self._gdata.collisionRequests:
+            req.security_margin = self.margin
 
     def _compute(self, q: Sequence[float] | np.ndarray) -> bool:
         return bool(pin.computeCollisions(self.model.pin_model, self._data, self.geom, self._gdata,
@@ -196,3 +214,27 @@ class SelfCollision:
                              f"{f', closer than {self.margin * 1e3:.0f} mm' if self.margin else ''}) {t:.2f} s into "
                              "the move; nothing moved", fix="choose another target or path (move_through waypoints "
                                                             "around it)")
+
+
+#: checks built (the URDF read, the pairs sampled: about 25 ms for arm6), by what they depend on; at most
+#: _MAX_BUILT of them, each handed out as a copy
+_BUILT: dict[tuple[object, ...], SelfCollision] = {}
+_MAX_BUILT = 32
+
+
+def self_collision_for(config: RobotConfig, source: Source = "auto", margin: float = 0.0) -> SelfCollision:
+    """A :class:`SelfCollision` for ``config``: a copy of one built before for the same URDF (and file
+    time), source, margin, joint ranges and locked joints, else a new one (an Arm is made in a few ms)."""
+    try:
+        stamp = config.urdf.stat().st_mtime_ns
+    except OSError:
+        stamp = -1
+    key = (str(config.urdf), stamp, source, float(margin) if isinstance(margin, int | float) else repr(margin),
+           tuple((j.name, j.limits.lower, j.limits.upper) for j in config.joints), tuple(sorted(config.locked.items())))
+    built = _BUILT.get(key)
+    if built is None:
+        built = SelfCollision(config, source, margin)
+        if len(_BUILT) >= _MAX_BUILT:
+            _BUILT.clear()
+        _BUILT[key] = built
+    return built.copy()

@@ -370,17 +370,23 @@ class Servo:
     :meth:`twist` or :meth:`pose` commands at any rate; leaving the block brings the arm to rest,
     jerk-limited, and it holds there.
 
+    A safety stop during the block ends servoing; the next command raises it, and so does the block's end
+    if nothing else did (an exception leaving the block goes on unchanged).
+
     Args (from :meth:`akarm.Arm.servo`): the stream, and the arm's ways to start it, to read its plan
-    time, to raise its safety stop, to start a stop.
+    time, to raise its safety stop unless it is enabled (``check``), to raise its safety stop if it
+    stopped (``raise_stop``).
     """
 
     def __init__(self, stream: ServoStream, start: Callable[[ServoStream], _Motion], now: Callable[[], float],
-                 check: Callable[[], None], caller_model: RobotModel) -> None:
+                 check: Callable[[], None], caller_model: RobotModel,
+                 raise_stop: Callable[[], None] | None = None) -> None:
         self.stream = stream
         self._start = start
         self._now = now
         self._check = check
         self._model = caller_model
+        self._raise_stop = raise_stop
         self.motion: _Motion | None = None
 
     def __enter__(self) -> Servo:
@@ -390,10 +396,12 @@ class Servo:
     def __exit__(self, *exc: object) -> None:
         self.stream.finish()
         motion = self.motion
-        if motion is None or motion.done:
+        if exc[0] is not None or motion is None:
             return
-        if exc[0] is None:
+        if not motion.done:
             motion.wait(timeout=5.0)  # (a stop in the meantime raises here)
+        elif self._raise_stop is not None:
+            self._raise_stop()  # a stop that ended servoing in the block: raised here, as promised
 
     def _live(self) -> None:
         self._check()  # the arm's safety stop, if it stopped

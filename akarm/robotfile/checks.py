@@ -29,6 +29,7 @@ from akarm.config import (
     Limits,
     Payload,
     RobotConfig,
+    SelfCollisionConfig,
 )
 from akarm.config.busload import LOAD_LIMIT, load_of
 from akarm.config.canconfig import resolve_bus
@@ -221,6 +222,14 @@ def payload(item: Item | None) -> Payload | None:
         return None
     com = given.value("com", PAYLOAD["com"].default)
     return Payload(given.value("mass"), (com[0], com[1], com[2]))
+
+
+def self_collision(item: Item | None) -> SelfCollisionConfig:
+    """The self-collision check's settings (its defaults when ``self_collision:`` is not given)."""
+    given = _usable(item)
+    if given is None:
+        return SelfCollisionConfig()
+    return SelfCollisionConfig(given.value("shapes", "auto"), float(given.value("margin", 0.01)))
 
 
 # --------------------------------------------------------------------------- joints

@@ -117,7 +117,8 @@ def _load(path: Path, found: Findings, rate_override: float | None, cat: Catalog
     config = RobotConfig(name=top.value("name", path.stem), urdf=urdf_path, buses=buses, joints=tuple(configs),
                          rate_hz=rate_hz, source=path, tool_frame=tool_frame, gravity=(g[0], g[1], g[2]),
                          payload=checks.payload(top.get("payload")), poses=poses, catalogue=cat, locked=locked,
-                         gripper=gripper, workspace=walls)
+                         gripper=gripper, workspace=walls,
+                         self_collision=checks.self_collision(top.get("self_collision")))
     checks.gravity(found, config, top.get("urdf"), joints.torque_lines)
     found.raise_if_any()
     return replace(config, warnings=tuple(found.sorted(found.warnings)))

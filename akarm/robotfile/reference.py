@@ -18,6 +18,7 @@ from akarm.robotfile.schema import (
     LIMITS,
     PAYLOAD,
     ROBOT_FILE,
+    SELF_COLLISION,
     WORKSPACE,
     Section,
 )
@@ -50,6 +51,7 @@ _HEADINGS = (
     (PAYLOAD, "`payload:`"),
     (GRIPPER, "`gripper:`"),
     (WORKSPACE, "`workspace:`"),
+    (SELF_COLLISION, "`self_collision:`"),
 )
 
 

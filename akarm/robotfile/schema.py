@@ -47,6 +47,7 @@ __all__ = [
     "NO_DEFAULT",
     "PAYLOAD",
     "ROBOT_FILE",
+    "SELF_COLLISION",
     "WORKSPACE",
     "Choice",
     "Context",
@@ -747,6 +748,18 @@ WORKSPACE = Section("workspace", term="workspace {key}", doc="Walls: where the t
         "safety stop", default=0.02, fix="m, e.g. 0.02"),
 ))
 
+SELF_COLLISION = Section("self_collision", term="self_collision {key}", doc="Self-collision: the links' shapes "
+                         "checked against each other (docs/compliance.md). A planned move whose path makes two of them "
+                         "come closer than `margin` is refused, servoing stops short of it, and the supervisor "
+                         "stops an arm measured with two shapes touching. Neighbouring links are left out. On unless "
+                         "`shapes: none`; `Arm(self_collision=False)` turns it off for one program.", keys=(
+    Key("shapes", Choice(("auto", "collision", "visual", "capsules", "none")), "where the links' shapes come from: "
+        "`auto` the URDF's `<collision>`, else its `<visual>`, else capsules from joint to joint; `none`: no check",
+        default="auto"),
+    Key("margin", Number(minimum=0.0, maximum=0.1, unit="m"), "how close two shapes may come on a planned path or "
+        "while servoing", default=0.01, fix="m, e.g. 0.01"),
+))
+
 ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a robot file.", keys=(
     Key("name", Name(), "the robot's name", default_text="the file's name without .yaml"),
     Key("urdf", Name(), "its URDF: kinematics, masses, position limits", required=True,
@@ -757,6 +770,8 @@ ROBOT_FILE = Section("the robot file", nested=False, doc="The top level of a rob
         default=_ROBOT["gravity"]),
     Key("payload", PAYLOAD, "a load at the tool frame"),
     Key("workspace", WORKSPACE, "walls the tool frame's origin stays within", default_text="none"),
+    Key("self_collision", SELF_COLLISION, "the links checked against each other",
+        default_text="on: `shapes: auto`, `margin: 0.01`"),
     Key("rate_hz", Number(minimum=MIN_RATE_HZ, maximum=MAX_RATE_HZ, unit="Hz"),
         "the control loop's rate; the bus load must carry it", default=_ROBOT["rate_hz"],
         fix=f"give the loop rate in Hz, e.g. 500 ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g})"),

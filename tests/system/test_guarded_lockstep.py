@@ -7,14 +7,17 @@ the telemetry recorded every cycle.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
 import akarm
+from akarm.control.guard import Contact
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError
+from akarm.errors import ArgumentError, StateError
 
-from ..conftest import ROBOTS, lockstep_arm
+from ..conftest import ROBOTS, lockstep_arm, wait_until
 
 ARM6 = akarm.load_robot(ROBOTS / "arm6.yaml")
 READY = np.array(ARM6.pose("ready"))
@@ -59,3 +62,36 @@ def test_a_guarded_move_that_touches_nothing_goes_its_whole_way(channel: str) ->
                     {"direction": [0, 0, -1], "force": -1.0}, {"direction": [0, 0, -1], "back_off": -0.1}):
             with pytest.raises(ArgumentError):
                 arm.move_until_contact(**bad)
+
+
+def test_impedance_and_a_guarded_move_refuse_each_other_and_thresholds_set_meanwhile_stay(channel: str) -> None:
+    with lockstep_arm(ARM6, channel, q0=READY, enable=True) as (arm, sim):
+        yaml = arm.collision_thresholds
+        with arm.impedance(stiffness=[500.0] * 3 + [30.0] * 3):
+            with pytest.raises(StateError, match="under impedance control") as info:
+                arm.move_until_contact([0.0, 0.0, -1.0])
+            assert "leave the impedance block" in info.value.fix
+            arm.set_collision({"elbow": 2.0})  # made during it: kept after it
+            assert arm.collision_thresholds == {**yaml, "elbow": 2.0}
+        assert arm.collision_thresholds == {**yaml, "elbow": 2.0} and arm.enabled
+        # the other way round: a guarded move on another thread (its sleeps step the lock-step clock)
+        found: list[object] = []
+        mover = threading.Thread(target=lambda: found.append(
+            arm.move_until_contact([0.0, 0.0, -1.0], speed=0.02, force=5.0, max_distance=0.02)))
+        z = FK.tool_pose(sim.q)[2, 3]
+        mover.start()
+        try:
+            assert wait_until(lambda: arm.moving, 10.0)
+            with pytest.raises(StateError, match="while a guarded move"):
+                arm.impedance(stiffness=[500.0] * 3 + [30.0] * 3)
+            arm.set_collision({"elbow": 3.0})
+            assert arm.moving  # the refusal stopped nothing
+        finally:
+            mover.join(60.0)
+        (contact,) = found
+        assert isinstance(contact, Contact) and not contact.touched
+        assert abs(FK.tool_pose(sim.q)[2, 3] - (z - 0.02)) < 0.002  # it went its whole way
+        assert arm.collision_thresholds == {**yaml, "elbow": 3.0} and arm.fault is None
+        with arm.impedance(stiffness=[500.0] * 3 + [30.0] * 3):  # nothing left suspended or refused
+            pass
+        assert arm.collision_thresholds == {**yaml, "elbow": 3.0}

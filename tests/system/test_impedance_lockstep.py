@@ -106,6 +106,15 @@ def test_a_deviation_past_the_bound_is_a_named_safety_stop(channel: str) -> None
         assert np.all(arm.gains[0] > 0)
 
 
+def test_a_stop_inside_the_block_is_raised_when_the_block_ends_normally(channel: str) -> None:
+    with lockstep_arm(ARM6, channel, q0=READY, enable=True) as (arm, sim):
+        with pytest.raises(DeviationError, match="from its target"), \
+                arm.impedance(stiffness=[100, 100, 100, 20, 20, 20], max_deviation=(0.03, 0.5)):
+            sim.set_external_wrench([0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
+            arm.clock.sleep_until(arm.clock.now() + 3.0)  # the clock goes on; nothing in the block asks the arm
+        assert not arm.enabled and arm.fault is not None
+
+
 def test_impedance_arguments_are_checked(channel: str) -> None:
     with lockstep_arm(ARM6, channel, q0=READY, enable=True) as (arm, _sim):
         for bad in ({}, {"stiffness": [1, 2, 3]}, {"stiffness": [500] * 6, "joint_stiffness": [1] * 6},

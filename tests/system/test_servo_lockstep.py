@@ -16,7 +16,7 @@ import pytest
 import akarm
 from akarm.config.workspace import Workspace
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError, StateError
+from akarm.errors import ArgumentError, CollisionError, StateError
 
 from ..conftest import ROBOTS, lockstep_arm
 
@@ -183,3 +183,21 @@ def test_a_stream_taking_over_late_is_moved_itself_and_still_ends() -> None:
         s.sample(1.25 + k / 480)
         k += 1
     assert s.done(1.25 + k / 480) and np.all(s.v == 0.0)
+
+
+def test_a_stop_inside_the_block_is_raised_when_the_block_ends_normally(channel: str) -> None:
+    with lockstep_arm(ARM6, channel, q0=READY, enable=True) as (arm, sim):
+        with pytest.raises(CollisionError), arm.servo(timeout=0.1) as s:
+            s.twist([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+            push = np.zeros(6)
+            push[2] = 6.0  # the elbow hit: past its 1.1 N·m threshold
+            sim.set_external_torque(push)
+            arm.clock.sleep_until(arm.clock.now() + 1.0)  # the clock goes on; nothing in the block asks the arm
+        assert not arm.enabled and isinstance(arm.fault, CollisionError)
+        sim.set_external_torque(None)
+        arm.enable()
+        with pytest.raises(ZeroDivisionError), arm.servo(timeout=0.1) as s:  # an exception leaving it: unchanged
+            s.twist([0.0, 0.0, 0.02, 0.0, 0.0, 0.0])
+            sim.set_external_torque(push)
+            arm.clock.sleep_until(arm.clock.now() + 1.0)
+            _ = 1 / 0

@@ -56,14 +56,27 @@ def telemetry(client, path: Path, since: float = 0.0) -> dict[str, np.ndarray]:
         return {k: z[k] for k in z.files}
 
 
-def test_record_two_episodes_with_a_camera_then_replay_one(robot, channel, tmp_path):
+def jaws(t: float) -> float:
+    """The hand on the leader's free gripper (from half open, 40 mm): closed to 10 mm, opened to 70 mm and
+    back every 4 s, at most 47 mm/s."""
+    return 0.04 - 0.03 * math.sin(2.0 * math.pi * t / 4.0)
+
+
+def test_record_two_episodes_with_a_camera_then_replay_one(robot6g, channel, tmp_path):
+    """Leader and follower arm6g, each with a gripper: the hand sways two joints and opens and closes
+    the leader's gripper; the dataset has ``gripper.pos`` (m) in its actions and state; the replay
+    tracks the joints and the gripper; a gripper width past the stroke is clamped and counted."""
+    robot = robot6g
     root = tmp_path / "dataset"
     lead, follow = channel + "-lead", channel + "-follow"
-    with SimulatorProcess(robot, channel=lead, control=True) as lead_sim, \
-            SimulatorProcess(robot, channel=follow, pose="down"), \
+    # both start upright (all zeros, balanced: a limp arm elsewhere sags before its server holds it)
+    with SimulatorProcess(robot, channel=lead, control=True) as lead_sim, SimulatorProcess(robot, channel=follow), \
             served(robot, lead) as leader, served(robot, follow) as follower:
         follower.call("status")
-        hand = Hand(lead_sim.control, sway([0.0, 0.0], [-1.0, 0.8], 4.0))
+        # soft, and none on the light wrist joints: a spring pushed every 20 ms against little inertia (the
+        # pan, upright) oscillates and went unstable here
+        hand = Hand(lead_sim.control, sway([0.0] * 6, [-0.8, 0.0, 0.6, 0.0, 0.0, 0.0], 4.0),
+                    k=(4.0, 6.0, 5.0, 0.0, 0.0, 0.0), d=(0.4, 0.6, 0.5, 0.0, 0.0, 0.0), grip=jaws, teaching=leader)
         with hand, Poller(follower) as poll:
             out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
                              "--robot.id=follower", camera(robot, follow), "--teleop.type=akarm_leader",
@@ -77,8 +90,8 @@ def test_record_two_episodes_with_a_camera_then_replay_one(robot, channel, tmp_p
         before, after = poll.status[0], poll.status[-1]
         missed = after["missed_slots"] - before["missed_slots"]
         late = max(s["late_p99_us"] for s in poll.status)
-        print(f"follower loop while recording: {after['loop_rate_hz']} Hz, {missed} missed slots, "
-              f"late p99 up to {late} us; stop: {after['stop_error'] or 'none'}")
+        print(f"follower loop while recording: {after['loop_rate_hz']} Hz of {after.get('rate_hz', 400)}, "
+              f"{missed} missed slots, late p99 up to {late} us; stop: {after['stop_error'] or 'none'}")
         assert after["stop_error"] == "" and leader.call("status")["stop_error"] == ""
 
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -90,14 +103,15 @@ def test_record_two_episodes_with_a_camera_then_replay_one(robot, channel, tmp_p
         assert ds.num_episodes == 2
         assert 0.9 * 2 * expected <= ds.num_frames <= 2 * expected
         assert ds.meta.video_keys == ["observation.images.front"]
-        assert list(ds.meta.features["action"]["names"]) == ["shoulder.pos", "elbow.pos"]
+        names = ["shoulder_pan", "shoulder_lift", "elbow", "forearm_roll", "wrist_pitch", "wrist_roll", "gripper"]
+        assert list(ds.meta.features["action"]["names"]) == [f"{n}.pos" for n in names]
         assert list(ds.meta.features["observation.state"]["names"]) == [
-            "shoulder.pos", "elbow.pos", "shoulder.vel", "elbow.vel", "shoulder.effort", "elbow.effort"]
+            f"{n}.{x}" for x in ("pos", "vel", "effort") for n in names]
         # the camera: frames differ as much as the arm moved between them
         ends = [int(x) for x in ds.meta.episodes["dataset_from_index"]]
         frames = [ds[i] for i in range(ends[0], ends[0] + expected - 5, 10)]
         images = np.stack([f["observation.images.front"].numpy() for f in frames])
-        states = np.stack([f["observation.state"].numpy()[:2] for f in frames])
+        states = np.stack([f["observation.state"].numpy()[:6] for f in frames])
         moved = np.abs(states - states[0]).max(axis=1)
         change = np.abs(images - images[0]).mean(axis=(1, 2, 3))
         print("arm moved (rad):", np.round(moved, 3), "image change:", np.round(change, 4))
@@ -105,26 +119,62 @@ def test_record_two_episodes_with_a_camera_then_replay_one(robot, channel, tmp_p
         assert change[moved.argmax()] > 5 * max(change[moved < 0.01].max(initial=0.0), 1e-4)
         stop = int(ds.meta.episodes["dataset_to_index"][0])  # episode 0's own frames (one may be short)
         actions = np.stack([ds[i]["action"].numpy() for i in range(ends[0], stop)])
+        widths = np.stack([ds[i]["observation.state"].numpy()[6] for i in range(ends[0], stop)])
+        print("actions (rad, m): from", np.round(actions.min(axis=0), 3), "to", np.round(actions.max(axis=0), 3))
+        print(f"gripper: asked {actions[:, 6].min() * 1e3:.1f} to {actions[:, 6].max() * 1e3:.1f} mm, measured "
+              f"{widths.min() * 1e3:.1f} to {widths.max() * 1e3:.1f} mm")
+        assert actions[:, 6].min() < 0.02 and actions[:, 6].max() > 0.06  # the hand's 10 to 70 mm
+        assert widths.max() - widths.min() > 0.04  # the follower's jaws followed
 
         # lerobot-replay of episode 0 on the follower, from the episode's start (lerobot-replay starts
         # wherever the arm is): the follower's measured path passes each recorded action
-        follower.call("wait", id=follower.call("move", target=[float(x) for x in actions[0]], speed=0.5)["id"])
+        follower.call("wait", id=follower.call("move", target=[float(x) for x in actions[0, :6]], speed=0.5)["id"])
+        follower.call("gripper_move", width=float(actions[0, 6]))
         started = time.monotonic()
-        out = run_script("lerobot-replay", "--robot.type=akarm", *bus("robot", robot, follow),
-                         "--robot.id=follower", "--dataset.repo_id=local/akarm_sim", f"--dataset.root={root}",
-                         "--dataset.episode=0", f"--dataset.fps={FPS}", "--play_sounds=false")
+        with Poller(follower) as replayed:
+            out = run_script("lerobot-replay", "--robot.type=akarm", *bus("robot", robot, follow),
+                             "--robot.id=follower", "--dataset.repo_id=local/akarm_sim", f"--dataset.root={root}",
+                             "--dataset.episode=0", f"--dataset.fps={FPS}", "--play_sounds=false")
         took = time.monotonic() - started
         assert out.returncode == 0
         log = telemetry(follower, tmp_path / "replay.npz")  # the loop's own record: every cycle measured
         path = log["q"][log["t"] >= log["t"][-1] - took - 0.5]
-        error = np.array([np.abs(path - a).max(axis=1).min() for a in actions])
-        end_error = np.abs(path[-1] - actions[-1]).max()
+        error = np.array([np.abs(path - a[:6]).max(axis=1).min() for a in actions])
+        end_error = np.abs(path[-1] - actions[-1, :6]).max()
+        grip = np.array(replayed.grip)
+        grip = grip[np.isfinite(grip)]
+        grip_error = np.array([np.abs(grip - a[6]).min() for a in actions])
         settle = round(0.5 * FPS)  # the episode begins mid-motion; the follower, from rest, takes ~0.3 s to join it
         print(f"replay: {len(actions)} actions; after the first 0.5 s the follower passed each within "
               f"{error[settle:].max():.4f} rad (median {np.median(error[settle:]):.4f}); in the first 0.5 s within "
-              f"{error[:settle].max():.4f} rad; at the end {end_error:.4f} rad from the last")
+              f"{error[:settle].max():.4f} rad; at the end {end_error:.4f} rad from the last; the gripper passed "
+              f"each width within {grip_error.max() * 1e3:.2f} mm (median {np.median(grip_error) * 1e3:.2f} mm), "
+              f"{len(grip)} widths polled")
         assert error[settle:].max() < 0.05 and error[:settle].max() < 0.4 and end_error < 0.05
+        assert grip_error[settle:].max() < 0.004
         assert follower.call("status")["stop_error"] == ""
+
+        # a gripper target past the stroke (and below closed), through the Robot: clamped and counted
+        from lerobot_robot_akarm import Akarm, AkarmConfig
+
+        arm = Akarm(AkarmConfig(robot_file=str(robot), interface="akarm_local", channel=follow, id="g"))
+        arm.connect()
+        try:
+            pose = {f"{n}.pos": float(x) for n, x in zip(names, actions[-1, :6], strict=False)}
+            for width, edge in ((0.12, 0.08), (-0.03, 0.0)):
+                for _ in range(30):
+                    sent = arm.send_action({**pose, "gripper.pos": width})
+                    time.sleep(1 / FPS)
+                time.sleep(0.5)
+                measured = arm.get_observation()["gripper.pos"]
+                print(f"gripper asked {width * 1e3:+.0f} mm: sent {sent['gripper.pos'] * 1e3:.1f} mm, at "
+                      f"{measured * 1e3:.2f} mm; {arm.last_report['clamped_total']} targets clamped")
+                assert sent["gripper.pos"] == pytest.approx(edge) and abs(measured - edge) < 0.003
+                assert arm.last_report["clamped"] == ["gripper"]
+            assert arm.last_report["clamped_total"] == 60
+        finally:
+            arm.disconnect()
+        assert follower.call("status")["stop_error"] == "" and leader.call("status")["stop_error"] == ""
 
 
 def test_a_safety_stop_ends_the_session_with_its_name_and_the_arm_disabled(robot, channel):

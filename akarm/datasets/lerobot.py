@@ -17,8 +17,9 @@ Cameras (a writer made with ``cameras``) add a feature ``observation.images.<nam
 ``video``, stored as LeRobot stores them: ``DIR/videos/observation.images.<name>/chunk-000/file-NNN.mp4``
 (one file per episode here; LeRobot's own may hold several, the episodes file says where each
 episode is: ``videos/<key>/chunk_index``, ``file_index``, ``from_timestamp``, ``to_timestamp``),
-encoded by :mod:`akarm.datasets.video` (the ``video`` extra), with the video's ``info`` in info.json
-and per-channel stats (0-1) in stats.json, so LeRobot's ``LeRobotDataset`` loads the frames.
+encoded by :mod:`akarm.datasets.video` (the ``video`` extra; in a process of its own), with the
+video's ``info`` in info.json and per-channel stats (0-1) in stats.json, so LeRobot's
+``LeRobotDataset`` loads the frames.
 
 The vector features are float32 lists of one value per joint; their ``names`` in info.json are the
 joint names. A robot with a gripper has one more value, last, named :data:`GRIPPER` (``gripper``):
@@ -219,16 +220,6 @@ def _feature_spec(names: Sequence[str], cameras: Mapping[str, tuple[int, int]] |
                                "info": video_info(height, width, fps)}
     spec.update({key: {"dtype": dtype, "shape": [1], "names": None} for key, dtype in SCALARS.items()})
     return spec
-
-
-def _image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
-    """Per colour channel (0-1), shaped (3, 1, 1) as LeRobot's image stats: min, max, mean, std, count
-    and the quantiles, of ``frames`` (n × height × width × 3 uint8; at most 100 of them, evenly spread)."""
-    step = max(1, len(frames) // 100)
-    x = frames[::step].reshape(-1, 3).astype(np.float64) / 255.0
-    out = {k: v.reshape(3, 1, 1) for k, v in _stats(x).items() if k != "count"}
-    out["count"] = np.array([len(frames[::step])])
-    return out
 
 
 def _stats(values: np.ndarray) -> dict[str, np.ndarray]:
@@ -621,7 +612,8 @@ class DatasetWriter:
             (:meth:`save_episode`'s ``images``), stored as video.
 
     Raises:
-        RecordingError: ``root`` holds something else, or a dataset of other joints, cameras or fps; it cannot be written.
+        RecordingError: ``root`` holds something else, or a dataset of other joints, cameras or fps; it
+            cannot be written.
         ArgumentError: a bad fps or joint list.
     """
 
@@ -792,14 +784,13 @@ class DatasetWriter:
                       stats: dict[str, dict[str, np.ndarray]]) -> None:
         """Episode ``k``'s video of each camera, one file each; where it is goes into ``row``, its stats
         into ``stats``."""
-        from akarm.datasets.video import encode_video
+        from akarm.datasets.video import encode_episode
 
         for name, video in images.items():
             key = IMAGES + name
             chunk, file = divmod(k, CHUNKS_SIZE)
-            encode_video(self.root / VIDEO_PATH.format(video_key=key, chunk_index=chunk, file_index=file),
-                         video, self.fps)
-            stats[key] = _image_stats(video)
+            stats[key] = encode_episode(self.root / VIDEO_PATH.format(video_key=key, chunk_index=chunk,
+                                                                      file_index=file), video, self.fps)
             row.update({f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
                         f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": len(video) / self.fps})
 

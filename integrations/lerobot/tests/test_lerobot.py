@@ -177,6 +177,51 @@ def test_record_two_episodes_with_a_camera_then_replay_one(robot6g, channel, tmp
         assert follower.call("status")["stop_error"] == "" and leader.call("status")["stop_error"] == ""
 
 
+def test_lerobot_loads_a_dataset_that_akarm_teleop_recorded_with_a_camera(robot, channel, tmp_path):
+    """`akarm teleop --record --camera` (no LeRobot in its process): LeRobot's own LeRobotDataset loads
+    the episodes, the camera's frames decoded from the video as akarm wrote them."""
+    import subprocess
+    import sys
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from akarm.datasets import read_dataset
+    from akarm.datasets.video import decode_video
+
+    root = tmp_path / "demos"
+    lead, follow = channel + "-lead", channel + "-follow"
+    with SimulatorProcess(robot, channel=lead, control=True) as lead_sim, SimulatorProcess(robot, channel=follow), \
+            Hand(lead_sim.control, sway([0.0, 0.0], [-0.4, 0.3], 4.0)):  # slow: the follower engages at 25 % speed
+        out = subprocess.run([sys.executable, "-m", "akarm", "teleop", str(robot), str(robot), "-i", "akarm_local",
+                              "--leader-channel", lead, "--follower-channel", follow, "--record", str(root),
+                              "--task", "sway", "--fps", str(FPS), "--episodes", "2", "--episode-time", "1.0",
+                              "--camera", "front", "--camera-size", "64x48"],
+                             capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
+    print(out.stdout[-2000:], out.stderr[-3000:])
+    assert out.returncode == 0 and "2 episodes saved" in out.stdout
+    ds = LeRobotDataset("local/akarm_teleop", root=root, video_backend="pyav")
+    key = "observation.images.front"
+    print(f"LeRobot loads akarm's dataset: {ds.num_episodes} episodes, {ds.num_frames} frames, videos "
+          f"{ds.meta.video_keys}, features {list(ds.meta.features)}")
+    assert ds.num_episodes == 2 and ds.num_frames == 2 * FPS and ds.meta.video_keys == [key]
+    ours = read_dataset(root)
+    for k in (0, 1):
+        path, _, _ = ours.video(k, key)
+        frames = decode_video(path)  # as akarm wrote them
+        start = int(ds.meta.episodes["dataset_from_index"][k])
+        for i in (0, FPS // 2, FPS - 1):
+            item = ds[start + i]
+            img = item[key].numpy()  # (3, H, W), 0-1
+            assert img.shape == (3, 48, 64) and int(item["frame_index"]) == i
+            diff = np.abs(img.transpose(1, 2, 0) * 255 - frames[i]).mean()
+            assert diff < 2.0, (k, i, diff)  # the same frame, decoded by LeRobot
+    first, last = ds[0], ds[ds.num_frames - 1]  # the first episode's first frame, the second's last
+    moved = np.abs(first["observation.state"].numpy()[:2] - last["observation.state"].numpy()[:2]).max()
+    change = np.abs(first[key].numpy() - last[key].numpy()).mean()
+    print(f"the camera's picture changed by {change:.4f} (0-1) as the arm moved {moved:.3f} rad")
+    assert moved > 0.1 and change > 0.002
+
+
 def test_a_safety_stop_ends_the_session_with_its_name_and_the_arm_disabled(robot, channel):
     lead, follow = channel + "-lead", channel + "-follow"
     with SimulatorProcess(robot, channel=lead), SimulatorProcess(robot, channel=follow, control=True) as sim, \

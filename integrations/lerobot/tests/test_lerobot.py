@@ -7,6 +7,7 @@ the loop's lateness and missed slots while LeRobot records, and zero safety stop
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import math
 import time
@@ -19,6 +20,8 @@ from conftest import Hand, Poller, run_script, served, sway
 from akarm.sim.process import SimulatorProcess
 
 FPS = 30
+#: LeRobot's version (major, minor): 0.4.4 in CI; 0.6 runs a policy with lerobot-rollout, not lerobot-record
+LEROBOT = tuple(int(x) for x in importlib.metadata.version("lerobot").split(".")[:2])
 EPISODE_S = 4.0
 RESET_S = 1.0
 
@@ -37,9 +40,11 @@ def test_the_plugins_appear_in_lerobots_scripts():
     for script in ("lerobot-teleoperate", "lerobot-replay", "lerobot-record"):  # each imports torch: ~30 s here
         out = run_script(script, "--help", timeout=240)
         assert "akarm" in out.stdout, script
-    for name in ("--robot.robot_file", "--teleop.robot_file", "--robot.stream_timeout"):
-        assert name in out.stdout, name
-    assert "akarm_leader" in out.stdout and "akarm_sim" in out.stdout
+    assert "akarm_leader" in out.stdout
+    if LEROBOT < (0, 6):  # (0.6's --help lists the types, not each type's fields, nor the cameras')
+        for name in ("--robot.robot_file", "--teleop.robot_file", "--robot.stream_timeout"):
+            assert name in out.stdout, name
+        assert "akarm_sim" in out.stdout
 
 
 def command_steps(log: dict[str, np.ndarray], vmax: float, amax: float, rate: float = 500.0) -> tuple[float, float]:
@@ -196,7 +201,9 @@ def test_lerobot_loads_a_dataset_that_akarm_teleop_recorded_with_a_camera(robot,
         out = subprocess.run([sys.executable, "-m", "akarm", "teleop", str(robot), str(robot), "-i", "akarm_local",
                               "--leader-channel", lead, "--follower-channel", follow, "--record", str(root),
                               "--task", "sway", "--fps", str(FPS), "--episodes", "2", "--episode-time", "1.0",
-                              "--camera", "front", "--camera-size", "64x48"],
+                              "--camera", "front", "--camera-size", "64x48",
+                              # as the servers here: a loop starved 0.4 s on this loaded machine stopped it
+                              "--stall-limit", "3.0"],
                              capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
     print(out.stdout[-2000:], out.stderr[-3000:])
     assert out.returncode == 0 and "2 episodes saved" in out.stdout
@@ -321,6 +328,9 @@ def test_a_policy_past_the_limit_nan_or_silent(robot, channel, tmp_path):
             arm.disconnect()
 
 
+# LeRobot 0.6's lerobot-rollout gives the policy only the .pos and .vel features as its state: the
+# episodes it is trained on are recorded without .effort there (the plugin's effort=false)
+NO_EFFORT = ["--robot.effort=false"] if LEROBOT >= (0, 6) else []
 ACT = ["--policy.type=act", "--policy.pretrained_backbone_weights=null", "--policy.device=cpu",
        "--policy.push_to_hub=false", "--policy.chunk_size=10", "--policy.n_action_steps=10", "--policy.dim_model=64",
        "--policy.n_heads=2", "--policy.dim_feedforward=128", "--policy.n_encoder_layers=1",
@@ -337,7 +347,7 @@ def test_act_trained_on_recorded_episodes_runs_on_the_follower(robot, channel, t
             served(robot, follow) as follower:
         with Hand(lead_sim.control, sway([0.0, 0.0], [-1.0, 0.8], 4.0)):
             out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
-                             "--robot.id=follower", camera(robot, follow), "--teleop.type=akarm_leader",
+                             "--robot.id=follower", *NO_EFFORT, camera(robot, follow), "--teleop.type=akarm_leader",
                              *bus("teleop", robot, lead), "--teleop.id=leader", "--dataset.repo_id=local/akarm_act",
                              f"--dataset.root={root}", "--dataset.num_episodes=2", "--dataset.episode_time_s=3",
                              "--dataset.reset_time_s=1", f"--dataset.fps={FPS}", "--dataset.single_task=sway",
@@ -359,12 +369,18 @@ def test_act_trained_on_recorded_episodes_runs_on_the_follower(robot, channel, t
     with SimulatorProcess(robot, channel=follow, pose="down"), served(robot, follow) as follower:
         since = follower.call("state", read=False)
         with Poller(follower) as poll:
-            out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
-                             "--robot.id=follower", camera(robot, follow), f"--policy.path={model}",
-                             "--dataset.repo_id=local/eval_akarm_act", f"--dataset.root={tmp_path / 'eval'}",
-                             "--dataset.num_episodes=1", "--dataset.episode_time_s=4", "--dataset.reset_time_s=0",
-                             f"--dataset.fps={FPS}", "--dataset.single_task=sway", "--dataset.push_to_hub=false",
-                             "--display_data=false", "--play_sounds=false")
+            if LEROBOT >= (0, 6):  # 0.6 rolls a policy out with lerobot-rollout (no dataset: the base strategy)
+                out = run_script("lerobot-rollout", "--strategy.type=base", "--robot.type=akarm",
+                                 *bus("robot", robot, follow), "--robot.id=follower", *NO_EFFORT, camera(robot, follow),
+                                 f"--policy.path={model}", "--task=sway", "--duration=4", f"--fps={FPS}",
+                                 "--display_data=false", "--play_sounds=false")
+            else:
+                out = run_script("lerobot-record", "--robot.type=akarm", *bus("robot", robot, follow),
+                                 "--robot.id=follower", *NO_EFFORT, camera(robot, follow), f"--policy.path={model}",
+                                 "--dataset.repo_id=local/eval_akarm_act", f"--dataset.root={tmp_path / 'eval'}",
+                                 "--dataset.num_episodes=1", "--dataset.episode_time_s=4", "--dataset.reset_time_s=0",
+                                 f"--dataset.fps={FPS}", "--dataset.single_task=sway", "--dataset.push_to_hub=false",
+                                 "--display_data=false", "--play_sounds=false")
         assert out.returncode == 0
         path = poll.path
         moved = np.abs(path - np.array(since["q"])).max(axis=0)
@@ -397,7 +413,8 @@ def test_act_trained_on_recorded_episodes_runs_on_the_follower(robot, channel, t
             with Poller(follower) as poll:
                 client = subprocess.Popen([sys.executable, "-m", "lerobot.async_inference.robot_client",
                                            "--robot.type=akarm", *bus("robot", robot, follow), "--robot.id=follower",
-                                           camera(robot, follow), "--task=sway", f"--server_address=127.0.0.1:{port}",
+                                           *NO_EFFORT, camera(robot, follow), "--task=sway",
+                                           f"--server_address=127.0.0.1:{port}",
                                            "--policy_type=act", f"--pretrained_name_or_path={model}",
                                            "--policy_device=cpu", "--client_device=cpu", "--actions_per_chunk=10",
                                            "--chunk_size_threshold=0.5", f"--fps={FPS}"], cwd=tmp_path)

@@ -5,8 +5,9 @@ Features (SI units, the order stable: the robot file's joint order):
 - actions: ``<joint>.pos`` (rad) per joint, then ``gripper.pos`` (m, jaw width) when the robot file
   has a gripper;
 - observations: the same ``.pos``, then ``<joint>.vel`` (rad/s) per joint and ``gripper.vel`` (m/s),
-  then ``<joint>.effort`` (N·m) per joint and ``gripper.effort`` (N, the squeeze), then each camera
-  ``(height, width, 3)`` (the gripper's features only when the robot file has one).
+  then ``<joint>.effort`` (N·m) per joint and ``gripper.effort`` (N, the squeeze; none with
+  ``effort=false``), then each camera ``(height, width, 3)`` (the gripper's features only when the
+  robot file has one).
 
 ``send_action`` streams the target into akarm's 500 Hz loop through the jerk-limited retargeting
 (the server's ``stream`` operation): no command step above a joint's limits, whatever is sent; a target
@@ -106,7 +107,8 @@ class Akarm(Robot):
         feats: dict[str, Any] = dict(self.action_features)
         grip = [self.gripper] if self.gripper else []
         feats.update({f"{n}.vel": float for n in [*self.joint_names, *grip]})
-        feats.update({f"{n}.effort": float for n in [*self.joint_names, *grip]})
+        if self.config.effort:
+            feats.update({f"{n}.effort": float for n in [*self.joint_names, *grip]})
         for key, cam in self.config.cameras.items():
             feats[key] = (cam.height, cam.width, 3)
         return feats
@@ -173,10 +175,11 @@ class Akarm(Robot):
             obs[f"{n}.vel"] = float(doc["dq"][i])
         if grip is not None:
             obs["gripper.vel"] = grip[1]
-        for i, n in enumerate(self.joint_names):
-            obs[f"{n}.effort"] = float(doc["tau"][i])
-        if grip is not None:
-            obs["gripper.effort"] = grip[2]
+        if self.config.effort:
+            for i, n in enumerate(self.joint_names):
+                obs[f"{n}.effort"] = float(doc["tau"][i])
+            if grip is not None:
+                obs["gripper.effort"] = grip[2]
         for key, cam in self.cameras.items():
             obs[key] = cam.async_read()
         return obs

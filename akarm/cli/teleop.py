@@ -5,6 +5,7 @@
     akarm teleop leader.yaml follower.yaml                       # follow until q, Ctrl-C or SIGTERM
     akarm teleop leader.yaml follower.yaml --force-feedback 0.5  # feel what the follower touches
     akarm teleop leader.yaml follower.yaml --map pairs.yaml --record demos --task "pick the cube" --fps 30
+    akarm teleop leader.yaml follower.yaml --record demos --task "wave" --camera front --camera-size 96x96
     akarm teleop leader.yaml follower.yaml --log run.mcap        # both arms' telemetry, for Foxglove or akarm plot
     akarm teleop leader.yaml follower.yaml -i socketcan --leader-channel can0 --follower-channel can1
 
@@ -19,6 +20,13 @@ episode being recorded (it is saved, and the next begins), **r** records it agai
 Ctrl-C, SIGTERM or SIGHUP end the session: the follower comes to rest, both arms are damped and
 disabled, and the episode being recorded is dropped, never written in part (the ones before it are
 in the dataset). ``--log`` keeps each arm's last ``--log-seconds``.
+
+``--camera NAME`` (with ``--record``, again for more) records a simulated camera that draws the
+follower (:mod:`akarm.sim.camera`: the URDF's primitive visuals, the jaws, and with ``--sim-control``
+the object between them), ``--camera-size`` pixels, at the dataset's fps: each draws in a process of
+its own from the positions this process publishes (a few microseconds a cycle), and the episode's
+pictures are stored as video (``observation.images.NAME``, as LeRobot stores a camera; PyAV: the
+``video`` extra).
 """
 
 from __future__ import annotations
@@ -35,7 +43,8 @@ from akarm.cli.common import add_profile_argument, interrupted, loop_options
 if TYPE_CHECKING:
     from akarm.arm import Arm
     from akarm.config import RobotConfig
-    from akarm.teleop import Step, Teleop
+    from akarm.sim.camera import PoseFile
+    from akarm.teleop import Pairing, Step, Teleop
     from akarm.teleop.recording import EpisodeRecorder
 
 
@@ -57,6 +66,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", metavar="DIR", help="record episodes into this LeRobot v3.0 dataset folder")
     parser.add_argument("--task", metavar="TEXT", help="what the episodes demonstrate (needed with --record)")
     parser.add_argument("--fps", type=int, default=30, metavar="N", help="frames per second recorded (default 30)")
+    parser.add_argument("--camera", action="append", default=[], metavar="NAME",
+                        help="record a simulated camera drawing the follower, as observation.images.NAME (again for "
+                             "more; needs --record and the video extra)")
+    parser.add_argument("--camera-size", default="96x96", metavar="WxH", help="the cameras' pixels (default 96x96)")
+    parser.add_argument("--sim-control", metavar="PATH",
+                        help="the follower simulator's control socket (akarm sim --control): the cameras draw the "
+                             "object between its jaws")
     parser.add_argument("--episodes", type=int, metavar="N", help="quit after N episodes")
     parser.add_argument("--episode-time", type=float, metavar="S", help="end each episode after S seconds")
     parser.add_argument("--seconds", type=float, metavar="S", help="end the session after S seconds")
@@ -89,7 +105,66 @@ def _check(args: argparse.Namespace) -> None:
         raise ArgumentError(f"--episodes must be at least 1, not {args.episodes}")
     if args.fps < 1:
         raise ArgumentError(f"--fps must be at least 1, not {args.fps}")
+    if (args.camera or args.sim_control) and args.record is None:
+        raise ArgumentError("--camera and --sim-control are for --record", fix="add --record DIR --task TEXT")
+    if len(set(args.camera)) != len(args.camera) or len(args.camera) > 4:
+        raise ArgumentError(f"--camera names {args.camera}: at most 4 cameras, each named once")
+    camera_size(args.camera_size)
     check_output(args.log, (".mcap",), "the session's telemetry (both arms)")
+
+
+def camera_size(text: str) -> tuple[int, int]:
+    """``WxH`` as (width, height) pixels: even numbers of 8 to 4096 (what video takes)."""
+    from akarm.datasets.video import check_frame_size
+    from akarm.errors import ArgumentError
+
+    w, sep, h = str(text).lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit()):
+        raise ArgumentError(f"--camera-size {text!r} is not WIDTHxHEIGHT", fix="e.g. --camera-size 96x96")
+    return check_frame_size(int(w), int(h))
+
+
+class _Cameras:
+    """The simulated cameras of ``--camera``: a pose file this process writes each cycle, and per
+    camera a frame file and the process that draws into it (ended, and the files removed, at close)."""
+
+    def __init__(self, args: argparse.Namespace, follower: RobotConfig) -> None:
+        import subprocess
+
+        from akarm.sim.camera import FrameFile, PoseFile
+
+        self.width, self.height = camera_size(args.camera_size)
+        self.pose = PoseFile.create(len(follower.joint_names))
+        self.frames: dict[str, FrameFile] = {}
+        self.processes: list[subprocess.Popen[bytes]] = []
+        try:
+            for name in args.camera:
+                frames = self.frames[name] = FrameFile.create(self.width, self.height)
+                cmd = [sys.executable, "-m", "akarm.sim.camera", args.follower, str(frames.path), str(self.pose.path),
+                       "--width", str(self.width), "--height", str(self.height), "--fps", str(args.fps),
+                       "--parent", str(os.getpid())]
+                if args.sim_control:
+                    cmd += ["--control", args.sim_control]
+                # its own session: Ctrl-C is this process's to handle; it ends with its parent anyway
+                self.processes.append(subprocess.Popen(cmd, start_new_session=True))
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        import subprocess
+
+        for p in self.processes:
+            if p.poll() is None:
+                p.terminate()
+                try:
+                    p.wait(5.0)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait(5.0)
+        for frames in self.frames.values():
+            frames.close()
+        self.pose.close()
 
 
 def _config(path: str, args: argparse.Namespace, channel: str | None) -> RobotConfig:
@@ -162,8 +237,10 @@ def _keys(stream: TextIO) -> queue.Queue[str]:
 class _Session:
     """The verb's loop: steps, keys, episodes, the progress line."""
 
-    def __init__(self, tele: Teleop, recorder: EpisodeRecorder | None, args: argparse.Namespace) -> None:
+    def __init__(self, tele: Teleop, recorder: EpisodeRecorder | None, args: argparse.Namespace,
+                 pose: PoseFile | None = None) -> None:
         self.tele, self.recorder, self.args = tele, recorder, args
+        self.pose = pose  # where the cameras' processes read the follower's pose
         self.saved = 0
         self.progress = sys.stderr.isatty()
         self.keys = _keys(sys.stdin)
@@ -177,6 +254,8 @@ class _Session:
         shown = 0.0
         while True:
             step = self.tele.step()
+            if self.pose is not None:
+                self.pose.write(step.follower_q, step.gripper_width)
             if self._record(step) or self._keyed():
                 return
             if self.args.seconds is not None and step.t - self.t_start >= self.args.seconds:
@@ -192,7 +271,7 @@ class _Session:
         rec, args = self.recorder, self.args
         if rec is None:
             return False
-        if step.phase == "following" and not rec.recording:
+        if step.phase == "following" and not rec.recording and rec.cameras_ready:
             rec.begin(args.task, step.t)
             self.say(f"recording episode {rec.writer.total_episodes}: Enter ends it, r records it again, q quits")
         if rec.recording:
@@ -258,10 +337,7 @@ class _Session:
 
 def run(args: argparse.Namespace) -> int:
     """Enable both arms, teleoperate until q, Ctrl-C, a stop or --seconds; save; disable."""
-    from akarm.arm import Arm
-    from akarm.cli.common import controlled, deferred_signals
-    from akarm.errors import SafetyStop
-    from akarm.teleop import Pairing, Teleop
+    from akarm.teleop import Pairing
 
     _check(args)
     leader_config = _config(args.leader, args, args.leader_channel)
@@ -269,7 +345,22 @@ def run(args: argparse.Namespace) -> int:
     _check_shared_channels(args, leader_config, follower_config)
     pairing = Pairing.load(args.map, leader_config.joint_names, follower_config.joint_names) if args.map else \
         Pairing.in_order(leader_config.joint_names, follower_config.joint_names)
-    recorder = _recorder(args, follower_config)
+    cameras = _Cameras(args, follower_config) if args.camera else None
+    try:
+        return _run(args, leader_config, follower_config, pairing, cameras)
+    finally:
+        if cameras is not None:
+            cameras.close()
+
+
+def _run(args: argparse.Namespace, leader_config: RobotConfig, follower_config: RobotConfig, pairing: Pairing,
+         cameras: _Cameras | None) -> int:
+    from akarm.arm import Arm
+    from akarm.cli.common import controlled, deferred_signals
+    from akarm.errors import SafetyStop
+    from akarm.teleop import Teleop
+
+    recorder = _recorder(args, follower_config, cameras)
     seconds = args.log_seconds if args.log else 60.0
     leader = Arm(leader_config, telemetry_seconds=seconds, **loop_options(args))
     follower = Arm(follower_config, telemetry_seconds=seconds, **loop_options(args))
@@ -278,7 +369,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = follower.clock.now()
         tele = Teleop(leader, follower, pairing, force_feedback=args.force_feedback, force_limit=args.force_limit,
                       engage_speed=args.engage_speed, damping=args.damping)
-        session = _Session(tele, recorder, args)
+        session = _Session(tele, recorder, args, cameras.pose if cameras is not None else None)
         tele.say = session.say
         try:
             leader.enable()
@@ -305,7 +396,7 @@ def run(args: argparse.Namespace) -> int:
     return code
 
 
-def _recorder(args: argparse.Namespace, follower: RobotConfig) -> EpisodeRecorder | None:
+def _recorder(args: argparse.Namespace, follower: RobotConfig, cameras: _Cameras | None) -> EpisodeRecorder | None:
     """The dataset writer and its recorder (the folder checked before anything is enabled), or None."""
     if args.record is None:
         return None
@@ -313,8 +404,14 @@ def _recorder(args: argparse.Namespace, follower: RobotConfig) -> EpisodeRecorde
     from akarm.teleop.recording import EpisodeRecorder
 
     names = (*follower.joint_names, GRIPPER) if follower.gripper is not None else follower.joint_names
-    writer = DatasetWriter(args.record, names, args.fps, robot_type=follower.name)
-    return EpisodeRecorder(writer, follower.rate_hz)
+    frames = cameras.frames if cameras is not None else {}
+    if frames:
+        from akarm.datasets.video import require_av
+
+        require_av()  # PyAV missing: said now, before anything moves
+    writer = DatasetWriter(args.record, names, args.fps, robot_type=follower.name,
+                           cameras={name: (f.width, f.height) for name, f in frames.items()})
+    return EpisodeRecorder(writer, follower.rate_hz, frames)
 
 
 def _save_log(path: str, leader: Arm, follower: Arm, since: float) -> None:

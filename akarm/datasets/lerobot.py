@@ -13,6 +13,14 @@
         index (across the dataset), task_index, observation.state (measured positions, rad),
         observation.velocity (rad/s), observation.effort (N·m), action (the commanded positions, rad)
 
+Cameras (a writer made with ``cameras``) add a feature ``observation.images.<name>`` each, of dtype
+``video``, stored as LeRobot stores them: ``DIR/videos/observation.images.<name>/chunk-000/file-NNN.mp4``
+(one file per episode here; LeRobot's own may hold several, the episodes file says where each
+episode is: ``videos/<key>/chunk_index``, ``file_index``, ``from_timestamp``, ``to_timestamp``),
+encoded by :mod:`akarm.datasets.video` (the ``video`` extra; in a process of its own), with the
+video's ``info`` in info.json and per-channel stats (0-1) in stats.json, so LeRobot's
+``LeRobotDataset`` loads the frames.
+
 The vector features are float32 lists of one value per joint; their ``names`` in info.json are the
 joint names. A robot with a gripper has one more value, last, named :data:`GRIPPER` (``gripper``):
 the width between the jaws (m) in ``observation.state`` and ``action`` (measured, asked), its rate
@@ -39,7 +47,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -56,7 +63,7 @@ from akarm.motion.recording import PathRecording
 if TYPE_CHECKING:
     import pyarrow as pa
 
-__all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "GRIPPER", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS",
+__all__ = ["CODEBASE_VERSION", "DATA_FILE_MB", "GRIPPER", "IMAGES", "MAX_EPISODES", "MAX_FILE_ROWS", "MAX_JOINTS",
            "MAX_JSON_BYTES", "MAX_PARQUET_BYTES", "VECTORS", "DatasetWriter", "Episode", "EpisodeFrames",
            "LeRobotDataset", "read_dataset", "to_float32"]
 
@@ -94,6 +101,9 @@ STATS = "meta/stats.json"
 TASKS = "meta/tasks.parquet"
 CHUNK_FILE = "chunk-{chunk_index:03d}/file-{file_index:03d}"
 DATA_PATH = "data/" + CHUNK_FILE + ".parquet"
+VIDEO_PATH = "videos/{video_key}/" + CHUNK_FILE + ".mp4"
+#: A camera's feature key is this and its name (LeRobot's robots' cameras are "observation.images.<name>").
+IMAGES = "observation.images."
 EPISODES_PATH = "meta/episodes/" + CHUNK_FILE + ".parquet"
 
 
@@ -200,8 +210,14 @@ class Episode:
         return self._values(key)[:, -1].copy() if self.has_gripper else None
 
 
-def _feature_spec(names: Sequence[str]) -> dict[str, Any]:
+def _feature_spec(names: Sequence[str], cameras: Mapping[str, tuple[int, int]] | None = None,
+                  fps: int = 30) -> dict[str, Any]:
     spec: dict[str, Any] = {key: {"dtype": "float32", "shape": [len(names)], "names": list(names)} for key in VECTORS}
+    for name, (width, height) in (cameras or {}).items():
+        from akarm.datasets.video import video_info
+
+        spec[IMAGES + name] = {"dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
+                               "info": video_info(height, width, fps)}
     spec.update({key: {"dtype": dtype, "shape": [1], "names": None} for key, dtype in SCALARS.items()})
     return spec
 
@@ -382,6 +398,7 @@ class LeRobotDataset:
 
     Attributes:
         root: its folder. info: meta/info.json. fps, total_episodes, total_frames, joint_names.
+        video_keys: its cameras' features (``observation.images.<name>``, stored as video; :meth:`video`).
         tasks: the task texts by task_index. episodes: one dict per episode (episode_index, tasks,
             length, dataset_from_index, dataset_to_index, data/chunk_index, data/file_index).
     """
@@ -411,6 +428,8 @@ class LeRobotDataset:
         if not isinstance(features, dict):
             raise RecordingError(f"{self.root / INFO} has no features", fix="pass a LeRobot v3.0 dataset folder")
         self.features: dict[str, Any] = features
+        self.video_keys: tuple[str, ...] = tuple(k for k, v in features.items()
+                                                 if isinstance(v, dict) and v.get("dtype") == "video")
         self.joint_names = self._names()
         self.tasks = self._tasks(pa, pq)
         self.episodes = self._episodes(pa, pq)
@@ -525,6 +544,39 @@ class LeRobotDataset:
         return Episode(k, str(task), self.fps, self.joint_names, timestamp, frame_index[order],
                        table.column("index").to_numpy(zero_copy_only=False)[order], features)
 
+    def video(self, k: int, key: str) -> tuple[Path, float, float]:
+        """Where episode ``k``'s frames of camera feature ``key`` (one of :attr:`video_keys`) are: the
+        video file, and the episode's first and end timestamps in it (s).
+
+        Raises:
+            RecordingError: no such episode or camera, or the episodes file does not say.
+        """
+        pa, pq = _arrow()
+        if key not in self.video_keys:
+            raise RecordingError(f"{self.root} has no camera {key!r}", fix="its cameras: " + ", ".join(self.video_keys))
+        if not (isinstance(k, int) and 0 <= k < self.total_episodes):
+            raise RecordingError(f"{self.root} has no episode {k!r}",
+                                 fix=f"episodes are 0 to {self.total_episodes - 1}")
+        cols = [f"videos/{key}/{c}" for c in ("chunk_index", "file_index", "from_timestamp", "to_timestamp")]
+        folder = self.root / "meta" / "episodes"
+        for path in sorted(folder.glob("*/*.parquet")):
+            try:
+                f = pq.ParquetFile(path)
+                if not all(c in f.schema_arrow.names for c in cols):
+                    continue
+                _check_bytes(f.metadata, path, ["episode_index", *cols])
+                table = f.read(columns=["episode_index", *cols])
+            except (OSError, ValueError, KeyError, pa.ArrowException) as e:
+                raise RecordingError(f"cannot read {path}: {e}",
+                                     fix="the dataset is damaged; record it again") from None
+            for row in table.to_pylist():
+                if row["episode_index"] == k and None not in row.values():
+                    file = self.root / VIDEO_PATH.format(video_key=key, chunk_index=int(row[cols[0]]),
+                                                         file_index=int(row[cols[1]]))
+                    return file, float(row[cols[2]]), float(row[cols[3]])
+        raise RecordingError(f"{self.root}: the episodes file does not say where episode {k} of {key} is",
+                             fix="the dataset is damaged; record it again")
+
     @staticmethod
     def _row_groups(f: Any, k: int) -> list[int] | None:
         """The row groups that may hold episode ``k`` by their statistics, or ``None`` (read the file)."""
@@ -556,14 +608,17 @@ class DatasetWriter:
         joint_names: the joints of every vector feature, in order.
         fps: frames per second (an integer, as LeRobot's).
         robot_type: info.json's ``robot_type`` (the robot's name).
+        cameras: camera name → (width, height) pixels: each episode then needs their frames
+            (:meth:`save_episode`'s ``images``), stored as video.
 
     Raises:
-        RecordingError: ``root`` holds something else, or a dataset of other joints or fps; it cannot be written.
+        RecordingError: ``root`` holds something else, or a dataset of other joints, cameras or fps; it
+            cannot be written.
         ArgumentError: a bad fps or joint list.
     """
 
     def __init__(self, root: str | os.PathLike[str], joint_names: Sequence[str], fps: int,
-                 robot_type: str | None = None) -> None:
+                 robot_type: str | None = None, cameras: Mapping[str, tuple[int, int]] | None = None) -> None:
         self.pa, self.pq = _arrow()
         if not (isinstance(fps, int) and not isinstance(fps, bool) and 0 < fps <= 10_000):
             raise ArgumentError(f"fps must be a whole number of frames per second (1 to 10000), not {fps!r}",
@@ -575,6 +630,13 @@ class DatasetWriter:
         self.root = Path(root)
         self.joint_names = names
         self.fps = fps
+        self.cameras: dict[str, tuple[int, int]] = {}
+        for name, size in (cameras or {}).items():
+            from akarm.datasets.video import check_frame_size
+
+            if not (isinstance(name, str) and name.replace("_", "").isalnum()):
+                raise ArgumentError(f"a camera's name must be letters, digits and _, not {name!r}", fix="e.g. front")
+            self.cameras[name] = check_frame_size(*size)
         check_writable(self.root / INFO)
         if (self.root / INFO).exists():
             self._open_existing(robot_type)
@@ -586,7 +648,8 @@ class DatasetWriter:
                          "codebase_version": CODEBASE_VERSION, "robot_type": robot_type, "total_episodes": 0,
                          "total_frames": 0, "total_tasks": 0, "chunks_size": CHUNKS_SIZE,
                          "data_files_size_in_mb": DATA_FILE_MB, "video_files_size_in_mb": 200, "fps": fps,
-                         "splits": {}, "data_path": DATA_PATH, "video_path": None, "features": _feature_spec(names)}
+                         "splits": {}, "data_path": DATA_PATH, "video_path": VIDEO_PATH if self.cameras else None,
+                         "features": _feature_spec(names, self.cameras, fps)}
             self.tasks: list[str] = []
             self.episode_rows: list[dict[str, Any]] = []
             # a dataset of no episodes, committed now: an episode cut short before its own commit (the
@@ -595,11 +658,12 @@ class DatasetWriter:
 
     def _open_existing(self, robot_type: str | None) -> None:
         ds = LeRobotDataset(self.root)
-        if ds.fps != self.fps or ds.features != _feature_spec(self.joint_names):
-            raise RecordingError(f"{self.root} holds a dataset of other joints or fps ({ds.fps} fps, joints "
-                                 f"{list(ds.joint_names)}; this recording: {self.fps} fps, joints "
-                                 f"{list(self.joint_names)})",
-                                 fix="record into a new folder, or with the same robot and --fps")
+        if ds.fps != self.fps or ds.features != _feature_spec(self.joint_names, self.cameras, self.fps):
+            raise RecordingError(f"{self.root} holds a dataset of other joints, cameras or fps ({ds.fps} fps, joints "
+                                 f"{list(ds.joint_names)}, cameras {list(ds.video_keys)}; this recording: {self.fps} "
+                                 f"fps, joints {list(self.joint_names)}, cameras "
+                                 f"{[IMAGES + c for c in self.cameras]})",
+                                 fix="record into a new folder, or with the same robot, cameras and --fps")
         self.info = dict(ds.info)
         self.tasks = list(ds.tasks)
         episodes = self.root / EPISODES_PATH.format(chunk_index=0, file_index=0)
@@ -638,20 +702,24 @@ class DatasetWriter:
         """Episodes committed so far."""
         return int(self.info["total_episodes"])
 
-    def save_episode(self, task: str, frames: EpisodeFrames) -> int:
-        """Commit ``frames`` as the next episode, doing ``task``; returns its episode_index.
+    def save_episode(self, task: str, frames: EpisodeFrames, images: Mapping[str, np.ndarray] | None = None) -> int:
+        """Commit ``frames`` as the next episode, doing ``task``; returns its episode_index. ``images``:
+        each camera's frames (name → n × height × width × 3 RGB uint8, one per frame), when the writer
+        has cameras.
 
         Call it with Ctrl-C held back (:func:`akarm.signals.deferred`): each file is written
         atomically, and info.json, written last, is the commit.
 
         Raises:
-            ArgumentError: no frames, the wrong number of joints, a value that is not finite.
+            ArgumentError: no frames, the wrong number of joints, a value that is not finite, a
+                camera's frames missing or of another size or count.
             RecordingError: the episode is past a bound, or a file cannot be written.
         """
         pa = self.pa
         n = len(frames)
         if n == 0:
             raise ArgumentError("an episode needs at least one frame", fix="record for longer")
+        images = self._check_images(images, n)
         cols = frames.columns()
         for key, v in cols.items():
             if v.shape[1] != len(self.joint_names) or not np.all(np.isfinite(v)):
@@ -685,6 +753,7 @@ class DatasetWriter:
         row: dict[str, Any] = {"episode_index": k, "tasks": [task], "length": n, "data/chunk_index": chunk,
                                "data/file_index": file, "dataset_from_index": start, "dataset_to_index": start + n,
                                "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0}
+        self._write_videos(k, images, row, stats)  # before the episode's commit
         row.update({f"stats/{key}/{name}": np.asarray(v).tolist() for key, s in stats.items() for name, v in s.items()})
         self.episode_rows.append(row)
         self._write_episodes()
@@ -697,6 +766,33 @@ class DatasetWriter:
         _write_json(self.root / INFO, info)  # the commit
         self.info = info
         return k
+
+    def _check_images(self, images: Mapping[str, np.ndarray] | None, n: int) -> dict[str, np.ndarray]:
+        """Every camera's ``n`` frames, of its size, or ArgumentError."""
+        images = dict(images or {})
+        if set(images) != set(self.cameras):
+            raise ArgumentError(f"the episode has frames of cameras {sorted(images)}, the dataset's are "
+                                f"{sorted(self.cameras)}", fix="give every camera's frames, and only theirs")
+        for name, (width, height) in self.cameras.items():
+            shape = getattr(images[name], "shape", None)
+            if shape != (n, height, width, 3) or images[name].dtype != np.uint8:
+                raise ArgumentError(f"camera {name}: frames of shape {shape}, ({n}, {height}, {width}, 3) uint8 "
+                                    "are needed (one per frame)", fix="take one camera frame with each frame")
+        return images
+
+    def _write_videos(self, k: int, images: Mapping[str, np.ndarray], row: dict[str, Any],
+                      stats: dict[str, dict[str, np.ndarray]]) -> None:
+        """Episode ``k``'s video of each camera, one file each; where it is goes into ``row``, its stats
+        into ``stats``."""
+        from akarm.datasets.video import encode_episode
+
+        for name, video in images.items():
+            key = IMAGES + name
+            chunk, file = divmod(k, CHUNKS_SIZE)
+            stats[key] = encode_episode(self.root / VIDEO_PATH.format(video_key=key, chunk_index=chunk,
+                                                                      file_index=file), video, self.fps)
+            row.update({f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
+                        f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": len(video) / self.fps})
 
     def _data_file_for(self, table: pa.Table) -> tuple[int, int, pa.Table | None]:
         """(chunk, file) the episode goes into, and the rows already there (``None``: a new file)."""
@@ -735,16 +831,16 @@ class DatasetWriter:
             return
         _write_parquet(path, self.pa.Table.from_pylist(self.episode_rows))
 
-    def _dataset_stats(self) -> dict[str, dict[str, list[float]]]:
-        out: dict[str, dict[str, list[float]]] = {}
-        keys = [*VECTORS, *SCALARS]
+    def _dataset_stats(self) -> dict[str, dict[str, list[Any]]]:
+        out: dict[str, dict[str, list[Any]]] = {}
+        keys = [*VECTORS, *(IMAGES + c for c in self.cameras), *SCALARS]
         for key in keys:
             parts = []
             for r in self.episode_rows:
                 parts.append({name[len(f"stats/{key}/"):]: np.asarray(v) for name, v in r.items()
                               if name.startswith(f"stats/{key}/")})
             agg = _aggregate(parts)
-            out[key] = {name: [x if math.isfinite(x) else 0.0 for x in np.asarray(v, dtype=float).tolist()]
+            out[key] = {name: np.nan_to_num(np.asarray(v, dtype=float), nan=0.0, posinf=0.0, neginf=0.0).tolist()
                         for name, v in agg.items()}
             out[key]["count"] = [int(agg["count"][0])]
         return out

@@ -606,7 +606,10 @@ class ArmServerCore:
                 "age": [j.age for j in s.joints], "time": time.time(), "asked": asked,
                 "enabled": s.enabled, "moving": s.moving, "mode": self.mode,
                 "stop": stop.as_dict() if stop else None,
-                "robot": cfg.name, "pid": os.getpid(), "rate_hz": cfg.rate_hz}
+                "robot": cfg.name, "pid": os.getpid(), "rate_hz": cfg.rate_hz,
+                # the gripper's reading too (None without one): a client sampling the arm (a LeRobot
+                # observation) needs both in one round trip
+                "gripper": _gripper_doc(self.arm.gripper.state()) if self.arm.gripper is not None else None}
 
     def _op_describe(self) -> dict[str, Any]:
         """The protocol: its version, each operation with its arguments, the socket's limits."""

@@ -8,7 +8,8 @@ retargeting (:meth:`akarm.Arm.stream_to`, each joint on its own), so that:
   commanded position, velocity and acceleration, within each joint's velocity, acceleration and jerk
   limits;
 - **a target past a joint's range is clamped** to the range's edge and counted (:attr:`clamped`; the
-  log gets one line per joint, the first time);
+  log gets one line per joint, the first time); so is a gripper width past its stroke (0 to the
+  stroke, m), counted and reported under the gripper's name;
 - **a target that is not a number** (NaN, ``None``), an unknown joint, or a missing joint (unless
   ``partial``) is **refused**: nothing of it is used, the arm comes to rest where it is going
   (jerk-limited) and holds, and :class:`~akarm.ArgumentError` says which joint and why;
@@ -56,8 +57,9 @@ class StreamReport:
 
     Attributes:
         target: the positions streamed, rad, config order (clamped to the range).
-        clamped: the joints of this target that were past their range (taken to its edge).
-        clamped_total: targets' joints clamped since the stream began.
+        clamped: the joints of this target that were past their range (taken to its edge), and the
+            gripper's name if its width was past its stroke (taken to 0 or the stroke).
+        clamped_total: targets' joints (and gripper widths) clamped since the stream began.
         timeouts: times the arm was brought to a hold for want of a target since the stream began.
         gripper: the gripper width asked, m (clamped to its stroke), or ``None``.
     """
@@ -115,14 +117,28 @@ class TargetStream:
         return self._last
 
     def _gripper(self, width: object) -> float | None:
+        """The gripper width asked (m, finite, not yet clamped), or None; ArgumentError as documented."""
         if width is None:
             return None
         gripper = self.arm.gripper
         if gripper is None:
             raise ArgumentError("this arm has no gripper, but the target has a gripper width",
                                 fix="leave 'gripper' out, or add a gripper to the robot file")
-        w = self._finite(width, gripper.name, "m")
-        return min(max(w, 0.0), gripper.stroke)
+        return self._finite(width, gripper.name, "m")
+
+    def _clamp_gripper(self, width: float) -> tuple[float, bool]:
+        """``width`` within the gripper's stroke (0 to the stroke, m), and whether it was outside (said
+        once)."""
+        gripper = self.arm.gripper
+        assert gripper is not None  # (a width without a gripper was refused)
+        w = min(max(width, 0.0), gripper.stroke)
+        if w == width:
+            return w, False
+        if gripper.name not in self._warned:
+            self._warned.add(gripper.name)
+            self.log(f"akarm stream: a gripper width of {width:+.4f} m is past its stroke [0, {gripper.stroke:g}] m: "
+                     "taken to its edge (counted; said once)")
+        return w, True
 
     @staticmethod
     def _finite(value: object, joint: str, unit: str = "rad") -> float:
@@ -192,6 +208,11 @@ class TargetStream:
                                  f"[{lim.lower[i]:+.3f}, {lim.upper[i]:+.3f}] rad: taken to its edge (counted; "
                                  "said once per joint)")
                 q = np.clip(q, lim.lower, lim.upper)
+            if width is not None:
+                width, outside_stroke = self._clamp_gripper(width)
+                if outside_stroke:
+                    self.clamped += 1
+                    clamped = (*clamped, str(self.arm.gripper.name))  # type: ignore[union-attr]
             now = self.arm.clock.now()
             goal = q
             if self.lead and self._previous is not None and self._last is not None and now - self._last > 0.0:

@@ -29,7 +29,10 @@ The protocol is one JSON object per line each way, so any language (or ``socat``
 - ``{"cmd": "disable"}`` → ``{"ok": true, "joints": [names that were enabled]}``;
 - ``{"cmd": "place_object", "width": 0.03, "stiffness": 20000}``, ``{"cmd": "remove_object"}``: an object
   between the gripper's jaws (:meth:`~akarm.sim.SimulatedRobot.place_object`), or none;
-- ``{"cmd": "gripper"}`` → ``{"ok": true, "width": m, "force": N}``: the jaws' width and their true squeeze;
+- ``{"cmd": "gripper"}`` → ``{"ok": true, "width": m, "force": N, "object": m or null, "between": bool}``:
+  the jaws' width, their true squeeze, the placed object's width (null: none) and whether it is between
+  the jaws now; ``{"cmd": "gripper", "width": 0.05}`` puts the jaws that far apart, at rest, first (a
+  hand opening or closing a leader's free gripper);
 - ``{"cmd": "frames", "since": 0}`` → ``{"ok": true, "next": N, "frames": [[t, bus, id, extended,
   data as hex, joint, to_motor], ...]}``: the frames the drivers took in and sent.
 
@@ -161,7 +164,9 @@ def _object(sim: SimulatedRobot, cmd: str, req: dict[str, Any]) -> dict[str, Any
     if cmd == "remove_object":
         sim.remove_object()
         return {}
-    return {"width": sim.gripper_width(), "force": sim.object_force()}
+    if req.get("width") is not None:
+        sim.set_gripper_width(float(req["width"]))
+    return {"width": sim.gripper_width(), "force": sim.object_force(), **sim.object_doc()}
 
 
 class ChannelServer:
@@ -300,6 +305,16 @@ class SimulatorControl:
         """The jaws' width (m) and their true squeeze on the object (N)."""
         answer = self.request(cmd="gripper")
         return float(answer["width"]), float(answer["force"])
+
+    def set_gripper_width(self, width: float) -> None:
+        """Put the jaws ``width`` m apart, at rest (a hand moving a free gripper)."""
+        self.request(cmd="gripper", width=float(width))
+
+    def gripper_object(self) -> tuple[float | None, bool]:
+        """The placed object's width (m; None: none) and whether it is between the jaws now."""
+        answer = self.request(cmd="gripper")
+        width = answer.get("object")
+        return (None if width is None else float(width)), bool(answer.get("between"))
 
     def frames(self, since: int = 0) -> tuple[list[Frame], int]:
         """The frames the drivers took in and sent from the ``since``-th on, and the index to ask from next

@@ -547,6 +547,15 @@ class SimulatedRobot:
         """The jaws squeeze the object (it moves with the tool)."""
         return self._object is not None and self._object.held
 
+    def object_doc(self) -> dict[str, float | bool | None]:
+        """The placed object as a picture needs it: ``object`` its width (m; None: none placed) and
+        ``between``: it is between the jaws now (placed without a position, or the tool is at it)."""
+        g = self._require_gripper()
+        with self._lock:
+            if self._object is None:
+                return {"object": g.object_width, "between": g.object_width is not None}
+            return {"object": self._object.width, "between": g.object_width is not None}
+
     def gripper_width(self) -> float:
         """m between the jaws now."""
         return self._require_gripper().width

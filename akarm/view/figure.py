@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from akarm.dynamics.fingers import finger_slides
 from akarm.dynamics.model import RobotModel
 from akarm.errors import ModelError
 from akarm.view.visuals import read_visuals, visual_mesh
@@ -153,37 +154,6 @@ def _visual_parts(model: pin.Model, urdf: str | os.PathLike[str]) -> tuple[list[
                           np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.uint32),
                           (color[0], color[1], color[2]), opacity, vis.link))
     return parts, problems
-
-
-def finger_slides(model: RobotModel) -> dict[str, np.ndarray]:
-    """Per URDF link that one of the gripper's finger joints moves (a prismatic joint of the robot
-    file's ``gripper.fingers``): the direction it slides, in the frame of the body it rides on in the
-    reduced model, per metre of that joint (m/m). Empty without a gripper or fingers."""
-    g = model.config.gripper
-    if g is None or not g.fingers:
-        return {}
-    full = pin.buildModelFromUrdf(str(model.config.urdf))
-    data = full.createData()
-    slides: dict[str, np.ndarray] = {}
-    for finger in g.fingers:
-        if not full.existJointName(finger):
-            continue
-        fj = full.getJointId(finger)
-        if full.nqs[fj] != 1 or full.nvs[fj] != 1:
-            continue
-        q = pin.neutral(full)
-        pin.forwardKinematics(full, data, q)
-        parent = int(full.parents[fj])
-        at_zero = (data.oMi[parent].inverse() * data.oMi[fj]).translation.copy()
-        q[full.idx_qs[fj]] += 0.01
-        pin.forwardKinematics(full, data, q)
-        slide = ((data.oMi[parent].inverse() * data.oMi[fj]).translation - at_zero) / 0.01
-        if np.linalg.norm(slide) < 0.5:  # not a slide (a revolute finger): drawn where it is locked
-            continue
-        for f in full.frames:
-            if int(f.parentJoint) == fj and f.type == pin.FrameType.BODY:
-                slides[str(f.name)] = np.asarray(slide, dtype=float)
-    return slides
 
 
 def build_figure(model: RobotModel, *, visuals: bool = True) -> Figure:

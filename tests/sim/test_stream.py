@@ -111,6 +111,33 @@ def test_a_silent_client_leaves_the_arm_decelerating_to_a_hold_and_the_next_targ
         np.testing.assert_allclose(arm.telemetry(since=t1).q_des[-1], [0.5, 0.5], atol=1e-9)
 
 
+def test_a_gripper_width_past_its_stroke_is_clamped_counted_and_said_once(channel):
+    """arm6g's gripper (80 mm stroke) asked 0.12 m then -0.02 m by a policy: each taken to the stroke's
+    edge, counted with the joints and named in the report; the jaws go there."""
+    said: list[str] = []
+    with lockstep_arm("arm6g", channel, enable=True) as (arm, sim):
+        assert arm.gripper is not None
+        stream = TargetStream(arm, log=said.append)
+        q = arm.state().q_des.tolist()
+        for _ in range(30):
+            report = stream.send(q, gripper=0.12)
+            run(arm, stream, FRAME)
+        assert report.gripper == pytest.approx(0.08) and report.clamped == ("gripper",)
+        assert stream.clamped == 30 and report.clamped_total == 30
+        assert sim.gripper_width() == pytest.approx(0.08, abs=0.002)
+        for _ in range(30):
+            report = stream.send(q, gripper=-0.02)
+            run(arm, stream, FRAME)
+        assert report.gripper == 0.0 and report.clamped_total == 60
+        assert sim.gripper_width() == pytest.approx(0.0, abs=0.002)
+        report = stream.send(q, gripper=0.05)  # within the stroke: taken as it is, not counted
+        assert report.gripper == 0.05 and report.clamped == () and report.clamped_total == 60
+        assert len(said) == 1 and "past its stroke" in said[0]
+        with pytest.raises(ArgumentError, match="not a finite number") as e:
+            stream.send(q, gripper=math.nan)
+        assert e.value.joint == "gripper"
+
+
 def test_the_timeout_is_checked():
     assert check_timeout(1) == 1.0
     for bad in (0.0, -1.0, math.nan, 60.0, True, "1"):

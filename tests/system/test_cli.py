@@ -438,7 +438,9 @@ def test_bench_prints_loop_statistics_and_cpu(where: str, capsys: pytest.Capture
 
 def _gripper_episode(tmp_path: Path) -> tuple[Path, Path]:
     """arm6g relaxed for a loaded machine (its gripper's watchdog too), and a dataset of one 2 s episode
-    at 30 fps: the arm still at zero, the gripper asked open, then closed from 0.5 s to 1 s."""
+    at 30 fps: the arm still at zero, the gripper asked open, then closed from 0.5 s to 1 s; with a
+    camera (as `akarm teleop --record --camera` writes one), which replay leaves alone."""
+    pytest.importorskip("av")
     from akarm.datasets import GRIPPER, DatasetWriter, EpisodeFrames
 
     from .conftest import relaxed_robot
@@ -447,8 +449,9 @@ def _gripper_episode(tmp_path: Path) -> tuple[Path, Path]:
     n = 60
     t = np.arange(n) / 30
     vec = np.hstack([np.zeros((n, 6)), np.interp(t, [0.0, 0.5, 1.0, 2.0], [0.08, 0.08, 0.0, 0.0])[:, None]])
-    DatasetWriter(tmp_path / "data", (*load_robot(robot).joint_names, GRIPPER), 30).save_episode(
-        "close on the part", EpisodeFrames(vec, 0 * vec, 0 * vec, vec))
+    DatasetWriter(tmp_path / "data", (*load_robot(robot).joint_names, GRIPPER), 30,
+                  cameras={"front": (32, 24)}).save_episode(
+        "close on the part", EpisodeFrames(vec, 0 * vec, 0 * vec, vec), {"front": np.zeros((n, 24, 32, 3), np.uint8)})
     return robot, tmp_path / "data"
 
 

@@ -37,6 +37,8 @@ def test_the_gripper_served_to_the_control_socket_and_the_cli(tmp_path: Path) ->
             with pytest.raises(akarm.ArgumentError):
                 c.call("gripper_move", width=0.1)
             assert c.call("gripper_state")["grasped"]
+            g = c.call("state", read=False)["gripper"]  # the arm's state carries the gripper's reading too
+            assert abs(g["width"] - 0.03) < 0.002 and g["grasped"] and 16.0 < g["force"] < 24.0
         status = akarm_cli("status", str(robot), "-i", "akarm_local", "-c", channel)
         assert status.returncode == 0, status.stderr
         assert "gripper 'gripper': width 29." in status.stdout, status.stdout
@@ -58,3 +60,8 @@ def test_akarm_grip_without_a_server(tmp_path: Path) -> None:
         assert "grasped, force" in grip.stdout and grip.stdout.rstrip().endswith("limp)"), grip.stdout
         width, force = sim.control.gripper()  # type: ignore[union-attr]
         assert force < 3.0 and width > 0.029  # limp: the object springs the jaws back, but for what friction holds
+        assert sim.control.gripper_object() == (0.03, True)  # type: ignore[union-attr]  # (what a camera draws)
+        sim.control.set_gripper_width(0.06)  # type: ignore[union-attr]  # a hand opens the limp jaws
+        assert abs(sim.control.gripper()[0] - 0.06) < 0.001  # type: ignore[union-attr]
+        sim.control.remove_object()  # type: ignore[union-attr]
+        assert sim.control.gripper_object() == (None, False)  # type: ignore[union-attr]

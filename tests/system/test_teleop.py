@@ -343,21 +343,28 @@ def test_the_followers_collision_reflex_stays_armed_or_with_force_feedback_holds
 
 def test_akarm_teleop_of_arms_with_grippers_records_the_gripper_column(tmp_path: Path) -> None:
     """`akarm teleop --record` with a follower that has a gripper: the dataset's vectors end with
-    `gripper`, the follower's width (measured and asked), read back with pyarrow."""
+    `gripper`, the follower's width (measured and asked), read back with pyarrow. A simulated camera
+    (`--camera front`) is recorded as video in LeRobot's layout, the object between the follower's
+    jaws drawn; akarm's reader finds it."""
     import json
 
+    from akarm.datasets import read_dataset
+    from akarm.datasets.video import decode_video
     from akarm.sim.process import SimulatorProcess
 
     pq = pytest.importorskip("pyarrow.parquet")
+    pytest.importorskip("av")
     robot = relaxed_robot(ROBOTS / "arm6g.yaml", tmp_path)
     tag = f"{os.getpid()}-{time.monotonic_ns() % 10**6}"
     data = tmp_path / "grasps"
     with SimulatorProcess(robot, channel=f"gl-{tag}", control=True) as lead, \
             SimulatorProcess(robot, channel=f"gf-{tag}", control=True) as foll:
         assert lead.control is not None and foll.control is not None
+        foll.control.place_object(0.02)  # narrower than the jaws open: between them, untouched
         proc = _akarm("teleop", str(robot), str(robot), "-i", "akarm_local", "--leader-channel", f"gl-{tag}",
                       "--follower-channel", f"gf-{tag}", "--record", str(data), "--task", "grasp", "--fps", "30",
-                      "--episodes", "1", "--episode-time", "1.0")
+                      "--episodes", "1", "--episode-time", "1.0", "--camera", "front", "--camera-size", "96x72",
+                      "--sim-control", str(foll.control.path))
         err = _Lines(proc)
         out = err.finish(timeout=120)
         assert proc.returncode == 0, str(err)
@@ -373,3 +380,22 @@ def test_akarm_teleop_of_arms_with_grippers_records_the_gripper_column(tmp_path:
     # the follower's jaws are asked the leader's width (the same stroke), and are there
     assert action[-1, 6] == pytest.approx(leader_width, abs=0.001)
     assert state[-1, 6] == pytest.approx(action[-1, 6], abs=0.002)
+    # the camera: LeRobot's layout and info, one frame per frame, the arm and the object drawn
+    key = "observation.images.front"
+    assert info["video_path"] == "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
+    assert info["features"][key]["dtype"] == "video" and info["features"][key]["shape"] == [72, 96, 3]
+    assert info["features"][key]["info"]["video.codec"] == "av1"
+    ds = read_dataset(data)
+    path, start, end = ds.video(0, key)
+    assert ds.video_keys == (key,) and path == data / "videos" / key / "chunk-000" / "file-000.mp4"
+    assert (start, end) == (0.0, pytest.approx(1.0))
+    frames = decode_video(path)
+    # the object: red, its green and blue alike (the links' orange has far more green than blue; AV1's
+    # 4:2:0 colour at this size pales both): 8 such pixels a frame with the object, 0 without, here
+    r, g, b = (frames[..., c].astype(int) for c in range(3))
+    red = (r - g > 35) & (np.abs(g - b) < 25)
+    drawn = np.abs(frames.astype(int) - frames[:, :, :1].astype(int)).max(axis=-1) > 40  # unlike the row's background
+    print(f"camera: {frames.shape}, {red.sum(axis=(1, 2)).mean():.1f} object pixels, "
+          f"{drawn.sum(axis=(1, 2)).mean():.1f} pixels of the arm a frame")
+    assert frames.shape == (30, 72, 96, 3) and red.sum(axis=(1, 2)).min() >= 4 and drawn.sum(axis=(1, 2)).min() > 60
+    assert len(ds.episode(0)) == 30  # the reader takes the dataset as before

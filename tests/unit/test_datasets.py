@@ -97,9 +97,9 @@ def test_appending_later_continues_the_indices_and_refuses_other_joints_or_fps(t
     assert w.save_episode("wave", frames(10)) == 3
     ds = read_dataset(tmp_path)
     assert ds.total_frames == 136 and ds.tasks == ["pick", "place", "wave"] and ds.episode(3).global_index[0] == 126
-    with pytest.raises(RecordingError, match="other joints or fps"):
+    with pytest.raises(RecordingError, match="other joints, cameras or fps"):
         DatasetWriter(tmp_path, JOINTS, 50)
-    with pytest.raises(RecordingError, match="other joints or fps"):
+    with pytest.raises(RecordingError, match="other joints, cameras or fps"):
         DatasetWriter(tmp_path, ("a", "b"), 30)
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "x.txt").write_text("x")

@@ -114,6 +114,10 @@ def test_the_stopping_distance_is_where_ruckig_brings_a_joint_to_rest(v: float) 
     (["--seconds", "0"], "--seconds must be positive"),
     (["--record", "DIR", "--task", "wave", "--fps", "0"], "--fps must be at least 1"),
     (["-i", "virtual", "-c", "arm=x,amr=y"], "-c names bus 'amr', which neither arm has (did you mean 'arm'?)"),
+    (["--camera", "front"], "--camera and --sim-control are for --record"),
+    (["--record", "DIR", "--task", "wave", "--camera", "front", "--camera", "front"], "each named once"),
+    (["--record", "DIR", "--task", "wave", "--camera", "front", "--camera-size", "97x96"], "even number"),
+    (["--record", "DIR", "--task", "wave", "--camera", "front", "--camera-size", "96"], "is not WIDTHxHEIGHT"),
 ])
 def test_akarm_teleop_checks_its_options_before_anything_is_opened(args: list[str], said: str, tmp_path: Path,
                                                                    capsys: pytest.CaptureFixture[str]) -> None:

@@ -47,6 +47,25 @@ def robot(tmp_path: Path) -> Path:
 
 
 @pytest.fixture
+def robot6g(tmp_path: Path) -> Path:
+    """arm6g (six joints and a parallel gripper, 80 mm stroke) with the same tolerant supervisor, its
+    gripper's motor too."""
+    doc = yaml.safe_load((ROBOTS / "arm6g.yaml").read_text())
+    doc["urdf"] = str(ROBOTS / doc["urdf"])
+    doc.setdefault("defaults", {}).update(feedback_timeout=1.0, stuck_travel=3.0, following_error=3.0)
+    doc["gripper"]["feedback_timeout"] = 1.0
+    # collision thresholds 3x: a simulator starved on this loaded machine lags its arm, and the model's
+    # torque then misses the reading by several N·m while the follower moves fast (7.5 N·m on the
+    # shoulder_lift's 2.1 once, at a load average of 9)
+    for joint in doc["joints"]:
+        if "collision" in joint:
+            joint["collision"]["threshold"] = 3 * float(joint["collision"]["threshold"])
+    path = tmp_path / "arm6g.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.fixture
 def channel(request: pytest.FixtureRequest) -> str:
     return f"lr-{os.getpid()}-{next(_counter)}"
 
@@ -90,8 +109,18 @@ class Hand:
     pushed every 20 ms against planar2's light elbow, oscillates)."""
 
     def __init__(self, control: Any, path: Callable[[float], np.ndarray], k: Any = (3.0, 1.0),
-                 d: Any = (0.4, 0.1)) -> None:
-        self.control, self.path = control, path
+                 d: Any = (0.4, 0.1), grip: Callable[[float], float] | None = None,
+                 teaching: Any = None) -> None:
+        self.control, self.path, self.grip = control, path, grip  # grip: the free gripper's width at t, m
+        # teaching: the leader's server (a control connection): the hand waits for its teach mode and
+        # then moves the arm by path(t) - path(0) from where it is (an arm that sagged before its server
+        # held it is not pulled back: a held arm pushed hard stops for a collision, as it should)
+        self.teaching = teaching
+        self.start: np.ndarray | None = None
+        self.grip_start = 0.0
+        self.width: float | None = None  # the jaws' width the hand holds them at, m
+        self.last: np.ndarray | None = None  # the last push, N·m
+        self.released = False
         self.k, self.d = np.asarray(k, float), np.asarray(d, float)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -103,21 +132,60 @@ class Hand:
                 joints = self.control.state()
             except Exception:
                 continue
-            q = np.array([j.position for j in joints])
-            dq = np.array([j.velocity for j in joints])
-            tau = self.k * (self.path(time.monotonic() - self.t0) - q) - self.d * dq
+            q = np.array([j.position for j in joints])[:len(self.k)]  # (not a gripper's motor)
+            dq = np.array([j.velocity for j in joints])[:len(self.k)]
+            if self.teaching is not None:
+                try:
+                    teach = self.teaching.call("state", read=False)["mode"] == "teach"
+                except Exception:
+                    teach = False
+                if not teach:  # not yet, or no more (the session ended): the hand lets go
+                    if self.start is not None:
+                        self._let_go(self.last if self.last is not None else np.zeros(len(self.k)))
+                        return
+                    continue
+            if self.teaching is not None and self.start is None:
+                self.start, self.t0 = q - self.path(0.0), time.monotonic()
+                if self.grip is not None:  # the jaws too, from where they are (a jump is implausible feedback)
+                    with suppress(Exception):
+                        self.width = self.control.gripper()[0]
+                        self.grip_start = self.width - self.grip(0.0)
+            t = time.monotonic() - self.t0
+            want = self.path(t) if self.start is None else self.start + self.path(t)
+            tau = self.k * (want - q) - self.d * dq
+            self.last = tau
             with suppress(Exception):
                 self.control.push([float(x) for x in tau])
+            if self.grip is not None:  # at most 1.5 mm a push (75 mm/s): a starved thread must not make the
+                # jaws jump (the leader's server stops for implausible feedback, as it should)
+                want_w = min(max(self.grip(t) + self.grip_start, 0.0), 0.08)
+                if self.width is None:
+                    self.width = want_w
+                self.width += min(max(want_w - self.width, -0.0015), 0.0015)
+                with suppress(Exception):
+                    self.control.set_gripper_width(self.width)
+
+    def _let_go(self, tau: np.ndarray) -> None:
+        """Release the push over 1 s (a held arm whose push vanishes at once feels a sudden torque: a
+        collision, as it should)."""
+        for k in range(50, -1, -1):
+            with suppress(Exception):
+                self.control.push([float(x) * k / 50 for x in tau] if k else None)
+            time.sleep(0.02)
+        self.released = True
 
     def __enter__(self) -> Hand:
         self._thread.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self.teaching is not None and self.start is not None:  # it lets go by itself once teach mode ends
+            self._thread.join(10)
         self._stop.set()
         self._thread.join(2)
-        with suppress(Exception):
-            self.control.push(None)
+        if not self.released:
+            with suppress(Exception):
+                self.control.push(None)
 
 
 def sway(q0: Any, amplitude: Any, period: float) -> Callable[[float], np.ndarray]:
@@ -133,6 +201,7 @@ class Poller:
         self.client, self.period = client, period
         self.t: list[float] = []
         self.q: list[list[float]] = []
+        self.grip: list[float] = []  # the gripper's width, m (NaN: none, or not heard)
         self.status: list[dict[str, Any]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -144,6 +213,8 @@ class Poller:
                 doc = self.client.call("state", read=False)
                 self.t.append(time.monotonic())
                 self.q.append(doc["q"])
+                g = doc.get("gripper") or {}
+                self.grip.append(math.nan if g.get("width") is None else float(g["width"]))
                 k += 1
                 if k % 50 == 0:
                     self.status.append(self.client.call("status"))

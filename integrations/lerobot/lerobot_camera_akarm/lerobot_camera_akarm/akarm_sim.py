@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from typing import Any
 
@@ -14,7 +12,6 @@ import numpy as np
 from lerobot.cameras.camera import Camera
 
 from .config_akarm_sim import AkarmSimConfig
-from .render import HEADER
 
 __all__ = ["AkarmSim"]
 
@@ -41,36 +38,25 @@ class AkarmSim(Camera):
         return []
 
     def connect(self, warmup: bool = True) -> None:
-        import mmap
+        from akarm.sim.camera import FrameFile
 
         c = self.config
-        size = HEADER.size + c.width * c.height * 3
-        shm = "/dev/shm" if os.path.isdir("/dev/shm") else None
-        fd, self.path = tempfile.mkstemp(prefix="akarm-sim-camera-", dir=shm)
-        os.ftruncate(fd, size)
-        self._map = mmap.mmap(fd, size)
-        os.close(fd)
+        self._map = FrameFile.create(c.width, c.height)
+        self.path = str(self._map.path)
         cmd = [sys.executable, "-m", "lerobot_camera_akarm.render", c.robot_file, self.path, "--width", str(c.width),
                "--height", str(c.height), "--fps", str(c.fps), "--parent", str(os.getpid())]
         if c.interface:
             cmd += ["-i", c.interface]
         if c.channel:
             cmd += ["-c", c.channel]
+        if c.control:
+            cmd += ["--control", c.control]
         self.process = subprocess.Popen(cmd, start_new_session=True)
         if warmup:
             self.read()
 
     def _latest(self) -> tuple[int, np.ndarray | None]:
-        c = self.config
-        for _ in range(5):  # a frame being written meanwhile: read again
-            seq, _t = HEADER.unpack(self._map[:HEADER.size])
-            if seq == 0:
-                return 0, None
-            data = self._map[HEADER.size:]
-            seq2, _ = HEADER.unpack(self._map[:HEADER.size])
-            if seq2 == seq:
-                return seq, np.frombuffer(data, np.uint8).reshape(c.height, c.width, 3).copy()
-        return 0, None
+        return self._map.latest()
 
     def read(self, color_mode: Any = None) -> np.ndarray:
         return self.async_read(timeout_ms=30000)
@@ -98,9 +84,6 @@ class AkarmSim(Camera):
             except subprocess.TimeoutExpired:
                 p.kill()
         if self._map is not None:
-            self._map.close()
+            self._map.close()  # (its file removed: it was made here)
             self._map = None
-        if self.path:
-            with contextlib.suppress(OSError):
-                os.unlink(self.path)
-            self.path = None
+        self.path = None

@@ -23,6 +23,9 @@ class AkarmConfig(RobotConfig):
         speed: the fraction of the joints' velocity, acceleration and jerk limits actions may use.
         strict_actions: refuse an action that names only some joints (default: the others keep their target).
         start_server: start ``akarm serve`` when none drives the robot (it is stopped at disconnect).
+        effort: observe ``<joint>.effort`` (and ``gripper.effort``). LeRobot 0.6's ``lerobot-rollout``
+            gives a policy only the ``.pos`` and ``.vel`` features as its state, so a policy to be rolled
+            out there must be recorded (and rolled out) with ``effort=false``.
     """
 
     robot_file: str = ""
@@ -35,3 +38,4 @@ class AkarmConfig(RobotConfig):
     speed: float = 1.0
     strict_actions: bool = False
     start_server: bool = True
+    effort: bool = True

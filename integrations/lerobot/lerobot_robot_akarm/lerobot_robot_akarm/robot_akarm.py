@@ -4,12 +4,15 @@ Features (SI units, the order stable: the robot file's joint order):
 
 - actions: ``<joint>.pos`` (rad) per joint, then ``gripper.pos`` (m, jaw width) when the robot file
   has a gripper;
-- observations: the same ``.pos``, then ``<joint>.vel`` (rad/s) and ``<joint>.effort`` (N·m) per joint,
-  then each camera ``(height, width, 3)``.
+- observations: the same ``.pos``, then ``<joint>.vel`` (rad/s) per joint and ``gripper.vel`` (m/s),
+  then ``<joint>.effort`` (N·m) per joint and ``gripper.effort`` (N, the squeeze; none with
+  ``effort=false``), then each camera ``(height, width, 3)`` (the gripper's features only when the
+  robot file has one).
 
 ``send_action`` streams the target into akarm's 500 Hz loop through the jerk-limited retargeting
 (the server's ``stream`` operation): no command step above a joint's limits, whatever is sent; a target
-past a joint's range is clamped to it and counted (a warning once); NaN refuses the action and the
+past a joint's range (or a gripper width past its stroke) is clamped to it and counted (a warning
+once); NaN refuses the action and the
 arm holds (``ArgumentError`` raised); 0-d tensors and partial ``.pos`` dicts are taken. A policy that
 stops sending leaves the arm decelerating to a hold after ``stream_timeout`` s. A safety stop is
 raised from ``get_observation``/``send_action`` as akarm's own error (its name and text); the server has
@@ -31,7 +34,7 @@ from .served import ServedArm
 
 log = logging.getLogger("akarm.lerobot")
 
-__all__ = ["Akarm", "action_target"]
+__all__ = ["Akarm", "action_target", "gripper_reading"]
 
 
 def _number(value: Any) -> float:
@@ -57,6 +60,18 @@ def action_target(action: dict[str, Any], names: tuple[str, ...], gripper: str |
         else:
             target[name] = _number(value)
     return target, width
+
+
+def gripper_reading(doc: dict[str, Any]) -> tuple[float, float, float]:
+    """The gripper's width (m), rate (m/s) and squeeze (N) from the server's ``state`` (NaN for what its
+    motor has not told yet)."""
+    g = doc.get("gripper") or {}
+
+    def num(key: str) -> float:
+        x = g.get(key)
+        return math.nan if x is None else float(x)
+
+    return num("width"), num("velocity"), num("force")
 
 
 class Akarm(Robot):
@@ -90,8 +105,10 @@ class Akarm(Robot):
     @cached_property
     def observation_features(self) -> dict[str, Any]:
         feats: dict[str, Any] = dict(self.action_features)
-        feats.update({f"{n}.vel": float for n in self.joint_names})
-        feats.update({f"{n}.effort": float for n in self.joint_names})
+        grip = [self.gripper] if self.gripper else []
+        feats.update({f"{n}.vel": float for n in [*self.joint_names, *grip]})
+        if self.config.effort:
+            feats.update({f"{n}.effort": float for n in [*self.joint_names, *grip]})
         for key, cam in self.config.cameras.items():
             feats[key] = (cam.height, cam.width, 3)
         return feats
@@ -149,14 +166,20 @@ class Akarm(Robot):
         arm = self._arm()
         doc = arm.state()
         obs: dict[str, Any] = {}
+        grip = gripper_reading(doc) if self.gripper else None
         for i, n in enumerate(self.joint_names):
             obs[f"{n}.pos"] = float(doc["q"][i])
-        if self.gripper:
-            obs["gripper.pos"] = float(arm.call("gripper_state")["width"])  # TODO: the gripper issue's op
+        if grip is not None:
+            obs["gripper.pos"] = grip[0]
         for i, n in enumerate(self.joint_names):
             obs[f"{n}.vel"] = float(doc["dq"][i])
-        for i, n in enumerate(self.joint_names):
-            obs[f"{n}.effort"] = float(doc["tau"][i])
+        if grip is not None:
+            obs["gripper.vel"] = grip[1]
+        if self.config.effort:
+            for i, n in enumerate(self.joint_names):
+                obs[f"{n}.effort"] = float(doc["tau"][i])
+            if grip is not None:
+                obs["gripper.effort"] = grip[2]
         for key, cam in self.cameras.items():
             obs[key] = cam.async_read()
         return obs
@@ -169,7 +192,8 @@ class Akarm(Robot):
         self.last_report = report
         if report["clamped"] and not self.clamped_warned:
             self.clamped_warned = True
-            log.warning("akarm: an action past a joint's range was clamped to it (%s); counted, said once",
+            log.warning("akarm: an action past a joint's range or the gripper's stroke was clamped to it (%s); "
+                        "counted, said once",
                         ", ".join(report["clamped"]))
         sent = {f"{n}.pos": q for n, q in zip(self.joint_names, report["target"], strict=True)}
         if report.get("gripper") is not None:

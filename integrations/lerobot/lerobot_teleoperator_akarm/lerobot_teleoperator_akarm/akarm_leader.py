@@ -9,10 +9,12 @@ its name and text).
 
 from __future__ import annotations
 
+import math
 from functools import cached_property
 from typing import Any
 
 from lerobot.teleoperators.teleoperator import Teleoperator
+from lerobot_robot_akarm.robot_akarm import gripper_reading
 from lerobot_robot_akarm.served import ServedArm
 
 from .config_akarm_leader import AkarmLeaderConfig
@@ -69,6 +71,11 @@ class AkarmLeader(Teleoperator):
                               start=c.start_server)
         try:
             self.arm.call("ready")
+            if self.gripper:  # let go (asked no force), so the hand opens and closes it, as akarm teleop does
+                width = gripper_reading(self.arm.state())[0]
+                stroke = float(self.arm.config.gripper.stroke)  # type: ignore[union-attr]
+                self.arm.call("gripper_move", width=min(max(width, 0.0), stroke) if math.isfinite(width) else stroke,
+                              force=0.0, wait=False)
             self.arm.call("teach", damping=c.damping)
         except BaseException:
             self.disconnect()
@@ -80,7 +87,7 @@ class AkarmLeader(Teleoperator):
         doc = self.arm.state()
         action: dict[str, Any] = {f"{n}.pos": float(q) for n, q in zip(self.joint_names, doc["q"], strict=True)}
         if self.gripper:
-            action["gripper.pos"] = float(self.arm.call("gripper_state")["width"])  # TODO: the gripper issue's op
+            action["gripper.pos"] = gripper_reading(doc)[0]  # its width, m (the follower clamps it to its stroke)
         return action
 
     def send_feedback(self, feedback: dict[str, Any]) -> None:
@@ -96,5 +103,10 @@ class AkarmLeader(Teleoperator):
 
                 with contextlib.suppress(AkarmError, OSError):
                     arm.call("end_teach")
+                    if self.gripper:  # the gripper holds again where the hand left it
+                        width = gripper_reading(arm.state())[0]
+                        if math.isfinite(width):
+                            arm.call("gripper_move", width=min(max(width, 0.0), float(arm.config.gripper.stroke)),  # type: ignore[union-attr]
+                                      wait=False)
             finally:
                 arm.close()

@@ -164,7 +164,7 @@ def test_a_fitted_torque_scale_and_load_share_are_saved_and_read_back(tmp_path: 
 
 def _unit_log(model: RobotModel, truth: RobotModel, path: object, scale: np.ndarray, coulomb: np.ndarray,
               viscous: np.ndarray, weight: tuple[float, tuple[float, float, float]] | None) -> TelemetryLog:
-    """The torques a unit reports along ``path``: its own links (``truth``), the weight, its friction, over its scale."""
+    """What a unit reports along ``path``: its links (``truth``), the weight, its friction, over its scale."""
     q = path.q  # type: ignore[attr-defined]
     t = path.t  # type: ignore[attr-defined]
     dq = np.gradient(q, t, axis=0)

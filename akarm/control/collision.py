@@ -75,10 +75,8 @@ WINDOW = 0.06
 LEARN_TIME = 0.3
 #: How much of a change of the motors' reported torque (not only the model's) the thresholds grow with: a torque
 #: scale error is a share of what the motors deliver, the PD's part too; a contact's own PD reaction, which comes
-#: after the contact, should not hide it. 0.5 let seed 3's elbow (0.68 N·m per N·m reported, its links 8 %
-#: heavier) stop for a collision at full speed, lagging the move from home to ready (-2.71 N·m against
-#: 1.10 + 1.55); 0.6 does not.
-REPORTED_SHARE = 0.6
+#: after the contact, should not hide it (half).
+REPORTED_SHARE = 0.5
 #: The same for the whole estimate (the slow contact's check), of the motors' reported torque now: a unit whose
 #: motor gives less per N·m reported, with heavier links, reports that much more than the model asks, and the
 #: estimate is that difference, a share of what it reports: seed 3's elbow (0.68 N·m per N·m reported, its links

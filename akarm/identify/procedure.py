@@ -215,8 +215,7 @@ def identify_unit(arm: Arm, weight: Weight, hang: Callable[[bool], object], dura
     fits = fit_runs(model, runs, offsets=offsets)
     gain = arm.collision_gain
     deadband = [velocity_resolution(j) for j in arm.config.joints]
-    if before is not None:
-        model.set_payload(before[0], before[1])
+    # (the model as the first run had it: nothing at the tool)
     thresholds = suggest_thresholds(model, runs[0].log, fits, deadband, gain,
                                     [j.limits.torque for j in arm.config.joints], runs[0].kp, runs[0].kd, judged)
     room = np.ptp(rec.q, axis=0) / 2

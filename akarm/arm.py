@@ -66,6 +66,7 @@ from akarm.motion import recording as rec_mod
 from akarm.motion.bounds import MAX_DURATION, MAX_KEYFRAMES, MAX_PATH_SAMPLES, MAX_TRAJECTORY_POINTS
 from akarm.motion.cartesian import plan_linear
 from akarm.motion.servo import Servo, ServoStream
+from akarm.motion.torque import TorqueBudget
 from akarm.motion.trajectory import Chain, JointLimits, Plan, Planner, Timed
 from akarm.telemetry.log import TelemetryLog
 from akarm.timing import TimingProfile, get_profile
@@ -320,6 +321,7 @@ class Arm:
         self.names = config.joint_names
         self.n = len(config.joints)
         self.model = RobotModel(config, armature=True)
+        self._torque_budget: TorqueBudget | None = None  # (its own model: made at the first move)
         lim = [j.limits for j in config.joints]
         self.limits = JointLimits(
             self.names, np.array([x.lower for x in lim]), np.array([x.upper for x in lim]),
@@ -524,6 +526,24 @@ class Arm:
 
         return self._ctl.start(checked)
 
+    def _within_torque(self, make: Callable[[float], Timed], speed: float) -> Timed:
+        """``make(speed)``, slower where its torque asks more than a joint's budget
+        (:class:`akarm.motion.torque.TorqueBudget`: a real unit may give 30 % less torque than its datasheet;
+        an identified one what its torque scale says). Refused where gravity alone needs more than a
+        joint's limit (:class:`~akarm.LimitError`)."""
+        plan = make(speed)
+        if self._torque_budget is None:
+            self._torque_budget = TorqueBudget(self.config, RobotModel(self.config, armature=True))
+        budget = self._torque_budget
+        budget.set_payload(self.payload)
+        for _ in range(3):
+            factor, _joint = budget.speed_factor(plan.sample, plan.t0, plan.t_end)
+            if factor >= 0.995:
+                break
+            speed = max(speed * factor * 0.98, 0.01)
+            plan = make(speed)
+        return plan
+
     def move_to(self, target: Target, speed: float = 1.0, wait: bool = True) -> Motion:
         """Move to ``target``: jerk-limited, every joint arriving together.
 
@@ -542,7 +562,8 @@ class Arm:
         """
         speed = self._speed(speed)
         q = self.target_positions(target)
-        return self._run(self._start(lambda start, now: self.planner.move_from(start, q, now, speed)), wait)
+        return self._run(self._start(lambda start, now: self._within_torque(
+            lambda s: self.planner.move_from(start, q, now, s), speed)), wait)
 
     def move_through(self, points: Sequence[Target], speed: float = 1.0, wait: bool = True) -> Motion:
         """Move through every point without stopping at the intermediate ones; end at rest on the last.
@@ -556,7 +577,8 @@ class Arm:
         speed = self._speed(speed)
         _bounded(points, MAX_KEYFRAMES, "points", "move_through takes", "split the path into several moves")
         qs = [self.target_positions(p) for p in points]
-        return self._run(self._start(lambda start, now: self.planner.through(start, qs, now, speed)), wait)
+        return self._run(self._start(lambda start, now: self._within_torque(
+            lambda s: self.planner.through(start, qs, now, s), speed)), wait)
 
     def follow(self, times: Sequence[float], positions: Sequence[Sequence[float]] | np.ndarray,
                velocities: Sequence[Sequence[float]] | np.ndarray | None = None, wait: bool = True) -> Motion:

@@ -366,6 +366,15 @@ class RobotModel:
         block = Y[:, 10 * (jid - 1):10 * jid]
         return block.copy() if self._v_identity else block[self._vi]
 
+    def link_regressor(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> np.ndarray:
+        """n × 10·b: joint torques (config order) per unit of each inertial parameter of every moving body
+        (``b`` bodies, Pinocchio's order; per body ``(m, m·c, I)`` as :meth:`payload_regressor` has them):
+        the torques are linear in all of them, so a fit can correct the URDF's masses and centres of mass
+        (:func:`akarm.identify.fit.fit_runs`). Motor rotors (the armature) are not in it."""
+        Y = pin.computeJointTorqueRegressor(self.pin_model, self.pin_data, self.to_pin_q(q), self._pv(v, "v"),
+                                            self._pv(a, "a"))
+        return Y.copy() if self._v_identity else Y[self._vi]
+
     def scale_links(self, factors: dict[str, tuple[float, float]]) -> None:
         """Make the bodies that joints move heavier or lighter (a real arm is not its URDF): per joint
         name, ``(mass factor, centre-of-mass factor)``: the body's mass and rotational inertia times

@@ -547,3 +547,127 @@ def payload_poses(limits: JointLimits, center: ArrayLike, step: float = 0.9) -> 
             if abs(q[i] - q0[i]) > 0.05:
                 poses.append(q)
     return poses
+
+
+# ----------------------------------------------------------------------------------------------
+# torque scale with a known weight
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Run:
+    """One excitation's telemetry for :func:`fit_runs`: ``kp``, ``kd`` the MIT gains in force for each
+    sample's torque (as for :func:`fit`), ``use`` the samples to fit, ``weight`` the known mass (kg) and
+    centre of mass (m, tool frame) at the tool during it, or ``None``."""
+
+    log: TelemetryLog
+    kp: np.ndarray
+    kd: np.ndarray
+    use: np.ndarray | None = None
+    weight: tuple[float, tuple[float, float, float]] | None = None
+
+
+def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, window: float = 0.1,
+             decimate: int = 4) -> list[JointFit]:
+    """Each joint's torque scale and friction (Coulomb with its load share, viscous, offset) from
+    excitations with and without a known weight at the tool, the links' inertial parameters free.
+
+    Per joint ``i``, over the samples of all runs (``k = 1/s``: N·m reported per N·m at the joint)::
+
+        τ_i = k·τ_weight,i + Y_links,i·φ_i + k·(c + μ·|τ_i|)·tanh(q̇/0.02) + k·b·q̇ + k·offset + J·q̈ + lags
+
+    ``τ_weight`` is the known weight's torque (the model's inverse dynamics with it minus without it; 0
+    in a run without it), ``Y_links·φ`` every link's ten inertial parameters (Pinocchio's regressor)
+    as this joint sees them, in N·m reported: the URDF's masses and centres of mass are not trusted
+    (a real arm's are ±20 % off), ``J`` the rotor's inertia. Without the weight, a stronger motor and
+    lighter links are the same data; the weight's torque, known in N·m, tells them apart. The measured
+    torque is the fit's target (a fit with it among the columns shrinks the scale of a joint whose
+    torque is mostly friction: the part of the torque the friction law does not explain counts as noise
+    in the column). Returns the per-joint fits (threshold unset).
+
+    A joint whose torque the weight hardly changes (shoulder_pan: its axis is vertical, the weight only
+    loads it through inertia) may get a scale outside what a real unit has (:data:`_SCALE_RANGE`): it
+    keeps the catalogue's 1, and its friction is fitted so.
+
+    Raises:
+        StateError: too little data, or a model with a payload.
+    """
+    if model.payload is not None:
+        raise StateError("fit_runs needs the model without a payload", fix="model.clear_payload() first")
+    n = model.n
+    nb = model.link_regressor(np.zeros(n), np.zeros(n), np.zeros(n)).shape[1]
+    parts: list[tuple[np.ndarray, ...]] = []
+    for run in runs:
+        log = run.log
+        if len(log.t) < 2:
+            raise StateError(f"{len(log.t)} samples are too few to identify {n} joints", fix="excite for longer")
+        dt = float(np.median(np.diff(log.t)))
+        q, dq, ddq = _savgol(log.q, dt, window)
+        kp_t = np.broadcast_to(np.asarray(run.kp, dtype=float), log.q.shape)[:-1]
+        kd_t = np.broadcast_to(np.asarray(run.kd, dtype=float), log.q.shape)[:-1]
+        tau = log.tau[:-1]
+        # the torque after each sample acts over the period that follows: the motion's state mid-period
+        q, dq, ddq = (0.5 * (x[:-1] + x[1:]) for x in (q, dq, ddq))
+        ok = np.all(np.isfinite(q), axis=1) & (np.ones(len(q), bool) if run.use is None else np.asarray(run.use)[:-1])
+        idx = np.nonzero(ok)[0][::decimate]
+        links = np.empty((len(idx), n, nb))
+        weight = np.zeros((len(idx), n))
+        for r, k in enumerate(idx):
+            links[r] = model.link_regressor(q[k], dq[k], ddq[k])
+        if run.weight is not None:
+            bare = np.array([model.inverse_dynamics(q[k], dq[k], ddq[k]) for k in idx])
+            model.set_payload(run.weight[0], run.weight[1])
+            try:
+                weight = np.array([model.inverse_dynamics(q[k], dq[k], ddq[k]) for k in idx]) - bare
+            finally:
+                model.clear_payload()
+        parts.append((tau[idx], dq[idx], ddq[idx], kp_t[idx], kd_t[idx], links, weight))
+    tau, dq, ddq, kp_t, kd_t, links, weight = (np.concatenate(x) for x in zip(*parts, strict=True))
+    if len(tau) < 40:
+        raise StateError(f"{len(tau)} samples are too few to identify {n} joints", fix="excite for longer")
+    fits = []
+    undetermined: set[int] = set()
+    for i, name in enumerate(model.joint_names):
+        v, a, t = dq[:, i], ddq[:, i], tau[:, i]
+        th = np.tanh(v / _SMOOTHING)
+        friction = [th, v] + ([np.ones(len(t))] if offsets else [])
+        common = [a, kp_t[:, i] * v, kd_t[:, i] * a]
+        Yl = links[:, i, :]
+        Yl = Yl[:, np.any(Yl != 0.0, axis=0)]
+        # Friction's load-dependent part grows with the motor's torque but its friction; a column of the
+        # measured |τ| would be nearly the Coulomb column where the torque is mostly friction (a roll
+        # joint), and let the fit trade the scale for friction. So: the scale and friction without it,
+        # then twice with |the torque this fit says is not friction| as its column.
+        load_col = np.zeros(len(t))
+        determined = True
+        nfric = len(friction)
+        for _ in range(3):
+            if determined:
+                A = np.column_stack([weight[:, i], *friction, load_col, *common, Yl])
+                x, rms = _solve(A, t)
+                scale = 1.0 / x[0] if x[0] > 0 else math.inf
+                if not _SCALE_RANGE[0] <= scale <= _SCALE_RANGE[1]:
+                    determined = False  # the weight does not tell it: the catalogue's 1, friction as reported
+                    undetermined.add(i)
+            if not determined:
+                scale = 1.0
+                A = np.column_stack([weight[:, i], *friction, load_col, *common, Yl])
+                x, rms = _solve(A[:, 1:], t - weight[:, i])
+                x = np.concatenate([[1.0], x])
+            # the motor's torque that is not friction (N·m reported): the weight's, the links', the rotor's
+            load_col = np.abs(A[:, :1] @ x[:1] + A[:, 2 + nfric:] @ x[2 + nfric:]) * th
+        x = x[1:] / x[0]  # N·m at the joint
+        load = x[nfric]
+        c, b = x[0], x[1]
+        off = x[2] if offsets else 0.0
+        fits.append(JointFit(name, float(c), float(b), float(off), float(rms), torque_scale=float(scale),
+                             load=float(load)))
+    return fits
+
+
+def _solve(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least squares with the columns normalized (rank-deficient ones get the least-norm answer):
+    the coefficients and the RMS residual."""
+    norm = np.linalg.norm(A, axis=0)
+    norm[norm == 0] = 1.0
+    x, *_ = np.linalg.lstsq(A / norm, y, rcond=1e-8)
+    x = x / norm
+    return x, math.sqrt(float(np.mean((y - A @ x) ** 2)))

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -34,14 +34,16 @@ import numpy as np
 from akarm.control.collision import velocity_resolution
 from akarm.control.modes import Mode
 from akarm.dynamics.model import RobotModel
-from akarm.errors import ArgumentError, LimitError, StateError
+from akarm.errors import ArgumentError, LimitError, StateError, finite_number
 from akarm.identify.fit import (
     TORQUE_SHARE,
     Identification,
     PayloadFit,
+    Run,
     estimate_payload_at_rest,
     excitation,
     fit,
+    fit_runs,
     payload_poses,
     suggest_thresholds,
     torque_speed,
@@ -52,7 +54,7 @@ from akarm.telemetry.log import TelemetryLog
 if TYPE_CHECKING:
     from akarm.arm import Arm, Motion, Target
 
-__all__ = ["GAIN_BLOCK", "GAIN_LOW", "apply_identification", "estimate_payload", "identify"]
+__all__ = ["GAIN_BLOCK", "GAIN_LOW", "Weight", "apply_identification", "estimate_payload", "identify", "identify_unit"]
 
 #: s: identify() changes the gains this often, between full and GAIN_LOW of them (see akarm.identify.fit.fit)
 GAIN_BLOCK = 3.0
@@ -131,6 +133,120 @@ def identify(arm: Arm, duration: float = 30.0, speed: float | None = None, *, am
         if payload and not applied:
             _restore_payload(arm, before)
     return result
+
+
+#: identify_unit's excitation with the weight stays within this share of each joint's torque limit (the
+#: weight is known, unlike identify's payload; the rest is for the feedback and a unit's weaker motor)
+WEIGHT_SHARE = 0.65
+
+#: A known weight for :func:`identify_unit`: kg, and its centre of mass in the tool frame (m).
+Weight = tuple[float, Sequence[float]]
+
+
+def identify_unit(arm: Arm, weight: Weight, hang: Callable[[bool], object], duration: float = 20.0,
+                  speed: float | None = None, *, amplitude: float = 0.5, center: Target | None = None,
+                  offsets: bool = True, apply: bool = True) -> Identification:
+    """Identify a real unit: each joint's torque scale (N·m it gets per N·m its motor reports), friction
+    (Coulomb with its load share, viscous, offset), with a known weight: the way real identification
+    tells a motor that gives 20 % more torque from a link that is 20 % lighter.
+
+    The arm, with nothing at the tool, follows the excitation (as :func:`identify`); then ``hang(True)``
+    is called and must return once the known ``weight`` (kg, centre of mass in the tool frame, m: hang
+    it off the tool's axis, e.g. 4 cm aside, so the roll joints feel it too) is at the tool; the arm,
+    told about it, follows the same excitation again; ``hang(False)``: take it off. The fit
+    (:func:`akarm.identify.fit.fit_runs`) takes both runs at once, with every link's inertial
+    parameters free: the weight's torque, known in N·m, is what fixes each joint's scale. The thresholds
+    are suggested from the run without the weight. With ``apply`` the arm uses the friction and scales.
+
+    Raises:
+        ArgumentError: a weight that is not a mass > 0 and three numbers, and as :func:`identify`.
+        LimitError, StateError: as :func:`identify` (the speed is chosen, or checked, with the weight).
+    """
+    mass = finite_number(weight[0], "the weight's mass", above=0.0, unit="kg", fix="e.g. (1.0, (0.04, 0, 0.05))")
+    com = np.asarray(weight[1], dtype=float)
+    if com.shape != (3,) or not np.all(np.isfinite(com)):
+        raise ArgumentError(f"the weight's centre of mass must be 3 numbers (m, tool frame), got {weight[1]!r}",
+                            fix="e.g. (0.04, 0, 0.05)")
+    if speed is not None and not (isinstance(speed, int | float) and 0 < speed <= 1):
+        raise ArgumentError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
+    _require_holding(arm, "identification")
+    c = arm.state().q_des if center is None else arm.target_positions(center)
+    rec = excitation(arm.limits, c, amplitude=amplitude, duration=duration, rate_hz=arm.config.rate_hz)
+    model = RobotModel(arm.config, armature=True)
+    model.set_payload(mass, com)  # the speed is for the heavier run (the weight is known: a larger share)
+    fastest, worst, peak = torque_speed(model, rec, [j.limits.torque for j in arm.config.joints], WEIGHT_SHARE)
+    model.clear_payload()
+    if speed is None:
+        speed = math.floor(fastest * 100) / 100
+    elif speed > fastest + 1e-9:
+        raise LimitError(f"at speed {speed:g} the excitation with the weight needs {peak * speed**2:.1f} N·m, over "
+                         f"{WEIGHT_SHARE:.0%} of the joint's torque limit", joint=arm.names[worst],
+                         fix=f"use speed {math.floor(fastest * 100) / 100:g} or less, or a lighter weight")
+    needed = duration / speed + 5.0
+    if needed > arm.telemetry_seconds:
+        raise StateError(f"the telemetry keeps {arm.telemetry_seconds:.0f} s, the identification needs "
+                         f"{needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
+    arm.check_replay(rec, speed)
+    mit = np.array([j.mode == "mit" for j in arm.config.joints])
+    kp0, kd0 = arm.gains
+    before = arm.payload
+    runs: list[Run] = []
+    judged = np.ones(0, bool)  # the first run's rows at full gains, the observer settled: the thresholds' data
+    try:
+        with _reflex_watching(arm):
+            for load in (None, (mass, (float(com[0]), float(com[1]), float(com[2])))):
+                if load is None:
+                    arm.clear_payload()
+                else:
+                    hang(True)
+                    arm.set_payload(*load)
+                    arm.sleep(0.5)  # the hold takes the weight before the excitation starts
+                switches = [(-math.inf, 1.0)]
+                motion = _excite(arm, rec, speed, False, kp0, kd0, switches)
+                log, factor, use, settled = _samples(arm, motion, switches)
+                kp = np.where(mit, kp0, 0.0)[None, :] * factor[:, None]
+                kd = np.where(mit, kd0, 0.0)[None, :] * factor[:, None]
+                runs.append(Run(log, kp, kd, use, load))
+                if load is None:
+                    judged = settled & (factor == 1.0)
+        hang(False)
+    finally:
+        _restore_payload(arm, before)
+    fits = fit_runs(model, runs, offsets=offsets)
+    gain = arm.collision_gain
+    deadband = [velocity_resolution(j) for j in arm.config.joints]
+    # (the model as the first run had it: nothing at the tool)
+    thresholds = suggest_thresholds(model, runs[0].log, fits, deadband, gain,
+                                    [j.limits.torque for j in arm.config.joints], runs[0].kp, runs[0].kd, judged)
+    room = np.ptp(rec.q, axis=0) / 2
+    fits = [replace(f, threshold=th, amplitude=float(a)) for f, th, a in zip(fits, thresholds, room, strict=True)]
+    notes = tuple(f"{f.name}: moved only ±{f.amplitude:.2f} rad (near its limits): its values are less sure"
+                  for f in fits if f.amplitude < 0.1)
+    notes += tuple(f"{f.name}: the weight hardly loads it: its torque scale is not determined (1 kept)"
+                   for f in fits if f.torque_scale == 1.0)
+    result = Identification(tuple(fits), None, sum(len(r.log) for r in runs),
+                            float(sum(r.log.t[-1] - r.log.t[0] for r in runs)), offsets, notes, speed)
+    if apply:
+        apply_identification(arm, result)
+    return result
+
+
+def _samples(arm: Arm, motion: Motion, switches: list[tuple[float, float]]
+             ) -> tuple[TelemetryLog, np.ndarray, np.ndarray, np.ndarray]:
+    """The excitation's telemetry, each row's gain factor (the command before it), the rows to fit (not
+    just after a change of gains) and the rows where the observer has settled after one."""
+    gain = arm.collision_gain
+    excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
+    log = arm.telemetry(since=excite.t0)
+    period = 1.0 / arm.config.rate_hz
+    factor = np.ones(len(log.t))
+    use = np.ones(len(log.t), bool)
+    settled = np.ones(len(log.t), bool)
+    for ts, f in switches[1:]:
+        factor[log.t - period >= ts - 1e-9] = f
+        use &= np.abs(log.t - ts) > 0.03
+        settled &= (log.t < ts) | (log.t > ts + 5.0 / gain)
+    return log, factor, use, settled
 
 
 def _restore_payload(arm: Arm, before: tuple[float, np.ndarray] | None) -> None:

@@ -74,7 +74,11 @@ class SimGripper:
     def motor_state(self) -> tuple[float, float]:
         """The motor side (position before the driver's zero, velocity), as :meth:`Plant.motor_state`."""
         c = self.config
-        return (self.angle - c.offset) * c.direction, self.velocity * c.direction
+        q = self.angle
+        play = 0.5 * self.params.backlash
+        if play:  # backlash (a varied unit): the encoder leads the output by half the play, as the torque turns
+            q += play * math.tanh(self.torque / (0.05 * c.motor.t_max))
+        return (q - c.offset) * c.direction, self.velocity * c.direction
 
     def set_width(self, width: float) -> None:
         """Put the jaws ``width`` m apart, at rest."""
@@ -101,34 +105,42 @@ class SimGripper:
         self.engaged = False
         self.object_force = 0.0
 
+    def _motor(self, t: float, q: float, v: float) -> tuple[float, float, float, float]:
+        """The motor's torque at the output now, its stiffness and damping (N·m, per rad, per rad/s), and
+        the Coulomb friction it sees (with its load-dependent part), as the driver commands at ``t``."""
+        drv = self._driver
+        c = self.config
+        p = self.params
+        if drv is None:
+            return 0.0, 0.0, 0.0, p.coulomb
+        s = c.direction
+        tm, k, d = drv.output(t, (q - c.offset) * s, v * s)
+        cap = c.motor.t_max
+        if tm > cap:
+            tm, k, d = cap, 0.0, 0.0
+        elif tm < -cap:
+            tm, k, d = -cap, 0.0, 0.0
+        drv.torque = tm
+        cur = tm / drv.kt_out
+        temp = drv.temperature
+        drv.temperature = temp + self.dt / p.thermal_capacity * (
+            cur * cur * p.resistance - (temp - p.ambient) / p.thermal_resistance)
+        # a varied unit: the output gets torque_scale times what the motor reports; friction grows with the current
+        scale = p.torque_scale
+        return s * tm * scale, k * scale, d * scale, p.coulomb + p.coulomb_load * abs(cur)
+
     def step(self, t: float) -> None:
         """One step ``dt`` from time ``t``, with the driver's torque at ``t``."""
-        drv = self._driver
         c = self.config
         p = self.params
         dt = self.dt
         q, v = self.angle, self.velocity
-        s = c.direction
-        if drv is None:
-            tm, k, d = 0.0, 0.0, 0.0
-        else:
-            tm, k, d = drv.output(t, (q - c.offset) * s, v * s)
-            cap = c.motor.t_max
-            if tm > cap:
-                tm, k, d = cap, 0.0, 0.0
-            elif tm < -cap:
-                tm, k, d = -cap, 0.0, 0.0
-            drv.torque = tm
-            cur = tm / drv.kt_out
-            temp = drv.temperature
-            drv.temperature = temp + dt / p.thermal_capacity * (
-                cur * cur * p.resistance - (temp - p.ambient) / p.thermal_resistance)
-        tau = s * tm
+        tau, k, d, coulomb = self._motor(t, q, v)
         self.torque = tau
         x = v / p.coulomb_eps
         th = math.tanh(x)
-        tau -= p.viscous * v + p.coulomb * th
-        d += p.viscous + (p.coulomb / p.coulomb_eps if -1e-9 < x < 1e-9 else p.coulomb * th / v)
+        tau -= p.viscous * v + coulomb * th
+        d += p.viscous + (coulomb / p.coulomb_eps if -1e-9 < x < 1e-9 else coulomb * th / v)
         # the jaws' end stops: closed and fully open
         hi = c.open_angle
         if q < 0.0:

@@ -206,9 +206,12 @@ class SimulatedRobot:
                                              f"simulation params for unknown joint(s) {', '.join(unknown)}",
                                              "joints are: " + ", ".join(config.joint_names))])
         plist = [params.get(j.name) or default_params(j.motor) for j in config.joints]
+        gp = None if gconf is None else params.get(gconf.name) or default_params(gconf.motor)
         self.variation = variation
         if variation is not None:
-            plist = variation.apply(config, plist)
+            plist = variation.apply(config, plist, gp)
+            if gp is not None:  # the gripper's motor is a real unit too
+                gp = variation.apply_gripper(gp)
         self.plant = Plant(config, plist, dt)
         self.model = self.plant.model
         if variation is not None and any(x.mass != 1.0 or x.com != 1.0 for x in variation.truth().links):
@@ -237,8 +240,7 @@ class SimulatedRobot:
         #: the gripper's motor, jaws and object (:mod:`akarm.sim.gripper`); ``None`` without a gripper
         self.gripper: SimGripper | None = None
         self._object: _WorldObject | None = None
-        if gconf is not None:
-            gp = params.get(gconf.name) or default_params(gconf.motor)
+        if gconf is not None and gp is not None:
             self.gripper = SimGripper(gconf, gp, self.dt)
             gdrv = make_driver(gconf.joint, gp, self, self.gripper.motor_state, self.dt,
                                load_inertia=self.gripper.inertia, zero_silence=zero_silence,

@@ -97,11 +97,14 @@ class LinkTruth:
 
 @dataclass(frozen=True)
 class Truth:
-    """What a :class:`Variation` drew for one robot: per joint and per link (config order)."""
+    """What a :class:`Variation` drew for one robot: per joint and per link (config order), and for the
+    gripper's motor (``None`` without a gripper): its torque constant, friction, backlash and jitter vary
+    as a joint's do."""
 
     seed: int | None
     joints: tuple[JointTruth, ...]
     links: tuple[LinkTruth, ...]
+    gripper: JointTruth | None = None
 
     def joint(self, name: str) -> JointTruth:
         for j in self.joints:
@@ -175,31 +178,53 @@ class Variation:
 
         return self._draw(config, [default_params(j.motor) for j in config.joints])
 
-    def _draw(self, config: RobotConfig, base: Sequence[MotorSimParams]) -> Truth:
+    def _draw(self, config: RobotConfig, base: Sequence[MotorSimParams],
+              gripper_base: MotorSimParams | None = None) -> Truth:
         joints = []
         links = []
         for i, (jc, p) in enumerate(zip(config.joints, base, strict=True)):
+            joints.append(self._joint(i, jc, p))
             d = self._draws(i)
-            fixed_scale = self.torque_scale is not None
-            kt = self.torque_scale if self.torque_scale is not None else d["kt"]
-            tor = 1.0 if fixed_scale else d["true_over_reported"]
-            fc = d["coulomb"] if self.friction is None else self.friction
-            fv = d["viscous"] if self.friction is None else self.friction
-            joints.append(JointTruth(jc.name, kt, tor, kt * tor, p.coulomb * fc,
-                                     d["coulomb_load_share"] * kt_out(jc), p.viscous * fv, d["backlash"],
-                                     d["reply_jitter"]))
             links.append(LinkTruth(jc.name, d["link_mass"] if self.masses is None else self.masses,
                                    d["link_com"]))
-        return Truth(self.seed, tuple(joints), tuple(links))
+        gripper = None
+        if config.gripper is not None:  # the next index: its draws change none of the joints'
+            from akarm.sim.params import default_params
 
-    def apply(self, config: RobotConfig, base: Sequence[MotorSimParams]) -> list[MotorSimParams]:
+            gp = gripper_base if gripper_base is not None else default_params(config.gripper.motor)
+            gripper = self._joint(len(config.joints), config.gripper.joint, gp)
+        return Truth(self.seed, tuple(joints), tuple(links), gripper)
+
+    def _joint(self, index: int, jc: JointConfig, p: MotorSimParams) -> JointTruth:
+        d = self._draws(index)
+        fixed_scale = self.torque_scale is not None
+        kt = self.torque_scale if self.torque_scale is not None else d["kt"]
+        tor = 1.0 if fixed_scale else d["true_over_reported"]
+        fc = d["coulomb"] if self.friction is None else self.friction
+        fv = d["viscous"] if self.friction is None else self.friction
+        return JointTruth(jc.name, kt, tor, kt * tor, p.coulomb * fc, d["coulomb_load_share"] * kt_out(jc),
+                          p.viscous * fv, d["backlash"], d["reply_jitter"])
+
+    def apply(self, config: RobotConfig, base: Sequence[MotorSimParams],
+              gripper: MotorSimParams | None = None) -> list[MotorSimParams]:
         """``base`` (per joint, config order) with this variation's friction, torque scale, backlash and
-        jitter; :meth:`truth` then says what was drawn."""
-        truth = self._draw(config, base)
+        jitter; :meth:`truth` then says what was drawn. ``gripper``: the gripper motor's base parameters
+        (default: the simulator's for its motor); :meth:`apply_gripper` gives them varied."""
+        truth = self._draw(config, base, gripper)
         object.__setattr__(self, "_truth", truth)
-        return [dataclasses.replace(p, coulomb=t.coulomb, viscous=t.viscous, torque_scale=t.torque_scale,
-                                    coulomb_load=t.coulomb_load, backlash=t.backlash, reply_jitter=t.reply_jitter)
-                for p, t in zip(base, truth.joints, strict=True)]
+        return [_varied(p, t) for p, t in zip(base, truth.joints, strict=True)]
+
+    def apply_gripper(self, base: MotorSimParams) -> MotorSimParams:
+        """The gripper motor's ``base`` parameters with what :meth:`apply` drew for it (call it after)."""
+        truth = self.truth()
+        if truth.gripper is None:
+            raise ArgumentError("this robot has no gripper")
+        return _varied(base, truth.gripper)
+
+
+def _varied(p: MotorSimParams, t: JointTruth) -> MotorSimParams:
+    return dataclasses.replace(p, coulomb=t.coulomb, viscous=t.viscous, torque_scale=t.torque_scale,
+                               coulomb_load=t.coulomb_load, backlash=t.backlash, reply_jitter=t.reply_jitter)
 
 
 def kt_out(joint: JointConfig) -> float:

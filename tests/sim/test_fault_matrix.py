@@ -284,6 +284,12 @@ def test_an_undersized_motor_does_not_return_off_target(robot: str, mass: float,
             arm.set_payload(mass)  # even known, the motor has not the torque: it must not "arrive" sagging
         arm.enable()
         target = "home" if robot == "planar2" else "reach"
+        # known: the move is refused before anything moves (issue 41: the torque a move asks, gravity
+        # first, is checked against the joints' limits)
+        with pytest.raises(akarm.LimitError, match="more than the joint's"):
+            arm.move_to(target, wait=False)
+        assert arm.enabled and not arm.moving
+        arm.clear_payload()  # not known (a load the arm was not told of): it saturates, and is stopped
         motion = arm.move_to(target, wait=False)
         e = stopped(arm, sim, TrackingError, None, lambda: (motion.wait(), arm.sleep(2.0)))
         # stopped, not "arrived": the saturation time (0.5 s) and the lag's travel to build up

@@ -185,6 +185,11 @@ def test_a_zero_wait_is_a_duration_the_probe_checks_too() -> None:
     (["--amplitude", "nan"], r"--amplitude must be a finite number \(rad\), more than 0 and at most 3.14159, got nan"),
     (["--amplitude", "4"], r"--amplitude must be a finite number \(rad\), more than 0 and at most 3.14159, got 4.0"),
     (["--seconds", "5"], r"--seconds must be a finite number \(s\), at least 8 and at most 600, got 5.0"),
+    # issue 41: a torque scale needs a known weight (else a lighter link and a stronger motor are the same data)
+    (["--torque-scale"], r"--torque-scale needs a known weight"),
+    (["--torque-scale", "--weight", "0"], r"--weight must be a finite number \(kg\), more than 0"),
+    (["--torque-scale", "--weight", "0.5", "--weight-com", "0.1,0"], r"--weight-com must be three numbers"),
+    (["--weight", "0.5"], r"--weight is for --torque-scale"),
 ])
 def test_identify_checks_its_excitation_before_opening_the_arm(options: list[str], message: str,
                                                                 capsys: pytest.CaptureFixture[str],
@@ -199,4 +204,4 @@ def test_identify_checks_its_excitation_before_opening_the_arm(options: list[str
     monkeypatch.setattr(Arm, "open", refuse)
     assert main(["identify", PLANAR2, "-i", "virtual", "-c", "identify-options", *options]) == 1
     err = capsys.readouterr().err
-    assert re.search(message, err) and "(fix: e.g." in err and "Traceback" not in err
+    assert re.search(message, err) and "(fix: " in err and "Traceback" not in err

@@ -160,3 +160,51 @@ def test_a_fitted_torque_scale_and_load_share_are_saved_and_read_back(tmp_path: 
     assert (elbow.friction.torque_scale, elbow.friction.load) == (1.0, 0.0)
     text = robot.read_text()
     assert "torque_scale: 0.7800" in text and text.count("torque_scale") == 1
+
+
+def _unit_log(model: RobotModel, truth: RobotModel, path: object, scale: np.ndarray, coulomb: np.ndarray,
+              viscous: np.ndarray, weight: tuple[float, tuple[float, float, float]] | None) -> TelemetryLog:
+    """What a unit reports along ``path``: its links (``truth``), the weight, its friction, over its scale."""
+    q = path.q  # type: ignore[attr-defined]
+    t = path.t  # type: ignore[attr-defined]
+    dq = np.gradient(q, t, axis=0)
+    ddq = np.gradient(dq, t, axis=0)
+    # (each reply's torque acts over the period that follows: the state mid-period, as the fit takes it)
+    q, dq, ddq = (np.vstack([0.5 * (x[:-1] + x[1:]), x[-1:]]) for x in (q, dq, ddq))
+    if weight is not None:
+        truth.set_payload(*weight)
+    tau = np.array([truth.inverse_dynamics(a, b, c) for a, b, c in zip(q, dq, ddq, strict=True)])
+    truth.clear_payload()
+    tau = (tau + coulomb * np.tanh(dq / 0.02) + viscous * dq) / scale
+    q = path.q  # type: ignore[attr-defined]
+    dq = np.gradient(q, t, axis=0)
+    return TelemetryLog(model.joint_names, t, q, dq, q, dq, tau, np.zeros_like(tau))
+
+
+def test_a_known_weight_tells_the_torque_scale_from_link_masses_20_percent_off() -> None:
+    """Issue 41: with the links 20 % heavier than the URDF (centres of mass 10 % further out), a fit of the
+    torque scale without a weight is off by about that much; `fit_runs` with a run carrying a known weight
+    (the links' inertial parameters free) recovers each joint's scale and friction (exact data, no noise)."""
+    from akarm.identify.fit import Run, fit_runs
+
+    arm = Arm(ARM6)
+    path = excitation(arm.limits, (0.0, 0.0, 1.5, 1.57, 1.2, 0.0), amplitude=0.5, duration=10, rate_hz=100)
+    model = RobotModel(ARM6, armature=True)
+    model.clear_payload()
+    truth = RobotModel(ARM6, armature=True)
+    truth.scale_links({name: (1.2, 1.1) for name in ARM6.joint_names})
+    scale = np.array([0.75, 1.2, 0.6, 0.9, 1.1, 0.8])
+    coulomb = np.array([0.8, 0.5, 0.4, 0.3, 0.25, 0.2])
+    viscous = np.array([0.1, 0.05, 0.04, 0.03, 0.03, 0.02])
+    weight = (0.5, (0.1, 0.0, 0.05))
+    zero = np.zeros(6)
+    runs = [Run(_unit_log(model, truth, path, scale, coulomb, viscous, w), zero, zero, None, w) for w in (None, weight)]
+    fits = fit_runs(model, runs, decimate=1)
+    for fit, s, c, b in zip(fits, scale, coulomb, viscous, strict=True):
+        assert fit.torque_scale == pytest.approx(s, rel=0.01), fit
+        assert fit.coulomb == pytest.approx(c, rel=0.02), fit
+        assert fit.viscous == pytest.approx(b, rel=0.1), fit
+        assert abs(fit.load) < 0.01
+    # the one-run fit, which takes the URDF's links as true, is off by about their error
+    single, _, _ = identify_fit(model, runs[0].log, payload=False, torque_scale=True)
+    assert abs(single[1].torque_scale / scale[1] - 1) > 0.15

@@ -47,6 +47,7 @@ class FeedForward:
         self._c = [float(x) for x in coulomb]
         self._b = [float(x) for x in viscous]
         self._inv_scale = [1.0] * len(torque_limit)  # 1 / (N·m the joint gets per N·m asked): set_friction
+        self._inv_scale_array = np.ones(len(torque_limit))
         self._load = [0.0] * len(torque_limit)
         self._lim = [float(x) for x in torque_limit]
         self._lim_array = np.array(self._lim)
@@ -66,6 +67,7 @@ class FeedForward:
         self._b = [float(x) for x in viscous]
         if torque_scale is not None:
             self._inv_scale = [1.0 / float(x) for x in torque_scale]
+            self._inv_scale_array = np.array(self._inv_scale)
         if load is not None:
             self._load = [float(x) for x in load]
 
@@ -80,13 +82,15 @@ class FeedForward:
         self._integral = [0.0] * self.n
 
     def gravity(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
-        """Gravity torque at ``q`` (rad), clamped to the torque limits, N·m."""
-        return np.clip(self.model.gravity(q), -self._lim_array, self._lim_array)
+        """Gravity torque at ``q`` (rad) as the motors are asked it and report it (over each joint's
+        torque scale, as :meth:`torques` asks it), clamped to the torque limits, N·m."""
+        return np.clip(self.model.gravity(q) * self._inv_scale_array, -self._lim_array, self._lim_array)
 
     def carried(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
         """Teach mode's torque at the measured ``q``: the arm's weight plus the user's extra torque
-        (force feedback on a teleoperation leader), clamped to the torque limits, N·m."""
-        tau = self.model.gravity(q) + np.asarray(self.extra)
+        (force feedback on a teleoperation leader), asked over the torque scale, clamped to the torque
+        limits, N·m."""
+        tau = (self.model.gravity(q) + np.asarray(self.extra)) * self._inv_scale_array
         return np.clip(tau, -self._lim_array, self._lim_array)
 
     def torques(self, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, q_meas: Sequence[float], holding: bool,

@@ -411,10 +411,15 @@ class ControlLoop:
             self.cycle(now, slot)
             if deadline >= self._slot - 1e-12:  # (not an extra cycle)
                 self._slot = deadline + self.period
-            soon = self.soon
+            soon = self._asked_soon()
             self._next = self._slot if soon is None or deadline + soon >= self._slot else deadline + soon
         finally:
             self._in_cycle = False
+
+    def _asked_soon(self) -> float | None:
+        # (a method: mypy and mypyc, having seen it set to None before the cycle, would take the
+        # attribute for None there, while the cycle sets it)
+        return self.soon
 
     def hasten(self, t: float) -> None:
         """Run an extra cycle at clock time ``t`` (at once if past) when the next one would come later

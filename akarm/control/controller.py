@@ -499,7 +499,7 @@ class Controller:
             self.turn_verdict = None
             longest = self.enabler.begin(now, timeout)
             self.modes.go(Mode.ENABLING)
-            self._contact_soon(now)
+            self._enable_begun(now)
         self.wait_for(lambda: self.modes.mode is not Mode.ENABLING,
                       longest + self.options.settle_timeout + 2.0, "the joints to answer and the arm to settle")
         refused_by = self._enable_refusal()
@@ -515,9 +515,12 @@ class Controller:
             raise refused_by
         self._forget_positions()
 
-    def _contact_soon(self, now: float) -> None:
+    def _enable_begun(self, now: float) -> None:
         """(Caller, an enable begun) Where contact runs faster than the loop (a slow profile), its first
-        cycle comes at once, not at the loop's next slot."""
+        cycle comes at once, not at the loop's next slot. The self-collision guard judges once the arm was
+        measured clear (it may be enabled folded into itself, and move out)."""
+        if self.self_collision is not None:
+            self.self_collision.disarm()
         soon = self.enabler.hurry(now)
         if soon is not None:
             self.loop.hasten(now + soon)

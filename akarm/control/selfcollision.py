@@ -4,8 +4,10 @@ The planner and servoing keep the *command* clear by the robot file's ``self_col
 (:mod:`akarm.dynamics.selfcollision`); tracking error and a push move the measured pose away from it.
 Every :attr:`SelfCollisionGuard.every`-th cycle of an active arm (about :data:`RATE` Hz), the guard
 puts the links' shapes where the *measured* joint positions put them; two shapes touching (closer than
-0, the margin used up) while the command's do not (an arm enabled folded into itself may move out) is a
-:class:`~akarm.SelfCollisionStop` safety stop. A check takes 10-20 µs (arm6: 51 pairs; see
+0, the margin used up) while the command's do not is a :class:`~akarm.SelfCollisionStop` safety stop.
+An arm enabled folded into itself (a limp arm falls onto a hard stop where its housings touch) may move
+out: from an enable (:meth:`SelfCollisionGuard.disarm`) the guard judges nothing until the measured pose
+was clear once, since the reading trails the command out of contact. A check takes 10-20 µs (arm6: 51 pairs; see
 benchmarks/bench_compliance.py), a few µs a cycle on average.
 """
 
@@ -36,7 +38,14 @@ class SelfCollisionGuard:
         self.every = max(1, round(rate_hz / RATE))
         self.margin = margin
         self.checks = 0  # checks made (for tests and benchmarks)
+        #: the measured pose was clear at a check since :meth:`disarm` (a contact is judged only then)
+        self.armed = True
         self._k = 0
+
+    def disarm(self) -> None:
+        """(An enable begins) Judge no contact until the measured pose is clear once: an arm enabled in
+        contact with itself moves out with its reading behind its command."""
+        self.armed = False
 
     def step(self, now: float, q: Sequence[float], q_des: Sequence[float]) -> SelfCollisionStop | None:
         self._k += 1
@@ -46,8 +55,9 @@ class SelfCollisionGuard:
         self.checks += 1
         check = self.check
         if not check.collides(q):
+            self.armed = True
             return None
-        if check.collides(q_des):
+        if not self.armed or check.collides(q_des):
             return None  # the command is in collision too (enabled there): let it move out
         pair = check.colliding(q)
         a, b = pair[0] if pair else ("?", "?")

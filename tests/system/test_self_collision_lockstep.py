@@ -19,6 +19,7 @@ import akarm
 from akarm.config import SelfCollisionConfig
 from akarm.dynamics.selfcollision import SelfCollision
 from akarm.errors import ArgumentError, LimitError, SelfCollisionStop
+from akarm.sim import faults
 
 from ..conftest import ROBOTS, lockstep_arm
 
@@ -113,3 +114,20 @@ def test_the_robot_file_and_the_arm_turn_it_on_and_off(channel: str) -> None:
         akarm.Arm(ARM6, self_collision="meshes")
     with pytest.raises(ArgumentError, match="self_collision_margin"):
         akarm.Arm(ARM6, self_collision_margin=-1.0)
+
+
+def test_an_arm_enabled_folded_into_itself_moves_out_without_a_stop(channel: str) -> None:
+    """A limp arm6 falls from `home` onto its elbow's hard stop (2.6 rad, past the robot file's 2.5), where
+    its housings touch; enabled there it holds, and a move out must not be taken for a push into itself
+    while the measured pose trails the command out of contact (seen in CI: the live view's test stopped)."""
+    folded = np.array([0.0, -0.15, 2.58, 0.0, 0.9, 0.0])
+    with lockstep_arm(ARM6, channel, q0=folded) as (arm, sim):
+        assert arm.self_collision is not None and arm.self_collision.collides(folded)
+        arm.enable()
+        # the readings 15 ms late (a loaded machine's simulator, a slow bus): the measured pose trails the command
+        sim.inject("elbow", faults.DelayReplies(0.015))
+        arm.move_to("home")
+        assert arm.enabled and arm.fault is None
+        arm.sleep(1.0)
+        assert np.max(np.abs(sim.q - np.array(ARM6.pose("home")))) < 0.05
+        # (that the guard is armed again once the arm was measured clear: tests/unit/test_selfcollision_guard.py)

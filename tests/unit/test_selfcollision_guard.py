@@ -28,3 +28,11 @@ def test_a_measured_collision_is_a_stop_every_fourth_cycle_at_480_hz_and_only_pa
     assert all(guard.step(0.0, FOLDED, FOLDED) is None for _ in range(8))
     assert all(guard.step(0.0, READY, READY) is None for _ in range(8))
     assert SelfCollisionGuard(SelfCollision(ARM6, "capsules"), 50.0, 0.01).every == 1
+
+
+def test_from_an_enable_a_contact_is_judged_only_once_the_arm_was_measured_clear() -> None:
+    guard = SelfCollisionGuard(SelfCollision(ARM6, "capsules"), 480.0, 0.01)
+    guard.disarm()  # enabled folded: moving out, the reading trails the command (clear already)
+    assert all(guard.step(k / 480, FOLDED, READY) is None for k in range(8)) and not guard.armed
+    assert all(guard.step(k / 480, READY, READY) is None for k in range(4)) and guard.armed
+    assert any(isinstance(guard.step(k / 480, FOLDED, READY), SelfCollisionStop) for k in range(4))

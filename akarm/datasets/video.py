@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from akarm.config.frames import MAX_SIZE, check_frame_size
 from akarm.errors import ArgumentError, RecordingError
 from akarm.files import atomic_write
 
@@ -33,18 +34,7 @@ CODEC = "libsvtav1"  #: the encoder (FFmpeg's name); LeRobot's default
 PIX_FMT = "yuv420p"
 GOP = 2  #: frames between keyframes (LeRobot's ``g``: a frame is found fast when training samples it)
 CRF = 30
-MAX_SIZE = 4096  #: pixels on a side at most
 QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  #: the quantiles LeRobot's stats carry (q01 ... q99)
-
-
-def check_frame_size(width: object, height: object) -> tuple[int, int]:
-    """``(width, height)`` as pixels, each an even number (what yuv420p video takes) of 8 to :data:`MAX_SIZE`."""
-    ok = all(isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= MAX_SIZE and v % 2 == 0
-             for v in (width, height))
-    if not ok:
-        raise ArgumentError(f"a camera of {width!r} × {height!r} pixels: each side must be an even number of "
-                            f"8 to {MAX_SIZE}", fix="e.g. 96x96")
-    return int(width), int(height)  # type: ignore[call-overload]
 
 
 def require_av() -> Any:

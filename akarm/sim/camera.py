@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from akarm.config.frames import MAX_SIZE, check_frame_size
 from akarm.errors import ArgumentError
 
 if TYPE_CHECKING:
@@ -57,7 +58,6 @@ HEADER = struct.Struct("<Qd")
 #: NaN: none), float64 each.
 POSE_HEADER = struct.Struct("<Q")
 #: Pixels on a side at most (a camera of 4096 × 4096 is 48 MB a frame).
-MAX_SIZE = 4096
 #: RGB of what the URDF does not colour, the capsules, the jaws and the object.
 GREY = (176, 180, 190)
 ORANGE = (232, 137, 48)
@@ -71,22 +71,12 @@ JAW_SIZE = (0.012, 0.008, 0.04)
 OBJECT_SIZE = (0.03, 0.03)
 
 
-def check_size(width: object, height: object) -> tuple[int, int]:
-    """``(width, height)`` as pixels, each 8 to :data:`MAX_SIZE` and even (what video encoders take)."""
-    ok = all(isinstance(v, int) and not isinstance(v, bool) and 8 <= v <= MAX_SIZE and v % 2 == 0
-             for v in (width, height))
-    if not ok:
-        raise ArgumentError(f"a camera of {width!r} × {height!r} pixels: each side must be an even number of "
-                            f"8 to {MAX_SIZE}", fix="e.g. 96x96")
-    return int(width), int(height)  # type: ignore[call-overload]
-
-
 class FrameFile:
     """A memory-mapped frame file (see the module's docstring). :meth:`create` makes one (in
     ``/dev/shm`` where there is one); ``FrameFile(path, width, height)`` opens one."""
 
     def __init__(self, path: str | os.PathLike[str], width: int, height: int) -> None:
-        self.width, self.height = check_size(width, height)
+        self.width, self.height = check_frame_size(width, height)
         self.path = Path(path)
         self.size = HEADER.size + self.width * self.height * 3
         with open(self.path, "r+b") as f:
@@ -98,7 +88,7 @@ class FrameFile:
 
     @classmethod
     def create(cls, width: int, height: int) -> FrameFile:
-        width, height = check_size(width, height)
+        width, height = check_frame_size(width, height)
         shm = "/dev/shm" if os.path.isdir("/dev/shm") else None
         fd, path = tempfile.mkstemp(prefix="akarm-camera-", dir=shm)
         try:
@@ -272,7 +262,7 @@ class ArmPainter:
         from akarm.dynamics.fingers import finger_slides
         from akarm.dynamics.model import RobotModel
 
-        self.width, self.height = check_size(width, height)
+        self.width, self.height = check_frame_size(width, height)
         self.model = RobotModel(config)
         self.pin = pin
         pm = self.model.pin_model

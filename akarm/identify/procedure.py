@@ -71,6 +71,38 @@ def _require_holding(arm: Arm, what: str) -> None:
         raise StateError(f"{what} starts from rest and the arm is moving", fix="wait for the motion to end")
 
 
+def _excitation(arm: Arm, speed: float | None, center: Target | None, amplitude: float,
+                duration: float) -> PathRecording:
+    """(Either identification) The speed argument checked, the arm holding, the excitation about ``center``
+    (default: where the arm is)."""
+    if speed is not None and not (isinstance(speed, int | float) and 0 < speed <= 1):
+        raise ArgumentError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
+    _require_holding(arm, "identification")
+    c = arm.state().q_des if center is None else arm.target_positions(center)
+    return excitation(arm.limits, c, amplitude=amplitude, duration=duration, rate_hz=arm.config.rate_hz)
+
+
+def _excitation_speed(arm: Arm, rec: PathRecording, model: RobotModel, speed: float | None, duration: float,
+                      share: float, needs: str, why: str, smaller: str) -> float:
+    """(Either identification) The speed ``rec`` runs at: the fastest that keeps ``model``'s torque within
+    ``share`` of the joints' limits, or ``speed`` checked against it; the telemetry long enough, and the
+    replay checked against every limit before anything moves. ``needs``, ``why``, ``smaller``: the
+    refusal's words (what needs the torque, why the share, what else to make smaller)."""
+    fastest, worst, peak = torque_speed(model, rec, [j.limits.torque for j in arm.config.joints], share)
+    if speed is None:
+        speed = math.floor(fastest * 100) / 100
+    elif speed > fastest + 1e-9:
+        raise LimitError(f"at speed {speed:g} {needs} {peak * speed**2:.1f} N·m, over {share:.0%} of the joint's "
+                         f"torque limit{why}", joint=arm.names[worst],
+                         fix=f"use speed {math.floor(fastest * 100) / 100:g} or less, or {smaller}")
+    needed = duration / speed + 5.0
+    if needed > arm.telemetry_seconds:
+        raise StateError(f"the telemetry keeps {arm.telemetry_seconds:.0f} s, the identification needs "
+                         f"{needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
+    arm.check_replay(rec, speed)  # before anything moves
+    return speed
+
+
 def identify(arm: Arm, duration: float = 30.0, speed: float | None = None, *, amplitude: float = 0.5,
              center: Target | None = None, payload: bool = True, offsets: bool = True,
              apply: bool = True, torque_scale: bool = False) -> Identification:
@@ -95,29 +127,14 @@ def identify(arm: Arm, duration: float = 30.0, speed: float | None = None, *, am
         LimitError: the excitation breaks a limit at this speed (names the joint, a speed that passes).
         StateError: the arm is not enabled, or moving, or its telemetry is too short for the duration.
     """
-    if speed is not None and not (isinstance(speed, int | float) and 0 < speed <= 1):
-        raise ArgumentError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
-    _require_holding(arm, "identification")
-    c = arm.state().q_des if center is None else arm.target_positions(center)
-    rec = excitation(arm.limits, c, amplitude=amplitude, duration=duration, rate_hz=arm.config.rate_hz)
+    rec = _excitation(arm, speed, center, amplitude, duration)
     model = RobotModel(arm.config, armature=True)
     if not payload and arm.payload is not None:  # the known payload is part of the model
         model.set_payload(*arm.payload)
     else:
         model.clear_payload()
-    fastest, worst, peak = torque_speed(model, rec, [j.limits.torque for j in arm.config.joints])
-    if speed is None:
-        speed = math.floor(fastest * 100) / 100
-    elif speed > fastest + 1e-9:
-        raise LimitError(f"at speed {speed:g} the excitation needs {peak * speed**2:.1f} N·m, over "
-                         f"{TORQUE_SHARE:.0%} of the joint's torque limit (the rest is for a payload not yet known)",
-                         joint=arm.names[worst], fix=f"use speed {math.floor(fastest * 100) / 100:g} or less, or a "
-                                                     "smaller amplitude")
-    needed = duration / speed + 5.0
-    if needed > arm.telemetry_seconds:
-        raise StateError(f"the telemetry keeps {arm.telemetry_seconds:.0f} s, the identification needs "
-                         f"{needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
-    arm.check_replay(rec, speed)  # before anything moves
+    speed = _excitation_speed(arm, rec, model, speed, duration, TORQUE_SHARE, "the excitation needs",
+                              " (the rest is for a payload not yet known)", "a smaller amplitude")
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
     kp0, kd0 = arm.gains
     switches = [(-math.inf, 1.0)]
@@ -167,26 +184,12 @@ def identify_unit(arm: Arm, weight: Weight, hang: Callable[[bool], object], dura
     if com.shape != (3,) or not np.all(np.isfinite(com)):
         raise ArgumentError(f"the weight's centre of mass must be 3 numbers (m, tool frame), got {weight[1]!r}",
                             fix="e.g. (0.04, 0, 0.05)")
-    if speed is not None and not (isinstance(speed, int | float) and 0 < speed <= 1):
-        raise ArgumentError(f"speed {speed} must be in (0, 1]", fix="e.g. 0.5: half as fast")
-    _require_holding(arm, "identification")
-    c = arm.state().q_des if center is None else arm.target_positions(center)
-    rec = excitation(arm.limits, c, amplitude=amplitude, duration=duration, rate_hz=arm.config.rate_hz)
+    rec = _excitation(arm, speed, center, amplitude, duration)
     model = RobotModel(arm.config, armature=True)
     model.set_payload(mass, com)  # the speed is for the heavier run (the weight is known: a larger share)
-    fastest, worst, peak = torque_speed(model, rec, [j.limits.torque for j in arm.config.joints], WEIGHT_SHARE)
+    speed = _excitation_speed(arm, rec, model, speed, duration, WEIGHT_SHARE, "the excitation with the weight needs",
+                              "", "a lighter weight")
     model.clear_payload()
-    if speed is None:
-        speed = math.floor(fastest * 100) / 100
-    elif speed > fastest + 1e-9:
-        raise LimitError(f"at speed {speed:g} the excitation with the weight needs {peak * speed**2:.1f} N·m, over "
-                         f"{WEIGHT_SHARE:.0%} of the joint's torque limit", joint=arm.names[worst],
-                         fix=f"use speed {math.floor(fastest * 100) / 100:g} or less, or a lighter weight")
-    needed = duration / speed + 5.0
-    if needed > arm.telemetry_seconds:
-        raise StateError(f"the telemetry keeps {arm.telemetry_seconds:.0f} s, the identification needs "
-                         f"{needed:.0f} s", fix="Arm(..., telemetry_seconds=...) longer")
-    arm.check_replay(rec, speed)
     mit = np.array([j.mode == "mit" for j in arm.config.joints])
     kp0, kd0 = arm.gains
     before = arm.payload

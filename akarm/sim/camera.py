@@ -57,7 +57,6 @@ HEADER = struct.Struct("<Qd")
 #: A pose file's header: seq (uint64), then the joint positions (rad) and the gripper's width (m,
 #: NaN: none), float64 each.
 POSE_HEADER = struct.Struct("<Q")
-#: Pixels on a side at most (a camera of 4096 × 4096 is 48 MB a frame).
 #: RGB of what the URDF does not colour, the capsules, the jaws and the object.
 GREY = (176, 180, 190)
 ORANGE = (232, 137, 48)
@@ -71,31 +70,64 @@ JAW_SIZE = (0.012, 0.008, 0.04)
 OBJECT_SIZE = (0.03, 0.03)
 
 
-class FrameFile:
+class _SharedFile:
+    """A memory-mapped file of ``size`` bytes that one process writes and another reads, a sequence number
+    first (``header``): made in ``/dev/shm`` where there is one (:meth:`_make`; removed again when the
+    maker closes it), or opened by path."""
+
+    def _open(self, path: str | os.PathLike[str], size: int, what: str) -> None:
+        self.path = Path(path)
+        self.size = size
+        with open(self.path, "r+b") as f:
+            if os.fstat(f.fileno()).st_size < self.size:
+                raise ArgumentError(f"{self.path} is smaller than {what}", fix="open it with the size it was made with")
+            self.map = mmap.mmap(f.fileno(), self.size)
+        self.owner = False
+
+    @staticmethod
+    def _make(prefix: str, size: int) -> str:
+        """A new file of ``size`` zero bytes (sequence 0: nothing written yet); its path."""
+        shm = "/dev/shm" if os.path.isdir("/dev/shm") else None
+        fd, path = tempfile.mkstemp(prefix=prefix, dir=shm)
+        try:
+            os.ftruncate(fd, size)
+        finally:
+            os.close(fd)
+        return path
+
+    def _consistent(self, header: struct.Struct) -> tuple[int, bytes] | None:
+        """The sequence number and a copy of the body, read whole between two writes (five tries), or
+        ``None`` (nothing written yet, or writes come faster than a copy)."""
+        for _ in range(5):
+            seq = header.unpack(self.map[:header.size])[0]
+            if seq == 0:
+                return None
+            body = self.map[header.size:self.size]
+            if header.unpack(self.map[:header.size])[0] == seq:
+                return int(seq), body
+        return None
+
+    def close(self) -> None:
+        """Unmap it; the file is removed if this process made it."""
+        with contextlib.suppress(ValueError, BufferError):
+            self.map.close()
+        if self.owner:
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+
+
+class FrameFile(_SharedFile):
     """A memory-mapped frame file (see the module's docstring). :meth:`create` makes one (in
     ``/dev/shm`` where there is one); ``FrameFile(path, width, height)`` opens one."""
 
     def __init__(self, path: str | os.PathLike[str], width: int, height: int) -> None:
         self.width, self.height = check_frame_size(width, height)
-        self.path = Path(path)
-        self.size = HEADER.size + self.width * self.height * 3
-        with open(self.path, "r+b") as f:
-            if os.fstat(f.fileno()).st_size < self.size:
-                raise ArgumentError(f"{self.path} is smaller than a frame of {width} × {height}",
-                                    fix="open it with the size it was made with")
-            self.map = mmap.mmap(f.fileno(), self.size)
-        self.owner = False
+        self._open(path, HEADER.size + self.width * self.height * 3, f"a frame of {width} × {height}")
 
     @classmethod
     def create(cls, width: int, height: int) -> FrameFile:
         width, height = check_frame_size(width, height)
-        shm = "/dev/shm" if os.path.isdir("/dev/shm") else None
-        fd, path = tempfile.mkstemp(prefix="akarm-camera-", dir=shm)
-        try:
-            os.ftruncate(fd, HEADER.size + width * height * 3)
-        finally:
-            os.close(fd)
-        frames = cls(path, width, height)
+        frames = cls(cls._make("akarm-camera-", HEADER.size + width * height * 3), width, height)
         frames.owner = True
         return frames
 
@@ -114,22 +146,10 @@ class FrameFile:
     def latest(self) -> tuple[int, np.ndarray | None]:
         """The newest frame (a copy) and its seq; ``(0, None)`` before the first, or while frames come
         faster than it can copy one whole (five tries)."""
-        for _ in range(5):
-            seq = HEADER.unpack(self.map[:HEADER.size])[0]
-            if seq == 0:
-                return 0, None
-            data = self.map[HEADER.size:self.size]
-            if HEADER.unpack(self.map[:HEADER.size])[0] == seq:
-                return int(seq), np.frombuffer(data, np.uint8).reshape(self.height, self.width, 3).copy()
-        return 0, None
-
-    def close(self) -> None:
-        """Unmap it; the file is removed if :meth:`create` made it here."""
-        with contextlib.suppress(ValueError, BufferError):
-            self.map.close()
-        if self.owner:
-            with contextlib.suppress(OSError):
-                self.path.unlink()
+        got = self._consistent(HEADER)
+        if got is None:
+            return 0, None
+        return got[0], np.frombuffer(got[1], np.uint8).reshape(self.height, self.width, 3).copy()
 
 
 @dataclass(frozen=True)
@@ -142,28 +162,18 @@ class Pose:
     object: float | None = None
 
 
-class PoseFile:
+class PoseFile(_SharedFile):
     """A memory-mapped file of ``joints`` positions and a gripper width, written by the process that
     runs the arm and read by the camera's. :meth:`create` makes one; ``PoseFile(path, joints)`` opens it."""
 
     def __init__(self, path: str | os.PathLike[str], joints: int) -> None:
-        self.path = Path(path)
         self.joints = int(joints)
-        self.size = POSE_HEADER.size + 8 * (self.joints + 1)
-        with open(self.path, "r+b") as f:
-            self.map = mmap.mmap(f.fileno(), self.size)
-        self.owner = False
+        self._open(path, POSE_HEADER.size + 8 * (self.joints + 1), f"a pose of {self.joints} joints")
         self._seq = 0
 
     @classmethod
     def create(cls, joints: int) -> PoseFile:
-        shm = "/dev/shm" if os.path.isdir("/dev/shm") else None
-        fd, path = tempfile.mkstemp(prefix="akarm-pose-", dir=shm)
-        try:
-            os.ftruncate(fd, POSE_HEADER.size + 8 * (joints + 1))
-        finally:
-            os.close(fd)
-        pose = cls(path, joints)
+        pose = cls(cls._make("akarm-pose-", POSE_HEADER.size + 8 * (joints + 1)), joints)
         pose.owner = True
         return pose
 
@@ -178,21 +188,11 @@ class PoseFile:
 
     def read(self) -> Pose | None:
         """The newest pose, or None before the first (or while it is being written)."""
-        for _ in range(5):
-            seq = POSE_HEADER.unpack(self.map[:POSE_HEADER.size])[0]
-            if seq == 0:
-                return None
-            values = np.frombuffer(self.map[POSE_HEADER.size:self.size], dtype=np.float64).copy()
-            if POSE_HEADER.unpack(self.map[:POSE_HEADER.size])[0] == seq:
-                return Pose(values[:-1], float(values[-1]))
-        return None
-
-    def close(self) -> None:
-        with contextlib.suppress(ValueError, BufferError):
-            self.map.close()
-        if self.owner:
-            with contextlib.suppress(OSError):
-                self.path.unlink()
+        got = self._consistent(POSE_HEADER)
+        if got is None:
+            return None
+        values = np.frombuffer(got[1], dtype=np.float64)
+        return Pose(values[:-1].copy(), float(values[-1]))
 
 
 @dataclass(frozen=True)

@@ -244,7 +244,7 @@ def _samples(arm: Arm, motion: Motion, switches: list[tuple[float, float]]
     period = 1.0 / arm.config.rate_hz
     factor = np.ones(len(log.t))
     use = np.ones(len(log.t), bool)
-    settled = np.ones(len(log.t), bool)
+    settled = np.ones(len(log.t), bool)  # the observer's memory of a change of gains has faded (5 time constants)
     for ts, f in switches[1:]:
         factor[log.t - period >= ts - 1e-9] = f
         use &= np.abs(log.t - ts) > 0.03
@@ -284,17 +284,7 @@ def _evaluate(arm: Arm, model: RobotModel, rec: PathRecording, motion: Motion, s
               speed: float, torque_scale: bool = False) -> Identification:
     """The fit, the thresholds and the result from the excitation's telemetry."""
     gain = arm.collision_gain
-    excite = motion.plan.plans[-1]  # type: ignore[attr-defined]  # after the soft start
-    log = arm.telemetry(since=excite.t0)
-    # each row's torque answered the command of the cycle before: the gains in force then
-    period = 1.0 / arm.config.rate_hz
-    factor = np.ones(len(log.t))
-    use = np.ones(len(log.t), bool)
-    settled = np.ones(len(log.t), bool)  # the observer's memory of a change of gains has faded (5 time constants)
-    for ts, f in switches[1:]:
-        factor[log.t - period >= ts - 1e-9] = f
-        use &= np.abs(log.t - ts) > 0.03
-        settled &= (log.t < ts) | (log.t > ts + 5.0 / gain)
+    log, factor, use, settled = _samples(arm, motion, switches)
     kp = np.where(mit, kp0, 0.0)[None, :] * factor[:, None]
     kd = np.where(mit, kd0, 0.0)[None, :] * factor[:, None]
     fits, pay, _ = fit(model, log, kp=kp, kd=kd, payload=payload, offsets=offsets, use=use,

@@ -257,6 +257,33 @@ def test_a_safety_stop_ends_the_session_with_its_name_and_the_arm_disabled(robot
         assert not state["enabled"] and state["mode"] == "fault"
 
 
+def test_a_stream_refused_for_a_latched_stop_raises_the_stop_itself(robot, channel):
+    """The stop that comes between two of LeRobot's actions: the next action's stream is refused
+    (StopLatched), and the plugin raises the stop itself (its class, joint and fix), the refusal chained."""
+    from lerobot_robot_akarm.served import ServedArm
+
+    from akarm.errors import FeedbackTimeout, StopLatched
+
+    with SimulatorProcess(robot, channel=channel, control=True) as sim, served(robot, channel) as server:
+        arm = ServedArm(robot, "akarm_local", channel, start=False)
+        try:
+            q = [float(x) for x in arm.state()["q"]]
+            assert arm.stream(q)["target"] == pytest.approx(q)
+            sim.control.inject("elbow", "unplugged")
+            end = time.monotonic() + 10
+            while not server.call("status")["stop_error"] and time.monotonic() < end:
+                time.sleep(0.05)
+            assert server.call("status")["stop_error"] == "FeedbackTimeout"
+            with pytest.raises(StopLatched):
+                server.call("stream", target=q)  # what the server answers
+            with pytest.raises(FeedbackTimeout) as raised:
+                arm.stream(q)  # what the plugin raises
+            assert raised.value.joint == "elbow" and raised.value.fix
+            assert isinstance(raised.value.__cause__, StopLatched)
+        finally:
+            arm.close()
+
+
 def test_a_policy_past_the_limit_nan_or_silent(robot, channel, tmp_path):
     """A "policy" through the Robot's send_action at 30 Hz: 1 rad past the shoulder's limit (clamped),
     NaN (refused, the arm holds), nothing for 1 s (decelerates to a hold), then resumed."""

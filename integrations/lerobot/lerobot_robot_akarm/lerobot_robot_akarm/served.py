@@ -8,7 +8,8 @@ milliseconds). :class:`ServedArm` finds the server that drives the robot's buses
 - :meth:`ServedArm.state`: every joint's position (rad), velocity (rad/s) and torque (N·m); a safety
   stop the server latched is raised as the stop itself (its akarm class and text);
 - :meth:`ServedArm.stream`: a target into the loop through the jerk-limited retargeting (the server's
-  ``stream`` operation, :mod:`akarm.server.streaming`);
+  ``stream`` operation, :mod:`akarm.server.streaming`); a stream refused because a stop is latched
+  raises the stop itself, as :meth:`ServedArm.state` does;
 - :meth:`ServedArm.close`: a server it started is stopped (SIGTERM: the arm damped, then disabled);
   one that ran before is asked to hold.
 """
@@ -29,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from akarm.buses.ownership import find_server
-from akarm.errors import AkarmError, StateError
+from akarm.errors import AkarmError, StateError, StopLatched
 from akarm.robotfile.load import load_robot
 from akarm.server.socket import SocketClient, rebuild_error
 
@@ -128,7 +129,15 @@ class ServedArm:
         args: dict[str, Any] = {"target": body, "partial": partial, "timeout": timeout, "speed": speed}
         if gripper is not None:
             args["gripper"] = clean(float(gripper))
-        return dict(self.call("stream", **args))
+        try:
+            return dict(self.call("stream", **args))
+        except StopLatched as refused:
+            # The stop came between two actions: the session ends with the stop itself (its class, the
+            # joint and what to do), not with the refusal that names it.
+            doc = self.call("state", read=False)
+            if doc.get("stop"):
+                raise stop_error(doc["stop"]) from refused
+            raise
 
     def close(self) -> None:
         """Stop a server started here (the arm damped, then disabled), else leave the arm held."""

@@ -84,6 +84,14 @@ REPORTED_SHARE = 0.5
 #: 1.10 + 0.6 · max(5.5, 0.5 · 13.0) N·m. A joint blocked while its command moves on still builds up past it:
 #: its motor's torque grows until the estimate passes th + 0.45·τ (before the motor's own limit).
 LEVEL_REPORTED_SHARE = 0.75
+#: s of motion the learnt share of the model's error (:attr:`ModelResidual.follow`) remembers: a share learnt
+#: over the last few moves, which a new payload or the next unit's pose range changes within a few more.
+FOLLOW_MEMORY = 5.0
+#: (N·m)²: how much change of the model's torque it takes before the learnt share counts fully (a share learnt
+#: from a few small changes stays near 0: the thresholds' margin alone covers the error then).
+FOLLOW_PRIOR = 20.0
+#: N·m: a change of the model's torque over the window smaller than this teaches nothing (noise, a joint at rest).
+FOLLOW_MIN = 0.05
 
 
 def friction_torque(v: np.ndarray, coulomb: np.ndarray, viscous: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -299,21 +307,28 @@ class MomentumObserver:
 class Uncertainty:
     """How wrong the model of one joint may be, as shares: ``torque`` of the motor's torque (its torque
     constant, the gearbox, the link masses, an unknown payload), ``friction`` of its Coulomb and viscous
-    friction. Unidentified: 0.6 and 1.0 (real units: torque constants ±30 %, true/reported 0.7-1.0,
-    URDF masses ±20 %; friction 0.5-2× the catalogue's); identified (``akarm identify``): 0.15 and 0.3."""
+    friction, ``friction_load``: N·m of Coulomb friction per N·m of the motor's torque that the model does
+    not have (friction's load-dependent part, which the observer does not model). Unidentified: 0.6, 1.0
+    and 0.06 (real units: torque constants ±30 %, true/reported 0.7-1.0, URDF masses ±20 %; friction
+    0.5-2× the catalogue's, and up to 6 % of the load: an AK80-9 with a load cell, 0.049 N·m per A of its
+    0.82 N·m/A); identified (``akarm identify``): 0.15, 0.3 and 1.3 times the fitted load share."""
 
     torque: float = 0.6
     friction: float = 1.0
+    friction_load: float = 0.06
 
 
-#: Uncertainty of a joint the robot file gives identified values for.
-IDENTIFIED = Uncertainty(0.15, 0.3)
+#: Uncertainty of a joint the robot file gives identified values for (its load share: the fit's, x 1.3).
+IDENTIFIED = Uncertainty(0.15, 0.3, 0.0)
 
 
 def uncertainty_for(joint: JointConfig) -> Uncertainty:
-    """How wrong ``joint``'s model may be: :data:`IDENTIFIED` where the robot file gives its identified
-    friction (``akarm identify --save``), else the default :class:`Uncertainty`."""
-    return IDENTIFIED if joint.friction is not None else Uncertainty()
+    """How wrong ``joint``'s model may be: :data:`IDENTIFIED` (with 1.3 times its fitted load share) where
+    the robot file gives its identified friction (``akarm identify --save``), else the default
+    :class:`Uncertainty`."""
+    if joint.friction is None:
+        return Uncertainty()
+    return Uncertainty(IDENTIFIED.torque, IDENTIFIED.friction, (1.0 + IDENTIFIED.friction) * joint.friction.load)
 
 
 class ModelResidual:
@@ -327,6 +342,23 @@ class ModelResidual:
     the friction model's Coulomb term (a start from rest, a reversal). The thresholds grow by
     ``Uncertainty.torque`` times the change of the model's torque over the window, and by
     ``Uncertainty.friction`` times the change of its friction.
+
+    **Stick-slip.** A joint that lags its command stops or starts when its *measured* speed says so, not
+    its command's: a real unit's friction (up to twice the catalogue's) holds it a few ms longer, and the
+    arm's momentum goes into the gearbox; a joint held at rest creeps, or slides back after it stopped.
+    Where the measured direction catches up with the command's, or the command is at rest, the friction's
+    change of direction is counted on the larger of the two. A contact that stops or reverses a moving
+    joint takes it away from its command: not counted. Friction's load-dependent part, which the model
+    does not have, adds ``Uncertainty.friction_load`` times the motor's torque times that change.
+
+    **The share is learnt.** A real unit's error follows the model's torque by a share of its own
+    (seed 3's elbow: 0.68 N·m per N·m reported and links 8 % heavier: the estimate moves by -0.47 N·m per
+    N·m the model's torque changes, near the 0.6 the margin allows). :attr:`follow` is that share, fitted
+    per joint by least squares over the last :data:`FOLLOW_MEMORY` s of motion (:meth:`learn`: only
+    windows where the joint is calm, so a contact teaches nothing), within ``±Uncertainty.torque``; the
+    rise judged is the estimate's change less ``follow`` times the model's torque change. The model's
+    torque is the plan's (the feed-forward), not the motors' reported torque: a contact's own reaction
+    never counts as model error. A fresh start (enable, a new payload or friction) learns again from 0.
     """
 
     def __init__(self, n: int, coulomb: Sequence[float], viscous: Sequence[float], deadband: Sequence[float],
@@ -335,14 +367,18 @@ class ModelResidual:
         self.set_model(coulomb, viscous, uncertainty)
         self._deadband = [float(x) for x in deadband]
         self.gain = gain
+        self._period = period
         size = max(2, round(WINDOW / period) + 1)
         self._r: collections.deque[list[float]] = collections.deque(maxlen=size)
         self._t: collections.deque[list[float]] = collections.deque(maxlen=size)
         self._f: collections.deque[list[float]] = collections.deque(maxlen=size)
         self._m: collections.deque[list[float]] = collections.deque(maxlen=size)
+        self._s: collections.deque[list[float]] = collections.deque(maxlen=size)
         self._rep_lag = [0.0] * n
         self._tau_lag = [0.0] * n
         self._fr_lag = [0.0] * n
+        # the friction's direction on the commanded speed, then on the measured (through the observer's lag)
+        self._sign_lag = [0.0] * 2 * n
         self._prediction = [0.0] * n
         self.learning_until = -math.inf
         self.fresh = True
@@ -351,6 +387,17 @@ class ModelResidual:
         self.frozen = False
         self.margin = [0.0] * n
         self.level_margin = [math.inf] * n
+        self._follow = [0.0] * n
+        self._sxx = [0.0] * n
+        self._sxy = [0.0] * n
+        self._x = [0.0] * n  # the model torque's change over the window at the last update, N·m
+        self._y = [0.0] * n  # the estimate's
+
+    @property
+    def follow(self) -> list[float]:
+        """Per joint, the learnt share of the model torque's change that the estimate follows (the model's
+        error: a unit's torque scale and masses), within ``±Uncertainty.torque`` (a copy)."""
+        return self._follow[:]
 
     def set_model(self, coulomb: Sequence[float], viscous: Sequence[float],
                   uncertainty: Sequence[Uncertainty]) -> None:
@@ -359,6 +406,7 @@ class ModelResidual:
         self.uncertainty = tuple(uncertainty)
         self._ut = [u.torque for u in self.uncertainty]
         self._uf = [u.friction for u in self.uncertainty]
+        self._ul = [u.friction_load for u in self.uncertainty]
 
     @property
     def slow(self) -> list[float]:
@@ -369,18 +417,30 @@ class ModelResidual:
         return [(0.0 if -db <= x <= db else c * math.tanh(x / FRICTION_SMOOTHING)) + b * x
                 for c, b, db, x in zip(self._c, self._b, self._deadband, v, strict=True)]
 
+    def _signs(self, v: Sequence[float], measured: Sequence[float]) -> list[float]:
+        """The Coulomb friction's direction (-1..1; 0 within a step of the feedback) on the commanded
+        speeds ``v``, then on the measured ones."""
+        return [0.0 if -db <= x <= db else math.tanh(x / FRICTION_SMOOTHING)
+                for x, db in zip([*v, *measured], self._deadband * 2, strict=True)]
+
     def start(self, now: float, estimate: Sequence[float], tau: Sequence[float] | np.ndarray, v: Sequence[float],
-              reported: Sequence[float] | None = None) -> None:
+              reported: Sequence[float] | None = None, measured: Sequence[float] | None = None) -> None:
         """The observer starts over at ``estimate``: after a fresh start (:attr:`fresh`) learn for
         :data:`LEARN_TIME` (judge nothing while the estimate rises to the model's error)."""
         if self.fresh:
             self.learning_until = now + LEARN_TIME
             self.fresh = False
+            self._follow = [0.0] * self.n
+            self._sxx = [0.0] * self.n
+            self._sxy = [0.0] * self.n
+        self._x = [0.0] * self.n
+        self._y = [0.0] * self.n
         self._tau_lag = [float(x) for x in tau]
         self._fr_lag = self._friction(v)
+        self._sign_lag = self._signs(v, v if measured is None else measured)
         self._rep_lag = [float(x) for x in (tau if reported is None else reported)]
         for q, x in ((self._r, [float(e) for e in estimate]), (self._t, self._tau_lag), (self._f, self._fr_lag),
-                     (self._m, self._rep_lag)):
+                     (self._m, self._rep_lag), (self._s, self._sign_lag)):
             if q is self._r and self.frozen:
                 continue
             q.clear()
@@ -390,10 +450,13 @@ class ModelResidual:
         self.level_margin = [math.inf] * self.n
 
     def update(self, now: float, estimate: Sequence[float], tau: Sequence[float] | np.ndarray, v: Sequence[float],
-               dt: float, reported: Sequence[float] | None = None) -> list[float]:
+               dt: float, reported: Sequence[float] | None = None,
+               measured: Sequence[float] | None = None) -> list[float]:
         """One step; returns the sudden part of ``estimate`` (N·m per joint); :attr:`margin` is then
-        what the thresholds grow by (N·m per joint). ``tau``: the model's torque; ``reported``: the
-        motors' (a scale error is a share of it: the PD's share too)."""
+        what the thresholds grow by (N·m per joint). ``tau``: the model's torque; ``v``: the speeds its
+        friction is taken at (the commanded ones where the arm tracks a command); ``reported``: the
+        motors' torque (a scale error is a share of it: the PD's share too); ``measured``: the measured
+        speeds (a joint that lags its command stops and starts on these)."""
         a = min(1.0, self.gain * dt)  # what the estimate sees of a torque: through the observer's lag
         tl, fl, ml = self._tau_lag, self._fr_lag, self._rep_lag
         rep = tau if reported is None else reported
@@ -401,27 +464,62 @@ class ModelResidual:
             tl[i] += a * (t - tl[i])
             fl[i] += a * (f - fl[i])
             ml[i] += a * (m - ml[i])
+        sl = self._sign_lag
+        for i, x in enumerate(self._signs(v, v if measured is None else measured)):
+            sl[i] += a * (x - sl[i])
         r = [float(e) for e in estimate]
         if not self.frozen:
             self._r.append(r)
         self._t.append(tl[:])
         self._f.append(fl[:])
         self._m.append(ml[:])
+        self._s.append(sl[:])
         if now < self.learning_until:  # the window starts over until the estimate has settled
             self.frozen = False
-            for q in (self._r, self._t, self._f, self._m):
+            for q in (self._r, self._t, self._f, self._m, self._s):
                 while len(q) > 1:
                     q.popleft()
-        r0, t0, f0, m0 = self._r[0], self._t[0], self._f[0], self._m[0]
+        r0, t0, f0, m0, s0 = self._r[0], self._t[0], self._f[0], self._m[0], self._s[0]
         self._prediction = r0
-        self.margin = [ut * max(abs(x - y), REPORTED_SHARE * abs(m - n)) + uf * abs(f - g)
-                       for ut, uf, x, y, f, g, m, n in zip(self._ut, self._uf, tl, t0, fl, f0, ml, m0, strict=True)]
+        n = self.n
+        margin = [0.0] * n
+        for i in range(n):
+            ds_cmd = abs(sl[i] - s0[i])  # the friction's change of direction, on the command
+            ds = ds_cmd
+            if abs(sl[n + i] - sl[i]) < abs(s0[n + i] - s0[i]) or max(abs(sl[i]), abs(s0[i])) < 0.5:
+                # and on the measurement, where the joint catches up with its command's direction (a lagging
+                # joint that comes to rest after its command did, or breaks away after it started), or its
+                # command is at rest (a joint creeping, or sliding back after it stopped: stick-slip); a
+                # contact that stops or reverses a moving joint takes it away from its command, not counted
+                ds = max(ds_cmd, abs(sl[n + i] - s0[n + i]))
+            margin[i] = (self._ut[i] * max(abs(tl[i] - t0[i]), REPORTED_SHARE * abs(ml[i] - m0[i]))
+                         + self._uf[i] * (abs(fl[i] - f0[i]) + self._c[i] * (ds - ds_cmd))
+                         + self._ul[i] * abs(ml[i]) * ds)
+        self.margin = margin
         # the whole estimate may be the model's error up to its uncertainty times the model's torque now
         # (not its change): what a contact that builds up slower than the window (a joint blocked while its
         # command moves on, a person pinned slowly) is judged against
         self.level_margin = [ut * max(abs(x), LEVEL_REPORTED_SHARE * abs(m)) + uf * abs(f)
                              for ut, uf, x, f, m in zip(self._ut, self._uf, tl, fl, ml, strict=True)]
-        return [x - y for x, y in zip(r, r0, strict=True)]
+        self._x = [x - y for x, y in zip(tl, t0, strict=True)]
+        self._y = [x - y for x, y in zip(r, r0, strict=True)]
+        return [y - a * x for a, x, y in zip(self._follow, self._x, self._y, strict=True)]
+
+    def learn(self, calm: Sequence[float]) -> None:
+        """Fit :attr:`follow` with the last :meth:`update`'s window: per joint whose model torque changed
+        by at least :data:`FOLLOW_MIN` and whose judged rise is under ``calm`` (N·m: half its widened
+        threshold; a contact is not the model's error), least squares of the estimate's change on the
+        model torque's change, older windows forgotten over :data:`FOLLOW_MEMORY` s of them."""
+        forget = 1.0 - self._period / FOLLOW_MEMORY
+        for i in range(self.n):
+            x, y, a = self._x[i], self._y[i], self._follow[i]
+            if not (x >= FOLLOW_MIN or x <= -FOLLOW_MIN) or not abs(y - a * x) < calm[i]:
+                continue
+            sxx = forget * self._sxx[i] + x * x
+            sxy = forget * self._sxy[i] + x * y
+            self._sxx[i], self._sxy[i] = sxx, sxy
+            ut = self._ut[i]
+            self._follow[i] = min(ut, max(-ut, sxy / (sxx + FOLLOW_PRIOR)))
 
 
 class CollisionReflex:
@@ -595,19 +693,24 @@ class CollisionReflex:
             # (from the estimate before: the model's error is a function of the pose, not of the gap)
             obs.reset(qa, va, ta, v_then, None if res.fresh else obs.estimate_list)
             res.start(now, obs.estimate_list, ta if model_torque is None else model_torque,
-                      va if v_then is None else v_then, ta)
+                      va if v_then is None else v_then, ta, va)
             self._sudden = [0.0] * len(qa)
         else:
             obs.advance(qa, va, ta, dt, kp, kd, v_then)
             # (friction's regressors on the commanded speed where the arm tracks one: the measured one
             # flips across the deadband at rest, by whole steps of the feedback)
             self._sudden = res.update(now, obs.estimate_list, ta if model_torque is None else model_torque,
-                                      va if v_then is None else v_then, dt, ta)
+                                      va if v_then is None else v_then, dt, ta, va)
         self._q_last, self._v_last = qa, va
         if not check or now < res.learning_until:
             self.armed = False
             return None
-        return self._judge(now, ta)
+        err = self._judge(now, ta)
+        # the model's error learnt where nothing is judged a contact (armed: every joint was calm once;
+        # not at a motor's torque limit, where the torque is not known)
+        if err is None and self.armed and not res.frozen and now >= self._quiet_until and obs.started:
+            res.learn([0.5 * (t + m) for t, m in zip(self._thresholds, res.margin, strict=True)])
+        return err
 
     def _judge(self, now: float, tau: list[float]) -> CollisionError | None:
         """The step's verdict on the new estimate, the motors reporting ``tau`` (N·m)."""

@@ -39,11 +39,10 @@ ELBOW = ARM6.joint_names.index("elbow")
 
 CASES = {"payload": (None, 0.3), "friction": (Variation(friction=2.0), 0.0), "both": (Variation(friction=2.0), 0.3)}
 CASES.update({f"seed{k}": (Variation(seed=k), 0.0) for k in range(20)})
-#: Seed 3's elbow (0.68 N·m per N·m reported, its links 8 % heavier) lags the move from home to ready at full
-#: speed, and the reflex takes it for a collision (-2.71 N·m against 1.10 + 1.55 N·m): counting 0.6 of the
-#: reported torque's change instead of 0.5 let it through but missed a push of 1.5 times the wrist_pitch's
-#: threshold. Detection first: a known false stop at full speed (none at half speed).
-FALSE_STOP = {"seed3"}
+#: Cases known to stop falsely (a strict xfail each). None: seed 3's elbow (0.68 N·m per N·m reported, its links
+#: 8 % heavier) lagged the last move home -> ready at full speed and was stopped (-2.71 N·m against 1.10 + 1.55)
+#: until the reflex learnt the share of the model's torque its error follows (ModelResidual.follow).
+FALSE_STOP: set[str] = set()
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(

@@ -120,6 +120,9 @@ Target = str | Sequence[float] | np.ndarray | Mapping[str, float]
 ARRIVED = 0.005
 #: The smallest speed factor a move takes (a 1.5 rad move of planar2 lasts 6000 s at it).
 MIN_SPEED = 1e-4
+#: rad/s: every joint this slow when a move is planned, the arm holds still: what its motors report then
+#: is what the unit needs to hold the pose (:meth:`akarm.motion.torque.TorqueBudget.measure_hold`)
+HOLD_STILL = 0.05
 
 
 @dataclass(frozen=True)
@@ -529,13 +532,17 @@ class Arm:
     def _within_torque(self, make: Callable[[float], Timed], speed: float) -> Timed:
         """``make(speed)``, slower where its torque asks more than a joint's budget
         (:class:`akarm.motion.torque.TorqueBudget`: a real unit may give 30 % less torque than its datasheet;
-        an identified one what its torque scale says). Refused where gravity alone needs more than a
-        joint's limit (:class:`~akarm.LimitError`)."""
+        an identified one what its torque scale says; where the arm holds still, what its motors report
+        against the model's gravity there). Refused where gravity alone needs more than a joint's limit
+        (:class:`~akarm.LimitError`)."""
         plan = make(speed)
         if self._torque_budget is None:
             self._torque_budget = TorqueBudget(self.config, RobotModel(self.config, armature=True))
         budget = self._torque_budget
         budget.set_payload(self.payload)
+        st = self.state()
+        if st.enabled and not st.moving and float(np.max(np.abs(st.dq), initial=0.0)) < HOLD_STILL:
+            budget.measure_hold(st.q, st.tau)  # what the unit needs to hold where it is, against the model
         for _ in range(3):
             factor, _joint = budget.speed_factor(plan.sample, plan.t0, plan.t_end)
             if factor >= 0.995:

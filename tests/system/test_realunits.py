@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import akarm
-from akarm.errors import CollisionError
+from akarm.errors import CollisionError, LimitError
 from akarm.sim import Variation
 
 from ..conftest import ROBOTS, ROOT, lockstep_arm
@@ -81,6 +81,27 @@ def _units_table() -> ModuleType:
     sys.modules.setdefault("realunits_table", module)
     spec.loader.exec_module(module)
     return module
+
+
+def test_a_unit_too_weak_to_hold_a_pose_is_refused_the_move_there_and_stays_held(channel: str) -> None:
+    """Seed 28's shoulder_lift gives 0.66 N·m per N·m reported, with 0.89 N·m of friction and 4.6 % of its
+    load: holding `left` it reports 1.5 times the model's gravity torque, so holding `reach` and lifting the
+    arm from there would need about 24 of its 25 N·m. Planned on the model, the move went, and the motor
+    saturated on the way back (a TrackingError); measured, the move is refused before anything moves, and
+    the arm stays held where it is, enabled."""
+    with lockstep_arm(ARM6, channel, q0=ARM6.pose("home"), enable=True,
+                      sim_options={"variation": Variation(seed=28)}) as (arm, sim):
+        for pose in ("ready", "left"):
+            arm.move_to(pose, speed=SPEED)
+        arm.sleep(0.3)
+        with pytest.raises(LimitError) as info:
+            arm.move_to("reach", speed=SPEED)
+        assert info.value.joint == "shoulder_lift" and "measured to need" in str(info.value)
+        arm.sleep(0.5)
+        assert arm.enabled and arm.fault is None
+        assert np.max(np.abs(arm.state().q - ARM6.pose("left"))) < 0.03  # (a weak unit settles within mrad)
+        arm.move_to("home", speed=SPEED)  # what it can do, it still does
+        assert arm.enabled
 
 
 #: the seeds CI identifies (about 30 s of CPU each); docs/tools/realunits_table.py does all 20 for the docs

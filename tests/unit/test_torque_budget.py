@@ -76,3 +76,45 @@ def test_gravity_over_a_joints_limit_is_a_named_refusal() -> None:
     with pytest.raises(LimitError) as info:
         planned(arm, "reach")
     assert info.value.joint == "elbow" and "more than the joint's 18.0 N·m" in str(info.value)
+
+
+def planned_from(budget: TorqueBudget, arm: Arm, start: str, target: str) -> tuple[object, object]:
+    """``planned`` with a given budget, from the named pose ``start``."""
+    def make(s: float) -> object:
+        return arm.planner.move_from((np.array(ARM6.pose(start)), np.zeros(6), np.zeros(6)), ARM6.pose(target), 0.0, s)
+
+    plan = make(1.0)
+    factor, _ = budget.speed_factor(plan.sample, plan.t0, plan.t_end)  # type: ignore[attr-defined]
+    return plan, plan if factor >= 0.995 else make(factor * 0.98)
+
+
+def test_a_hold_that_needs_more_than_the_model_slows_the_next_move_and_refuses_one_it_cannot_make() -> None:
+    """A unit measured holding `ready` with 1.5 times the model's gravity torque on its shoulder (a weak
+    motor, heavier links, or a payload nobody told the arm): moves plan with that, and friction, within 90 %
+    of the limit. `reach` needs 14.4 N·m of gravity on the model: 21.5 measured, and 2.3 of friction to move
+    from there, over 22.5: refused before anything moves, saying what was measured."""
+    arm = Arm(ARM6)
+    model = RobotModel(ARM6, armature=True)
+    budget = TorqueBudget(ARM6, RobotModel(ARM6, armature=True))
+    ready = np.array(ARM6.pose("ready"))
+    g = model.gravity(ready)
+    nominal = planned_from(budget, arm, "ready", "home")[1]
+    budget.measure_hold(ready, g)  # the model's own torque: nothing changes
+    assert budget.load[LIFT] == pytest.approx(1.0) and budget.load[0] == 1.0
+    same = planned_from(budget, arm, "ready", "home")[1]
+    assert same.duration == pytest.approx(nominal.duration)  # type: ignore[attr-defined]
+    tau = g.copy()
+    tau[LIFT] *= 1.5
+    tau[0] = 3.0  # the pan: gravity does not load it, nothing is read from it
+    budget.measure_hold(ready, tau)
+    assert budget.load[LIFT] == pytest.approx(1.5) and budget.load[0] == 1.0
+    with pytest.raises(LimitError) as info:
+        planned_from(budget, arm, "ready", "reach")
+    assert info.value.joint == "shoulder_lift" and "1.50 this arm was measured to need" in str(info.value)
+    assert "arm.set_payload" in info.value.fix
+    slowed = planned_from(budget, arm, "ready", "home")[1]  # down: slower than on the model
+    assert slowed.duration > 1.05 * nominal.duration  # type: ignore[attr-defined]
+    # a payload the arm is told starts the measurement over (it was measured against the model without it)
+    budget.set_payload((0.3, np.array([0.0, 0.0, 0.05])))
+    assert budget.load[LIFT] == 1.0
+    planned_from(budget, arm, "ready", "reach")

@@ -53,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--center", metavar="POSE",
                         help="excite around this named pose or comma-separated joint positions, rad (default: "
                              "where the arm is)")
+    parser.add_argument("--reach", metavar="POSE",
+                        help="with --torque-scale: where a joint the weight loads only through inertia (a vertical "
+                             "axis) is excited alone, the others held: a named pose or joint positions, rad, the "
+                             "arm leaning out as far as its torque allows (default: --center)")
     parser.add_argument("--payload-only", action="store_true",
                         help="only the payload, at rest in a few poses (no excitation)")
     parser.add_argument("--save", action="store_true",
@@ -93,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
                 center = _center(args.center)
                 if weight is not None:
                     result = identify_unit(arm, weight, _ask_to_hang(weight), args.seconds, args.speed,
-                                           amplitude=args.amplitude, center=center, offsets=not args.no_offsets)
+                                           amplitude=args.amplitude, center=center,
+                                           reach=_center(args.reach, "--reach"), offsets=not args.no_offsets)
                 else:
                     result = identify(arm, args.seconds, args.speed, amplitude=args.amplitude, center=center,
                                       payload=not args.no_payload, offsets=not args.no_offsets)
@@ -143,8 +148,8 @@ def _weight(args: argparse.Namespace) -> tuple[float, tuple[float, float, float]
     return mass, (x, y, z)
 
 
-def _center(text: str | None) -> str | list[float] | None:
-    """``--center``: a pose's name, or joint positions."""
+def _center(text: str | None, option: str = "--center") -> str | list[float] | None:
+    """``--center`` (or ``option``): a pose's name, or joint positions."""
     if text is None or "," not in text:
         return text
     from akarm.errors import ArgumentError
@@ -152,8 +157,8 @@ def _center(text: str | None) -> str | list[float] | None:
     try:
         return [float(v) for v in text.split(",")]
     except ValueError:
-        raise ArgumentError(f"--center must be a pose's name or joint positions (rad), got {text!r}",
-                            fix="e.g. --center home") from None
+        raise ArgumentError(f"{option} must be a pose's name or joint positions (rad), got {text!r}",
+                            fix=f"e.g. {option} home") from None
 
 
 def _ask_to_hang(weight: tuple[float, tuple[float, float, float]]) -> Callable[[bool], None]:

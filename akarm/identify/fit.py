@@ -583,7 +583,10 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
     lighter links are the same data; the weight's torque, known in N·m, tells them apart. The measured
     torque is the fit's target (a fit with it among the columns shrinks the scale of a joint whose
     torque is mostly friction: the part of the torque the friction law does not explain counts as noise
-    in the column). Returns the per-joint fits (threshold unset).
+    in the column). ``|τ_i|`` in the load share's column is the torque the fit says (:func:`_fit_joint`).
+    A run with ``joints`` (a joint excited alone: identify_unit's runs for a vertical axis) informs
+    only those joints' fits, and for them the encoder's play is fitted too (:func:`_play_columns`).
+    Returns the per-joint fits (threshold unset).
 
     A joint whose torque the weight hardly changes (shoulder_pan: its axis is vertical, the weight only
     loads it through inertia) may get a scale outside what a real unit has (:data:`_SCALE_RANGE`): it
@@ -642,14 +645,16 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
         common = [a, kp_t[mine, i] * v, kd_t[mine, i] * a]
         Yl = links[mine, i, :]
         Yl = Yl[:, np.any(Yl != 0.0, axis=0)]
-        # A joint with runs of its own (the weight loads it only through inertia): the encoder's play
-        # (one column per width in _PLAY_WIDTHS, the one that fits best), friction's load share from the
-        # whole torque (see _fit_joint)
+        # Friction's load share from the whole torque (see _fit_joint) where the joint brakes often enough
+        # to tell it from the scale, or was excited alone to; and there the encoder's play too (one column
+        # per width in _PLAY_WIDTHS, the one that fits best)
+        braking = float(np.mean((t * v < 0) & (np.abs(v) > 2 * _SMOOTHING)))
+        whole = i in alone or braking >= _BRAKING
         tries = [None, *range(len(_PLAY_WIDTHS))] if i in alone else [None]
         best: tuple[np.ndarray, float, float, bool] | None = None
         for k in tries:
             extra = common if k is None else [*common, play[mine, k, i]]
-            got = _fit_joint(t, weight[mine, i], friction, extra, Yl, th, whole=i in alone)
+            got = _fit_joint(t, weight[mine, i], friction, extra, Yl, th, whole=whole)
             if best is None or got[1] < best[1]:
                 best = got
         assert best is not None
@@ -665,6 +670,11 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
                              load=float(load)))
     return fits
 
+
+#: fit_runs takes friction's load share from the whole torque for a joint whose torque opposes its motion
+#: (braking) in at least this share of its samples: with less, its data cannot tell the load share from the
+#: scale (wrist_roll with a weight lighter than its friction: 1 % of its samples; +17 % off that way)
+_BRAKING = 0.1
 
 #: the encoder's play as a function of the motor's torque, ``tanh(τ / (w·t_max))``, for these widths ``w``
 #: (fit_runs: a joint with runs of its own takes the one that fits best, or none)
@@ -698,7 +708,9 @@ def _fit_joint(t: np.ndarray, weight: np.ndarray, friction: list[np.ndarray], co
     says| from the second solve on (what the motor's current is, and what the friction grows with): a joint
     excited alone at its full acceleration brakes, its torque against its motion, and that tells the
     load share from the scale; where it only turned against its friction, |the torque not friction|
-    took the load share for a weaker motor (shoulder_pan: 0.903 - 0.046 = 0.857, fitted 0.854)."""
+    took the load share for a weaker motor (shoulder_pan: 0.903 - 0.046 = 0.857, fitted 0.854; wrist_roll
+    -5.0 %). Only where the joint brakes often enough (:data:`_BRAKING`): without braking both are the same
+    data, and the whole torque lets the load share run off with the scale."""
     load_col = np.zeros(len(t))
     determined = True
     nfric = len(friction)

@@ -234,9 +234,7 @@ def _real_unit_log(model: RobotModel, path: object, scale: float, coulomb: float
     return TelemetryLog(model.joint_names, t, seen, v, seen, v, tau, np.zeros_like(tau))
 
 
-@pytest.mark.parametrize("alone", [False, True])
-def test_a_vertical_axis_needs_a_run_of_its_own_to_tell_its_scale_from_friction_growing_with_load(
-        alone: bool) -> None:
+def test_a_vertical_axis_needs_a_run_of_its_own_to_tell_its_scale_from_friction_growing_with_load() -> None:
     """Issue 41: shoulder_pan's axis is vertical: the weight loads it only through inertia, and in the arm's
     excitation it turns mostly against its friction. Friction growing with the motor's torque then looks like
     a weaker motor, and an encoder's play takes off inertia: seed 0's pan came out 5.5 % weak. Runs of the
@@ -246,21 +244,17 @@ def test_a_vertical_axis_needs_a_run_of_its_own_to_tell_its_scale_from_friction_
 
     arm = Arm(ARM6)
     center, reach = (0.0, 0.0, 1.5, 1.57, 1.2, 0.0), (0.0, 0.6, 0.9, 1.57, 1.2, 0.0)
-    paths = [excitation(arm.limits, center, amplitude=0.5, duration=20, rate_hz=250)]
-    if alone:
-        held = excitation(arm.limits, reach, amplitude=0.5, duration=10, rate_hz=250)
-        held.q[:, 1:] = held.q[0, 1:]
-        paths.append(held)
+    main = excitation(arm.limits, center, amplitude=0.5, duration=20, rate_hz=250)
+    held = excitation(arm.limits, reach, amplitude=0.5, duration=10, rate_hz=250)
+    held.q[:, 1:] = held.q[0, 1:]
     model = RobotModel(ARM6, armature=True)
     model.clear_payload()
     weight = (0.5, (0.1, 0.0, 0.05))
     zero = np.zeros(6)
-    runs = [Run(_real_unit_log(model, path, 0.9, 1.5, 0.05, 0.005, w), zero, zero, None, w,
-                None if k == 0 else (0,)) for w in (None, weight) for k, path in enumerate(paths)]
-    pan = fit_runs(model, runs)[0]
-    error = pan.torque_scale / 0.9 - 1
-    if alone:
-        assert abs(error) < 0.015, pan
-        assert pan.coulomb == pytest.approx(1.5, rel=0.2), pan  # (the acceptance: within 20 %)
-    else:  # (the fault as it was: the scale minus the load share)
-        assert error < -0.03, pan
+    runs = {(w, k): Run(_real_unit_log(model, path, 0.9, 1.5, 0.05, 0.005, w), zero, zero, None, w,
+                        None if k == 0 else (0,)) for w in (None, weight) for k, path in enumerate((main, held))}
+    without = fit_runs(model, [runs[None, 0], runs[weight, 0]])[0]
+    pan = fit_runs(model, list(runs.values()))[0]
+    assert abs(pan.torque_scale / 0.9 - 1) < 0.015, pan
+    assert pan.coulomb == pytest.approx(1.5, rel=0.2), pan  # (the acceptance: within 20 %)
+    assert without.torque_scale / 0.9 - 1 < -0.015, without  # (the fault as it was: the scale less the load share)

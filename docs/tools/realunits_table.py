@@ -3,7 +3,7 @@
 docs/real-hardware.md between its markers (tests/system/test_realunits.py runs a few seeds and checks
 their rows there are what it gets).
 
-    python docs/tools/realunits_table.py              # seeds 0-19 (about 30 s each), rewrite the table
+    python docs/tools/realunits_table.py              # seeds 0-19 (about 20 s each), rewrite the table
     python docs/tools/realunits_table.py 0 3 7        # these seeds, printed only
 """
 
@@ -116,7 +116,8 @@ def table(rows: list[Row]) -> str:
     """The generated part of the page: the summary and every row."""
     seeds = sorted({r.seed for r in rows})
     return "\n".join([START, "", f"Seeds {seeds[0]}-{seeds[-1]}, weight {WEIGHT[0]} kg at {WEIGHT[1]} m (tool frame), "
-                      f"{DURATION:g} s of excitation per run, around {list(CENTER)}.", "", summary(rows), "", HEADER,
+                      f"{DURATION:g} s of excitation per run, around {list(CENTER)}; the pan alone around "
+                      f"{list(REACH)}.", "", summary(rows), "", HEADER,
                       *(r.line() for r in rows), "", END])
 
 

@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.payload_only:  # before the arm is enabled, not once the excitation is planned
         check_excitation(args.amplitude, args.seconds, names=("--amplitude", "--seconds"))
     weight = _weight(args)
+    center, reach = _center(args.center), _center(args.reach, "--reach")  # (a typo refused before the arm opens)
     config = load_from_args(args)
     with controlled(config) as arm:
         if not args.no_payload:  # an unknown payload is an external torque: the reflex would stop the arm
@@ -94,11 +95,10 @@ def run(args: argparse.Namespace) -> int:
             else:
                 print(f"identifying {config.name}: a {args.seconds:g} s excitation around where it is; every joint "
                       "moves", flush=True)
-                center = _center(args.center)
                 if weight is not None:
                     result = identify_unit(arm, weight, _ask_to_hang(weight), args.seconds, args.speed,
                                            amplitude=args.amplitude, center=center,
-                                           reach=_center(args.reach, "--reach"), offsets=not args.no_offsets)
+                                           reach=reach, offsets=not args.no_offsets)
                 else:
                     result = identify(arm, args.seconds, args.speed, amplitude=args.amplitude, center=center,
                                       payload=not args.no_payload, offsets=not args.no_offsets)
@@ -127,12 +127,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _weight(args: argparse.Namespace) -> tuple[float, tuple[float, float, float]] | None:
-    """``--weight`` and ``--weight-com`` checked (before anything moves): the weight, or ``None``."""
+    """``--weight`` and ``--weight-com`` checked (before anything moves; ``--reach`` needs them): the weight, or
+    ``None``."""
     from akarm.errors import ArgumentError, finite_number
 
     if not args.torque_scale:
         if args.weight is not None:
             raise ArgumentError("--weight is for --torque-scale", fix="add --torque-scale")
+        if args.reach is not None:
+            raise ArgumentError("--reach is for --torque-scale (where a vertical axis is excited alone)",
+                                fix="add --torque-scale --weight KG")
         return None
     if args.weight is None:
         raise ArgumentError("--torque-scale needs a known weight: without one a 20 % lighter arm and a 20 % "

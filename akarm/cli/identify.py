@@ -53,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--center", metavar="POSE",
                         help="excite around this named pose or comma-separated joint positions, rad (default: "
                              "where the arm is)")
+    parser.add_argument("--reach", metavar="POSE",
+                        help="with --torque-scale: where a joint the weight loads only through inertia (a vertical "
+                             "axis) is excited alone, the others held: a named pose or joint positions, rad, the "
+                             "arm leaning out as far as its torque allows (default: --center)")
     parser.add_argument("--payload-only", action="store_true",
                         help="only the payload, at rest in a few poses (no excitation)")
     parser.add_argument("--save", action="store_true",
@@ -75,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.payload_only:  # before the arm is enabled, not once the excitation is planned
         check_excitation(args.amplitude, args.seconds, names=("--amplitude", "--seconds"))
     weight = _weight(args)
+    center, reach = _center(args.center), _center(args.reach, "--reach")  # (a typo refused before the arm opens)
     config = load_from_args(args)
     with controlled(config) as arm:
         if not args.no_payload:  # an unknown payload is an external torque: the reflex would stop the arm
@@ -90,10 +95,10 @@ def run(args: argparse.Namespace) -> int:
             else:
                 print(f"identifying {config.name}: a {args.seconds:g} s excitation around where it is; every joint "
                       "moves", flush=True)
-                center = _center(args.center)
                 if weight is not None:
                     result = identify_unit(arm, weight, _ask_to_hang(weight), args.seconds, args.speed,
-                                           amplitude=args.amplitude, center=center, offsets=not args.no_offsets)
+                                           amplitude=args.amplitude, center=center,
+                                           reach=reach, offsets=not args.no_offsets)
                 else:
                     result = identify(arm, args.seconds, args.speed, amplitude=args.amplitude, center=center,
                                       payload=not args.no_payload, offsets=not args.no_offsets)
@@ -122,12 +127,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _weight(args: argparse.Namespace) -> tuple[float, tuple[float, float, float]] | None:
-    """``--weight`` and ``--weight-com`` checked (before anything moves): the weight, or ``None``."""
+    """``--weight`` and ``--weight-com`` checked (before anything moves; ``--reach`` needs them): the weight, or
+    ``None``."""
     from akarm.errors import ArgumentError, finite_number
 
     if not args.torque_scale:
         if args.weight is not None:
             raise ArgumentError("--weight is for --torque-scale", fix="add --torque-scale")
+        if args.reach is not None:
+            raise ArgumentError("--reach is for --torque-scale (where a vertical axis is excited alone)",
+                                fix="add --torque-scale --weight KG")
         return None
     if args.weight is None:
         raise ArgumentError("--torque-scale needs a known weight: without one a 20 % lighter arm and a 20 % "
@@ -143,8 +152,8 @@ def _weight(args: argparse.Namespace) -> tuple[float, tuple[float, float, float]
     return mass, (x, y, z)
 
 
-def _center(text: str | None) -> str | list[float] | None:
-    """``--center``: a pose's name, or joint positions."""
+def _center(text: str | None, option: str = "--center") -> str | list[float] | None:
+    """``--center`` (or ``option``): a pose's name, or joint positions."""
     if text is None or "," not in text:
         return text
     from akarm.errors import ArgumentError
@@ -152,8 +161,8 @@ def _center(text: str | None) -> str | list[float] | None:
     try:
         return [float(v) for v in text.split(",")]
     except ValueError:
-        raise ArgumentError(f"--center must be a pose's name or joint positions (rad), got {text!r}",
-                            fix="e.g. --center home") from None
+        raise ArgumentError(f"{option} must be a pose's name or joint positions (rad), got {text!r}",
+                            fix=f"e.g. {option} home") from None
 
 
 def _ask_to_hang(weight: tuple[float, tuple[float, float, float]]) -> Callable[[bool], None]:

@@ -563,6 +563,8 @@ class Run:
     kd: np.ndarray
     use: np.ndarray | None = None
     weight: tuple[float, tuple[float, float, float]] | None = None
+    #: the joints whose fit takes this run (``None``: all): a run where only these moved
+    joints: tuple[int, ...] | None = None
 
 
 def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, window: float = 0.1,
@@ -581,7 +583,10 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
     lighter links are the same data; the weight's torque, known in N·m, tells them apart. The measured
     torque is the fit's target (a fit with it among the columns shrinks the scale of a joint whose
     torque is mostly friction: the part of the torque the friction law does not explain counts as noise
-    in the column). Returns the per-joint fits (threshold unset).
+    in the column). ``|τ_i|`` in the load share's column is the torque the fit says (:func:`_fit_joint`).
+    A run with ``joints`` (a joint excited alone: identify_unit's runs for a vertical axis) informs
+    only those joints' fits, and for them the encoder's play is fitted too (:func:`_play_columns`).
+    Returns the per-joint fits (threshold unset).
 
     A joint whose torque the weight hardly changes (shoulder_pan: its axis is vertical, the weight only
     loads it through inertia) may get a scale outside what a real unit has (:data:`_SCALE_RANGE`): it
@@ -594,6 +599,8 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
         raise StateError("fit_runs needs the model without a payload", fix="model.clear_payload() first")
     n = model.n
     nb = model.link_regressor(np.zeros(n), np.zeros(n), np.zeros(n)).shape[1]
+    t_max = np.array([j.motor.t_max for j in model.config.joints])
+    alone = {i for run in runs if run.joints is not None for i in run.joints}  # joints with runs of their own
     parts: list[tuple[np.ndarray, ...]] = []
     for run in runs:
         log = run.log
@@ -615,45 +622,46 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
         if run.weight is not None:
             bare = np.array([model.inverse_dynamics(q[k], dq[k], ddq[k]) for k in idx])
             model.set_payload(run.weight[0], run.weight[1])
-            try:
+        try:
+            if run.weight is not None:
                 weight = np.array([model.inverse_dynamics(q[k], dq[k], ddq[k]) for k in idx]) - bare
-            finally:
-                model.clear_payload()
-        parts.append((tau[idx], dq[idx], ddq[idx], kp_t[idx], kd_t[idx], links, weight))
-    tau, dq, ddq, kp_t, kd_t, links, weight = (np.concatenate(x) for x in zip(*parts, strict=True))
+            inertia = np.array([np.diag(model.mass_matrix(q[k])) for k in idx])  # (the weight's included)
+        finally:
+            model.clear_payload()
+        play = _play_columns(log.tau, dt, window, t_max)[:, :, idx].transpose(2, 0, 1) * inertia[:, None, :]
+        informs = np.zeros((len(idx), n), bool)
+        informs[:, list(range(n)) if run.joints is None else list(run.joints)] = True
+        parts.append((tau[idx], dq[idx], ddq[idx], kp_t[idx], kd_t[idx], links, weight, informs, play))
+    tau, dq, ddq, kp_t, kd_t, links, weight, informs, play = (np.concatenate(x) for x in zip(*parts, strict=True))
     if len(tau) < 40:
         raise StateError(f"{len(tau)} samples are too few to identify {n} joints", fix="excite for longer")
     fits = []
     undetermined: set[int] = set()
     for i, name in enumerate(model.joint_names):
-        v, a, t = dq[:, i], ddq[:, i], tau[:, i]
+        mine = informs[:, i]
+        v, a, t = dq[mine, i], ddq[mine, i], tau[mine, i]
         th = np.tanh(v / _SMOOTHING)
         friction = [th, v] + ([np.ones(len(t))] if offsets else [])
-        common = [a, kp_t[:, i] * v, kd_t[:, i] * a]
-        Yl = links[:, i, :]
+        common = [a, kp_t[mine, i] * v, kd_t[mine, i] * a]
+        Yl = links[mine, i, :]
         Yl = Yl[:, np.any(Yl != 0.0, axis=0)]
-        # Friction's load-dependent part grows with the motor's torque but its friction; a column of the
-        # measured |τ| would be nearly the Coulomb column where the torque is mostly friction (a roll
-        # joint), and let the fit trade the scale for friction. So: the scale and friction without it,
-        # then twice with |the torque this fit says is not friction| as its column.
-        load_col = np.zeros(len(t))
-        determined = True
+        # Friction's load share from the whole torque (see _fit_joint) where the joint brakes often enough
+        # to tell it from the scale, or was excited alone to; and there the encoder's play too (one column
+        # per width in _PLAY_WIDTHS, the one that fits best)
+        braking = float(np.mean((t * v < 0) & (np.abs(v) > 2 * _SMOOTHING)))
+        whole = i in alone or braking >= _BRAKING
+        tries = [None, *range(len(_PLAY_WIDTHS))] if i in alone else [None]
+        best: tuple[np.ndarray, float, float, bool] | None = None
+        for k in tries:
+            extra = common if k is None else [*common, play[mine, k, i]]
+            got = _fit_joint(t, weight[mine, i], friction, extra, Yl, th, whole=whole)
+            if best is None or got[1] < best[1]:
+                best = got
+        assert best is not None
+        x, rms, scale, determined = best
         nfric = len(friction)
-        for _ in range(3):
-            if determined:
-                A = np.column_stack([weight[:, i], *friction, load_col, *common, Yl])
-                x, rms = _solve(A, t)
-                scale = 1.0 / x[0] if x[0] > 0 else math.inf
-                if not _SCALE_RANGE[0] <= scale <= _SCALE_RANGE[1]:
-                    determined = False  # the weight does not tell it: the catalogue's 1, friction as reported
-                    undetermined.add(i)
-            if not determined:
-                scale = 1.0
-                A = np.column_stack([weight[:, i], *friction, load_col, *common, Yl])
-                x, rms = _solve(A[:, 1:], t - weight[:, i])
-                x = np.concatenate([[1.0], x])
-            # the motor's torque that is not friction (N·m reported): the weight's, the links', the rotor's
-            load_col = np.abs(A[:, :1] @ x[:1] + A[:, 2 + nfric:] @ x[2 + nfric:]) * th
+        if not determined:
+            undetermined.add(i)
         x = x[1:] / x[0]  # N·m at the joint
         load = x[nfric]
         c, b = x[0], x[1]
@@ -661,6 +669,67 @@ def fit_runs(model: RobotModel, runs: Sequence[Run], *, offsets: bool = True, wi
         fits.append(JointFit(name, float(c), float(b), float(off), float(rms), torque_scale=float(scale),
                              load=float(load)))
     return fits
+
+
+#: fit_runs takes friction's load share from the whole torque for a joint whose torque opposes its motion
+#: (braking) in at least this share of its samples: with less, its data cannot tell the load share from the
+#: scale (wrist_roll with a weight lighter than its friction: 1 % of its samples; +17 % off that way)
+_BRAKING = 0.1
+
+#: the encoder's play as a function of the motor's torque, ``tanh(τ / (w·t_max))``, for these widths ``w``
+#: (fit_runs: a joint with runs of its own takes the one that fits best, or none)
+_PLAY_WIDTHS = (0.01, 0.02, 0.05, 0.1)
+
+
+def _play_columns(tau: np.ndarray, dt: float, window: float, t_max: np.ndarray) -> np.ndarray:
+    """Backlash: a gearbox's play puts the motor's encoder ahead of the link by an amount that turns with
+    the torque (about ``±play/2·tanh(τ/width)``), so the acceleration read from the encoder is the link's
+    plus that amount's second derivative, and a fit of inertia on it is off (5 mrad of play took 2-3 %
+    off shoulder_pan's scale). Per width of :data:`_PLAY_WIDTHS` (widths × joints × samples - 1, mid-period
+    like the fit's states): the second derivative (Savitzky-Golay, as the positions) of
+    ``tanh(τ / (width·t_max))``; times the joint's inertia, its coefficient is the play the fit removes."""
+    out = np.empty((len(_PLAY_WIDTHS), tau.shape[1], len(tau) - 1))
+    for w, width in enumerate(_PLAY_WIDTHS):
+        second = _savgol(np.tanh(tau / (width * t_max)), dt, window)[2]
+        second = 0.5 * (second[:-1] + second[1:])
+        out[w] = np.where(np.isfinite(second), second, 0.0).T
+    return out
+
+
+def _fit_joint(t: np.ndarray, weight: np.ndarray, friction: list[np.ndarray], common: list[np.ndarray],
+               links: np.ndarray, th: np.ndarray, *, whole: bool) -> tuple[np.ndarray, float, float, bool]:
+    """One joint's solve for :func:`fit_runs`: the coefficients (the weight's first: 1/scale), the RMS
+    residual, the scale, and whether the weight determined it (else 1, friction as reported).
+
+    Friction's load-dependent part grows with the motor's torque but its friction; a column of the
+    measured |τ| would be nearly the Coulomb column where the torque is mostly friction (a roll joint),
+    and let the fit trade the scale for friction. So: the scale and friction without it, then twice with
+    |the torque this fit says is not friction| as its column. ``whole``: with |the whole torque the fit
+    says| from the second solve on (what the motor's current is, and what the friction grows with): a joint
+    excited alone at its full acceleration brakes, its torque against its motion, and that tells the
+    load share from the scale; where it only turned against its friction, |the torque not friction|
+    took the load share for a weaker motor (shoulder_pan: 0.903 - 0.046 = 0.857, fitted 0.854; wrist_roll
+    -5.0 %). Only where the joint brakes often enough (:data:`_BRAKING`): without braking both are the same
+    data, and the whole torque lets the load share run off with the scale."""
+    load_col = np.zeros(len(t))
+    determined = True
+    nfric = len(friction)
+    for step in range(3):
+        A = np.column_stack([weight, *friction, load_col, *common, links])
+        if determined:
+            x, rms = _solve(A, t)
+            scale = 1.0 / x[0] if x[0] > 0 else math.inf
+            if not _SCALE_RANGE[0] <= scale <= _SCALE_RANGE[1]:
+                determined = False  # the weight does not tell it: the catalogue's 1, friction as reported
+        if not determined:
+            scale = 1.0
+            x, rms = _solve(A[:, 1:], t - weight)
+            x = np.concatenate([[1.0], x])
+        if whole and step > 0:
+            load_col = np.abs(A @ x) * th
+        else:  # the motor's torque that is not friction (N·m reported): the weight's, the links', the rotor's
+            load_col = np.abs(A[:, :1] @ x[:1] + A[:, 2 + nfric:] @ x[2 + nfric:]) * th
+    return x, rms, scale, determined
 
 
 def _solve(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:

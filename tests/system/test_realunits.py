@@ -104,17 +104,17 @@ def test_a_unit_too_weak_to_hold_a_pose_is_refused_the_move_there_and_stays_held
         assert arm.enabled
 
 
-#: the seeds CI identifies (about 30 s of CPU each); docs/tools/realunits_table.py does all 20 for the docs
+#: the seeds CI identifies (about 20 s of CPU each); docs/tools/realunits_table.py does all 20 for the docs
 IDENTIFIED = (1,)
 
 
 @pytest.mark.parametrize("seed", IDENTIFIED)
 def test_identifying_a_unit_with_a_known_weight_recovers_its_torque_scale_and_friction(channel: str,
                                                                                         seed: int) -> None:
-    """Issue 41: `identify_unit` (two runs, the second with 0.5 kg hung 10 cm off the tool's axis, the links'
-    inertial parameters free) recovers every joint's torque scale within 5 % and Coulomb friction within 20 %
-    of `Variation.truth()`, though the unit's link masses are ±20 % off the URDF's; and the docs' generated
-    table has these rows as they are now."""
+    """Issue 41: `identify_unit` (two runs, the second with 0.5 kg hung 10 cm off the tool's axis, each
+    followed by the pan alone, the links' inertial parameters free) recovers every joint's torque scale
+    within 5 % and Coulomb friction within 20 % of `Variation.truth()`, though the unit's link masses are
+    ±20 % off the URDF's; and the docs' generated table has these rows as they are now."""
     table = _units_table()
     rows = table.identify_seed(seed, channel)
     for row in rows:

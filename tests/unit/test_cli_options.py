@@ -190,6 +190,9 @@ def test_a_zero_wait_is_a_duration_the_probe_checks_too() -> None:
     (["--torque-scale", "--weight", "0"], r"--weight must be a finite number \(kg\), more than 0"),
     (["--torque-scale", "--weight", "0.5", "--weight-com", "0.1,0"], r"--weight-com must be three numbers"),
     (["--weight", "0.5"], r"--weight is for --torque-scale"),
+    (["--reach", "0,0.6,0.9"], r"--reach is for --torque-scale"),
+    (["--torque-scale", "--weight", "0.5", "--reach", "0,x"], r"--reach must be a pose's name or joint positions"),
+    (["--center", "0,x"], r"--center must be a pose's name or joint positions"),
 ])
 def test_identify_checks_its_excitation_before_opening_the_arm(options: list[str], message: str,
                                                                 capsys: pytest.CaptureFixture[str],

@@ -12,6 +12,13 @@
    constant delay is visible only here, where the stream of replies starts.
 3. **Settle**: damping (kp = 0, the joint's damping, gravity feed-forward at the measured pose)
    until every joint is slower than the settle speed; then the arm is at rest and is held there.
+   A real unit whose motor gives less than its model says (0.5-1 N·m per N·m reported), or whose
+   links are heavier, is not carried by the model's gravity: damped, it falls (a weak arm6 fell 1.9 rad
+   in 3 s and was refused with NotSettled, disabled). Each joint's gravity feed-forward is therefore
+   scaled by a factor that rises while the joint moves the way gravity pulls it and falls while it
+   moves against it (:data:`CATCH_RATE` per s at the settle speed and beyond, within 1 and
+   :data:`CATCH_MAX`): the arm is caught where it is, and a hand that moves it is not resisted more than
+   by the damping and that share of its weight.
 4. **Ramp** (:class:`GainRamp`): kp rises from zero over the enable ramp once the arm is held.
 
 Contact, and the first cycle that carries the arm after it, run at ``contact_period`` (a timing profile's
@@ -48,8 +55,8 @@ if TYPE_CHECKING:
     import can
     import numpy as np
 
-__all__ = ["AT_REST", "CONTACT_BURST", "CONTACT_REPLIES", "FOREIGN_RECENT", "LISTEN", "Enabler", "GainRamp",
-           "Refusal"]
+__all__ = ["AT_REST", "CATCH_MAX", "CATCH_RATE", "CONTACT_BURST", "CONTACT_REPLIES", "FOREIGN_RECENT", "LISTEN",
+           "Enabler", "GainRamp", "Refusal"]
 
 CONTACT_REPLIES = 2  #: consistent replies in a row that establish contact with a joint
 LISTEN = 0.02  #: s the loop listens to a bus before the first enable (a controller at 50 Hz or more shows)
@@ -59,6 +66,12 @@ AT_REST: Final = "at rest"  #: what :meth:`Enabler.step` returns once the arm is
 #: contact takes about 6 ms there; a joint that answers later is waited for at the loop's own
 #: period (a slow machine's CPU is not spent on more cycles than that)
 CONTACT_BURST = 0.2
+#: per s: how fast a joint's gravity factor rises while settling, moving the way gravity pulls it at the
+#: settle speed or faster (slower: in proportion), and falls while it moves against gravity
+CATCH_RATE = 2.0
+#: the largest gravity factor while settling (a unit giving 0.5 N·m per N·m reported, its links 20 %
+#: heavier, needs 2.4 times the model's gravity torque)
+CATCH_MAX = 2.5
 
 
 @dataclass(frozen=True)
@@ -83,6 +96,7 @@ class _Attempt:
     first_sent: float = 0.0  # when the first frames (ENTER) went out
     second: float | None = None  # when the cycle after it ran (a reply to them is read there at the soonest)
     settling_since: float | None = None  # contact made with every joint; damping since
+    catch: list[float] | None = None  # per joint, the factor on its gravity feed-forward while settling
 
 
 class Enabler:
@@ -208,6 +222,15 @@ class Enabler:
             return Refusal(stop)
         q = [j.state.position for j in js]
         g = self._gravity(q).tolist()
+        catch = en.catch
+        if catch is None:
+            catch = en.catch = [1.0] * self.n
+        step = CATCH_RATE * self.period
+        for i, j in enumerate(js):  # (see the module's docstring: a weak unit falls on the model's gravity)
+            falling = -j.state.velocity if g[i] > 0.0 else j.state.velocity  # > 0: the way gravity pulls it
+            share = max(-1.0, min(1.0, falling / self.settle_speed))
+            catch[i] = max(1.0, min(CATCH_MAX, catch[i] + step * share))
+            g[i] *= catch[i]
         for i, j in enumerate(js):
             self._send(j, j.damp(self._damping[i], g[i]))
         self._commanded(now, q, g)

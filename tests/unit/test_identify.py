@@ -162,15 +162,21 @@ def test_a_fitted_torque_scale_and_load_share_are_saved_and_read_back(tmp_path: 
     assert "torque_scale: 0.7800" in text and text.count("torque_scale") == 1
 
 
-def _unit_log(model: RobotModel, truth: RobotModel, path: object, scale: np.ndarray, coulomb: np.ndarray,
-              viscous: np.ndarray, weight: tuple[float, tuple[float, float, float]] | None) -> TelemetryLog:
-    """What a unit reports along ``path``: its links (``truth``), the weight, its friction, over its scale."""
+def _mid_period(path: object) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``path``'s times, and its positions, velocities and accelerations mid-period (each reply's torque
+    acts over the period that follows: the state mid-period, as the fit takes it)."""
     q = path.q  # type: ignore[attr-defined]
     t = path.t  # type: ignore[attr-defined]
     dq = np.gradient(q, t, axis=0)
     ddq = np.gradient(dq, t, axis=0)
-    # (each reply's torque acts over the period that follows: the state mid-period, as the fit takes it)
     q, dq, ddq = (np.vstack([0.5 * (x[:-1] + x[1:]), x[-1:]]) for x in (q, dq, ddq))
+    return t, q, dq, ddq
+
+
+def _unit_log(model: RobotModel, truth: RobotModel, path: object, scale: np.ndarray, coulomb: np.ndarray,
+              viscous: np.ndarray, weight: tuple[float, tuple[float, float, float]] | None) -> TelemetryLog:
+    """What a unit reports along ``path``: its links (``truth``), the weight, its friction, over its scale."""
+    t, q, dq, ddq = _mid_period(path)
     if weight is not None:
         truth.set_payload(*weight)
     tau = np.array([truth.inverse_dynamics(a, b, c) for a, b, c in zip(q, dq, ddq, strict=True)])
@@ -215,11 +221,7 @@ def _real_unit_log(model: RobotModel, path: object, scale: float, coulomb: float
     """What arm6's shoulder_pan reports along ``path`` (the other joints exact): Coulomb friction growing
     by ``load`` N·m per N·m the motor reports (what the simulator's units do), and an encoder ``play``/2
     ahead of the link in the direction of the torque (backlash)."""
-    q = path.q  # type: ignore[attr-defined]
-    t = path.t  # type: ignore[attr-defined]
-    dq = np.gradient(q, t, axis=0)
-    ddq = np.gradient(dq, t, axis=0)
-    q, dq, ddq = (np.vstack([0.5 * (x[:-1] + x[1:]), x[-1:]]) for x in (q, dq, ddq))
+    t, q, dq, ddq = _mid_period(path)
     if weight is not None:
         model.set_payload(*weight)
     need = np.array([model.inverse_dynamics(a, b, c) for a, b, c in zip(q, dq, ddq, strict=True)])

@@ -420,19 +420,22 @@ class ArmPainter:
 def run(painter: ArmPainter, frames: FrameFile, fps: float, pose: Callable[[], Pose | None],
         alive: Callable[[], bool] = lambda: True) -> None:
     """Draw ``pose()`` into ``frames`` ``fps`` times a second while ``alive()`` (a pose of None: not
-    yet known, nothing drawn)."""
+    yet known, nothing drawn); Ctrl-C (the terminal's, sent to a camera process too) ends it quietly."""
     period = 1.0 / fps
     next_t = time.monotonic()
-    while alive():
-        p = pose()
-        if p is not None:
-            frames.write(painter.draw(p.q, p.gripper, p.object))
-        next_t += period
-        delay = next_t - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        else:
-            next_t = time.monotonic()
+    try:
+        while alive():
+            p = pose()
+            if p is not None:
+                frames.write(painter.draw(p.q, p.gripper, p.object))
+            next_t += period
+            delay = next_t - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            else:
+                next_t = time.monotonic()
+    except KeyboardInterrupt:
+        pass
 
 
 def parent_alive(pid: int) -> Callable[[], bool]:
@@ -495,8 +498,6 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         run(painter, frames, args.fps, pose, parent_alive(args.parent))
-    except KeyboardInterrupt:
-        pass
     finally:
         frames.close()
         poses.close()

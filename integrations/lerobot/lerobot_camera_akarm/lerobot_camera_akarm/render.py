@@ -67,8 +67,6 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         run(painter, frames, args.fps, pose, parent_alive(args.parent))
-    except KeyboardInterrupt:
-        pass
     finally:
         frames.close()
     return 0

@@ -712,7 +712,7 @@ class CollisionReflex:
         err = self._judge(now, ta)
         # the model's error learnt where nothing is judged a contact (armed: every joint was calm once;
         # not at a motor's torque limit, where the torque is not known)
-        if err is None and self.armed and not res.frozen and now >= self._quiet_until and obs.started:
+        if err is None and self.armed and not res.frozen and now >= self._quiet_until:
             res.learn([0.5 * (t + m) for t, m in zip(self._thresholds, res.margin, strict=True)])
         return err
 

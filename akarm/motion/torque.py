@@ -83,11 +83,10 @@ class TorqueBudget:
         limit, share, scales, friction, friction_load = [], [], [], [], []
         for j in config.joints:
             identified = j.friction is not None
-            scale = j.friction_model().torque_scale if identified else 1.0
-            limit.append(j.limits.torque * scale)
+            fr = j.friction_model()  # (the catalogue's, unidentified: torque scale 1, no load share)
+            limit.append(j.limits.torque * fr.torque_scale)
             share.append(IDENTIFIED_SHARE if identified else UNIDENTIFIED_SHARE)
-            scales.append(scale)
-            fr = j.friction_model()
+            scales.append(fr.torque_scale)
             # friction to allow for where a measured joint moves from a hold: twice the catalogue's Coulomb
             # friction and 6 % of the load (real units), or 1.3 times the identified ones
             friction.append((1.3 if identified else 2.0) * fr.coulomb)
